@@ -1,0 +1,33 @@
+"""wbc -- QP-based whole-body velocity control for mobile manipulators.
+
+Data flows one way each tick::
+
+    Robot (model)  ->  Kinematics (computed once)  ->  tasks + constraints
+                   ->  QP (preallocated)  ->  solver  ->  command v + Controller.last
+
+Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base`
+(base pose and base-frame twists).
+"""
+
+from .base import BaseKind, MecanumWheels, MobileBase
+from .constraints import Constraint, JointPositionLimits, JointVelocityLimits
+from .controller import Controller
+from .diagnostics import TickDiagnostics
+from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, UnknownFrameError,
+                     UnknownSolverError, WbcError)
+from .qp import QP
+from .robot import Robot, load_robot, model_path, shipped_models
+from .solvers import available_solvers
+from .tasks import BaseVelocityTask, FrameTask, PostureTask, Task
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "BaseKind", "MecanumWheels", "MobileBase",
+    "Constraint", "JointPositionLimits", "JointVelocityLimits",
+    "Controller", "TickDiagnostics", "QP",
+    "InvalidInputError", "ModelError", "ScenarioError", "SolverError", "UnknownFrameError",
+    "UnknownSolverError", "WbcError",
+    "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
+    "Task", "FrameTask", "PostureTask", "BaseVelocityTask",
+]

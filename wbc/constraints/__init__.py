@@ -1,0 +1,7 @@
+"""Constraints: hard limits of the control QP."""
+
+from .constraint import Constraint, ConstraintRows
+from .joint_position_limits import JointPositionLimits
+from .joint_velocity_limits import JointVelocityLimits
+
+__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits"]

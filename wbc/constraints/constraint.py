@@ -1,0 +1,60 @@
+"""Constraint base class: hard limits of the control QP.
+
+A constraint may contribute
+
+* **bounds** ``lb <= v <= ub`` (it writes its own ``lower``/``upper`` vectors of
+  size nv, ``-inf``/``+inf`` where it has no opinion; the controller intersects
+  all of them), and/or
+* **inequality rows** ``G v <= h`` (``n_inequalities`` rows), and/or
+* **equality rows** ``A v = b`` (``n_equalities`` rows).
+
+The controller hands each constraint views into its preallocated QP buffers
+(:class:`ConstraintRows`), so nothing is allocated per tick.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics import Kinematics
+from ..robot import Robot
+
+
+@dataclass
+class ConstraintRows:
+    """Where a constraint writes this tick (all views into controller buffers)."""
+
+    lower: np.ndarray  #: (nv,) own lower bound on v
+    upper: np.ndarray  #: (nv,) own upper bound on v
+    G: np.ndarray  #: (n_inequalities, nv)
+    h: np.ndarray  #: (n_inequalities,)
+    A: np.ndarray  #: (n_equalities, nv)
+    b: np.ndarray  #: (n_equalities,)
+
+
+class Constraint(ABC):
+    """Base class of all constraints."""
+
+    has_bounds: bool = False
+    n_inequalities: int = 0
+    n_equalities: int = 0
+
+    def __init__(self, name: str | None = None) -> None:
+        self.name = name or type(self).__name__
+
+    def bind(self, robot: Robot) -> None:
+        """Resolve the robot's limits and allocate (called once by the controller)."""
+
+    @abstractmethod
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        """Write this tick's bounds / rows."""
+
+    def row_labels(self) -> list[str]:
+        """Human-readable names of the inequality rows, then of the equality rows."""
+        return [f"row {i}" for i in range(self.n_inequalities + self.n_equalities)]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}()"

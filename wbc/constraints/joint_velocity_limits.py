@@ -1,0 +1,48 @@
+"""Joint (and base) speed limits."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import Kinematics
+from ..robot import Robot
+from .constraint import Constraint, ConstraintRows
+
+
+class JointVelocityLimits(Constraint):
+    """``|v_i| <= velocity_limit_i`` for every coordinate with a finite limit.
+
+    For a mobile base the linear limit holds in the **base frame** (the platform's
+    own speed limits do not rotate with the world): four rows
+    ``|c xdot + s ydot| <= v_max`` and ``|-s xdot + c ydot| <= v_max`` with
+    ``(c, s) = (cos yaw, sin yaw)``; the yaw rate is a plain bound.
+    """
+
+    has_bounds = True
+
+    def bind(self, robot: Robot) -> None:
+        limit = robot.velocity_limit.copy()
+        base = robot.base
+        self._base_rows = base.is_mobile and np.isfinite(base.max_linear_speed)
+        if base.is_mobile:
+            self._x, self._y, self._yaw = base.indices
+            limit[[self._x, self._y]] = np.inf  # handled by the base-frame rows
+            self._linear_limit = base.max_linear_speed
+        self.n_inequalities = 4 if self._base_rows else 0
+        self._limit = limit
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        np.negative(self._limit, out=rows.lower)
+        rows.upper[...] = self._limit
+        if self._base_rows:
+            yaw = kin.q[self._yaw]
+            cos, sin = np.cos(yaw), np.sin(yaw)
+            G = rows.G
+            G[0, self._x], G[0, self._y] = cos, sin
+            G[1, self._x], G[1, self._y] = -cos, -sin
+            G[2, self._x], G[2, self._y] = -sin, cos
+            G[3, self._x], G[3, self._y] = sin, -cos
+            rows.h.fill(self._linear_limit)
+
+    def row_labels(self) -> list[str]:
+        return ["base v_x upper", "base v_x lower", "base v_y upper", "base v_y lower"][: self.n_inequalities]

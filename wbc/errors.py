@@ -1,0 +1,31 @@
+"""Exception hierarchy of wbc: every error the library raises derives from WbcError."""
+
+from __future__ import annotations
+
+
+class WbcError(Exception):
+    """Base class of all wbc errors."""
+
+
+class InvalidInputError(WbcError, ValueError):
+    """An argument has the wrong shape, dtype or a non-finite / out-of-domain value."""
+
+
+class UnknownFrameError(WbcError, LookupError):
+    """A frame name is not part of the robot model."""
+
+
+class UnknownSolverError(WbcError, ValueError):
+    """A QP solver name is not one that qpsolvers finds installed."""
+
+
+class ModelError(WbcError):
+    """A robot description could not be found or is inconsistent."""
+
+
+class ScenarioError(WbcError, ValueError):
+    """A scenario file (tasks/*.toml) is malformed."""
+
+
+class SolverError(WbcError, RuntimeError):
+    """The QP solver failed or returned a non-finite solution."""

@@ -1,0 +1,65 @@
+"""The QP of one control tick, in preallocated buffers.
+
+    minimize    1/2 v^T H v + c^T v
+    subject to  G v <= h,   A v = b,   lb <= v <= ub
+
+Inequality and equality rows share one matrix ``C = [G; A]`` and the bounds share
+``upper = [ub; h; b]``, ``lower = [lb; -inf; b]`` -- the layout DAQP consumes
+directly -- so ``G, h, A, b, lb, ub`` are views and no backend has to copy.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class QP:
+    """Buffers of a QP with ``n`` variables, ``n_ineq`` inequality and ``n_eq`` equality rows."""
+
+    n: int
+    n_ineq: int = 0
+    n_eq: int = 0
+    H: np.ndarray = field(init=False)
+    c: np.ndarray = field(init=False)
+    C: np.ndarray = field(init=False)
+    upper: np.ndarray = field(init=False)
+    lower: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        n, p, e = self.n, self.n_ineq, self.n_eq
+        self.H = np.zeros((n, n))
+        self.c = np.zeros(n)
+        self.C = np.zeros((p + e, n))
+        self.upper = np.full(n + p + e, np.inf)
+        self.lower = np.full(n + p + e, -np.inf)
+        self.lb, self.ub = self.lower[:n], self.upper[:n]
+        self.G, self.h = self.C[:p], self.upper[n : n + p]
+        self.A, self.b = self.C[p:], self.upper[n + p :]
+
+    @property
+    def has_bounds(self) -> bool:
+        return bool(np.any(np.isfinite(self.lb)) or np.any(np.isfinite(self.ub)))
+
+    def sync_equalities(self) -> None:
+        """Mirror ``b`` into the lower bound of the equality rows (call after writing ``b``)."""
+        self.lower[self.n + self.n_ineq :] = self.b
+
+    def violation(self, x: np.ndarray) -> float:
+        """Largest constraint violation of ``x`` (0 when feasible)."""
+        worst = 0.0
+        if self.n_ineq or self.n_eq:
+            rows = self.C @ x
+            worst = max(worst, float(np.max(rows - self.upper[self.n :], initial=0.0)))
+            worst = max(worst, float(np.max(self.lower[self.n :] - rows, initial=0.0)))
+        worst = max(worst, float(np.max(x - self.ub, initial=0.0)), float(np.max(self.lb - x, initial=0.0)))
+        return worst
+
+    def copy(self) -> "QP":
+        """A deep copy (used to record QPs for tests and benchmarks)."""
+        other = QP(self.n, self.n_ineq, self.n_eq)
+        for name in ("H", "c", "C", "upper", "lower"):
+            getattr(other, name)[...] = getattr(self, name)
+        return other

@@ -1,0 +1,265 @@
+"""Robot model: a Pinocchio model plus what a URDF cannot say (base kind, unbounded axes).
+
+Conventions, fixed here for the whole library:
+
+* ``q`` (size ``nq``) and ``v`` (size ``nv``) are Pinocchio's configuration and
+  velocity vectors. For the shipped youBot they coincide (nq = nv = 8):
+  ``q = (X_C, Y_C, theta, theta1, ..., theta5)`` as in Kapustina (2019).
+* Poses are 4x4 homogeneous transforms of the frame in the **world** frame.
+* Jacobians are 6 x nv and map ``v`` to the frame's twist expressed in the
+  **world-aligned frame at the frame origin** (Pinocchio's LOCAL_WORLD_ALIGNED),
+  rows ordered **(linear [m/s]; angular [rad/s])**.
+* Rotations are matrices; wherever a quaternion appears it is (x, y, z, w).
+"""
+
+from __future__ import annotations
+
+import difflib
+import sys
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .base import FIXED_BASE, BaseKind, MecanumWheels, MobileBase
+from .errors import ModelError, UnknownFrameError
+from .validation import as_positive, as_vector
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+_REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+
+@dataclass
+class Robot:
+    """A kinematic robot model.
+
+    Build it with :func:`load_robot`. Attributes:
+
+    * ``model`` -- the ``pinocchio.Model`` (read it, do not mutate it);
+    * ``base`` -- the :class:`~wbc.base.MobileBase`;
+    * ``lower``, ``upper`` -- position limits (size nq, ``+-inf`` where unbounded);
+    * ``velocity_limit`` -- symmetric speed limits (size nv) [rad/s or m/s]; for a
+      mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``.
+    """
+
+    name: str
+    model: pin.Model
+    base: MobileBase = FIXED_BASE
+    end_effector: str | None = None
+    parameters: dict = field(default_factory=dict)
+    source: Path | None = None
+
+    def __post_init__(self) -> None:
+        model = self.model
+        self._data = model.createData()
+        self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
+        self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
+        self.velocity_limit = np.array(model.velocityLimit, dtype=np.float64)
+        if self.base.is_mobile:
+            x, y, yaw = self.base.indices
+            self.lower[[x, y, yaw]] = -np.inf
+            self.upper[[x, y, yaw]] = np.inf
+            self.velocity_limit[[x, y]] = self.base.max_linear_speed
+            self.velocity_limit[yaw] = self.base.max_yaw_rate
+        for array in (self.lower, self.upper, self.velocity_limit):
+            array.flags.writeable = False
+        self.joint_names: list[str] = list(model.names[1:])
+        self._frame_ids: dict[str, int] = {}
+        for index, frame in enumerate(model.frames):
+            self._frame_ids.setdefault(frame.name, index)
+
+    # ------------------------------------------------------------------ sizes
+    @property
+    def nq(self) -> int:
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        return self.model.nv
+
+    @property
+    def frame_names(self) -> list[str]:
+        return list(self._frame_ids)
+
+    # --------------------------------------------------------------- helpers
+    def frame_id(self, frame: str) -> int:
+        """Pinocchio index of ``frame``; raises UnknownFrameError with suggestions."""
+        try:
+            return self._frame_ids[frame]
+        except (KeyError, TypeError):
+            close = difflib.get_close_matches(str(frame), self._frame_ids, n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            raise UnknownFrameError(f"robot '{self.name}' has no frame {frame!r}{hint}") from None
+
+    def check_configuration(self, q) -> np.ndarray:
+        """Validate ``q`` (shape, finiteness) and return it as a float64 array."""
+        return as_vector(q, self.nq, "q")
+
+    def check_velocity(self, v) -> np.ndarray:
+        return as_vector(v, self.nv, "v")
+
+    def neutral(self) -> np.ndarray:
+        """Pinocchio's neutral configuration (zeros for the youBot: the arm straight up)."""
+        return pin.neutral(self.model)
+
+    def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> np.ndarray:
+        """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``."""
+        low = np.where(np.isfinite(self.lower), self.lower, -base_range)
+        high = np.where(np.isfinite(self.upper), self.upper, base_range)
+        return rng.uniform(low, high)
+
+    def within_limits(self, q, tol: float = 0.0) -> bool:
+        q = self.check_configuration(q)
+        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
+
+    # ------------------------------------------------------------ kinematics
+    def frame_pose(self, q, frame: str) -> np.ndarray:
+        """World pose of ``frame`` at ``q``, as a 4x4 homogeneous transform."""
+        frame_id = self.frame_id(frame)
+        q = self.check_configuration(q)
+        pin.forwardKinematics(self.model, self._data, q)
+        return pin.updateFramePlacement(self.model, self._data, frame_id).homogeneous
+
+    def frame_jacobian(self, q, frame: str) -> np.ndarray:
+        """6 x nv Jacobian of ``frame``: world-aligned axes at the frame origin, rows (linear; angular)."""
+        frame_id = self.frame_id(frame)
+        q = self.check_configuration(q)
+        return pin.computeFrameJacobian(self.model, self._data, q, frame_id, _REFERENCE_FRAME)
+
+    def integrate(self, q, v, dt: float) -> np.ndarray:
+        """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s]."""
+        q = self.check_configuration(q)
+        v = self.check_velocity(v)
+        dt = as_positive(dt, "dt")
+        return pin.integrate(self.model, q, v * dt)
+
+    def __repr__(self) -> str:
+        return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, base={self.base.kind.value})"
+
+
+# ---------------------------------------------------------------------------- loading
+def shipped_models() -> list[str]:
+    """Names of the robots shipped in ``models/``."""
+    root = resources.files("wbc.models")
+    return sorted(p.name for p in root.iterdir() if p.is_dir() and (p / f"{p.name}.toml").is_file())
+
+
+def model_path(name: str, kind: str = "urdf") -> Path:
+    """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``."""
+    if name not in shipped_models():
+        raise ModelError(f"no shipped model {name!r}; available: {shipped_models()}")
+    folder = Path(str(resources.files("wbc.models") / name))
+    params = _read_toml(folder / f"{name}.toml")
+    filename = {"toml": f"{name}.toml", "urdf": params.get("urdf"), "mjcf": params.get("mjcf")}.get(kind)
+    if filename is None:
+        raise ModelError(f"model {name!r} has no {kind} description")
+    return folder / filename
+
+
+def load_robot(name_or_path: str | Path) -> Robot:
+    """Load a shipped robot by name (``"youbot"``) or any URDF by path.
+
+    A URDF may sit next to a ``<stem>.toml`` sidecar (see ``models/youbot/youbot.toml``)
+    that declares the base. Without one, a chain of root joints prismatic-x,
+    prismatic-y, revolute-z is recognised as a holonomic planar base; anything else
+    is a fixed-base robot.
+    """
+    if isinstance(name_or_path, str) and name_or_path in shipped_models():
+        sidecar = model_path(name_or_path, "toml")
+        return _load_from_sidecar(sidecar)
+    path = Path(name_or_path)
+    if not path.is_file():
+        raise ModelError(
+            f"{str(name_or_path)!r} is neither a shipped model ({', '.join(shipped_models())}) nor a file"
+        )
+    if path.suffix == ".toml":
+        return _load_from_sidecar(path)
+    sidecar = path.with_suffix(".toml")
+    if sidecar.is_file():
+        return _load_from_sidecar(sidecar)
+    model = _build_model(path)
+    return Robot(name=model.name or path.stem, model=model, base=_detect_planar_base(model), source=path)
+
+
+def _read_toml(path: Path) -> dict:
+    try:
+        with open(path, "rb") as stream:
+            return tomllib.load(stream)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ModelError(f"cannot read {path}: {exc}") from exc
+
+
+def _build_model(urdf: Path) -> pin.Model:
+    try:
+        return pin.buildModelFromUrdf(str(urdf))
+    except (ValueError, RuntimeError) as exc:
+        raise ModelError(f"cannot parse URDF {urdf}: {exc}") from exc
+
+
+def _load_from_sidecar(sidecar: Path) -> Robot:
+    params = _read_toml(sidecar)
+    urdf = sidecar.parent / params.get("urdf", sidecar.with_suffix(".urdf").name)
+    model = _build_model(urdf)
+    return Robot(
+        name=params.get("name", sidecar.stem),
+        model=model,
+        base=_base_from_params(model, params.get("base", {"kind": "fixed"})),
+        end_effector=params.get("end_effector"),
+        parameters=params,
+        source=urdf,
+    )
+
+
+def _base_from_params(model: pin.Model, spec: dict) -> MobileBase:
+    try:
+        kind = BaseKind(spec.get("kind", "fixed"))
+    except ValueError as exc:
+        raise ModelError(f"unknown base kind {spec.get('kind')!r}; known: {[k.value for k in BaseKind]}") from exc
+    if kind is BaseKind.FIXED:
+        return FIXED_BASE
+    names = spec.get("joints")
+    if not names or len(names) != 3:
+        raise ModelError("a mobile base needs joints = [x, y, yaw] in its sidecar")
+    indices = []
+    for joint_name in names:
+        if not model.existJointName(joint_name):
+            raise ModelError(f"base joint {joint_name!r} is not in the model")
+        joint = model.joints[model.getJointId(joint_name)]
+        if joint.nq != 1 or joint.nv != 1:
+            raise ModelError(f"base joint {joint_name!r} must be a 1-DOF joint")
+        indices.append(joint.idx_v)
+    wheels = spec.get("wheels")
+    return MobileBase(
+        kind=kind,
+        indices=tuple(indices),
+        max_linear_speed=float(spec.get("max_linear_speed", np.inf)),
+        max_yaw_rate=float(spec.get("max_yaw_rate", np.inf)),
+        wheels=MecanumWheels(**wheels) if wheels else None,
+    )
+
+
+def _detect_planar_base(model: pin.Model) -> MobileBase:
+    """Recognise root joints (prismatic x, prismatic y, revolute z) as a planar base."""
+    expected = ("JointModelPX", "JointModelPY", "JointModelRZ")
+    if model.njoints < 4:
+        return FIXED_BASE
+    joints = [model.joints[i] for i in (1, 2, 3)]
+    chained = all(model.parents[i] == i - 1 for i in (1, 2, 3))
+    if chained and tuple(j.shortname() for j in joints) == expected:
+        limits = model.velocityLimit
+        return MobileBase(
+            BaseKind.PLANAR,
+            indices=tuple(j.idx_v for j in joints),
+            max_linear_speed=float(min(limits[joints[0].idx_v], limits[joints[1].idx_v])),
+            max_yaw_rate=float(limits[joints[2].idx_v]),
+        )
+    return FIXED_BASE
+
+
+__all__ = ["Robot", "load_robot", "shipped_models", "model_path"]

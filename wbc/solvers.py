@@ -1,0 +1,148 @@
+"""QP backends behind one interface: ``QPSolver.solve(qp) -> QPSolution``.
+
+Every solver that qpsolvers finds installed works by name through
+:class:`QpsolversBackend`. ``"daqp"`` additionally has a direct backend that hands
+the preallocated buffers of :class:`~wbc.qp.QP` to DAQP without any copy.
+
+Default settings aim at control-grade accuracy (primal/dual residuals ~1e-9) so
+that all backends return the same command; override them with ``options``.
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+import qpsolvers
+import scipy.sparse as sp
+
+from .errors import UnknownSolverError
+from .qp import QP
+
+#: per-backend settings passed to qpsolvers unless the user overrides them
+DEFAULT_SETTINGS: dict[str, dict] = {
+    "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True, "max_iter": 200_000},
+    "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
+    "clarabel": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10},
+    "piqp": {"eps_abs": 1e-10, "eps_rel": 1e-10},
+    "highs": {"primal_feasibility_tolerance": 1e-9, "dual_feasibility_tolerance": 1e-9},
+    "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
+    "ecos": {"abstol": 1e-10, "reltol": 1e-10, "feastol": 1e-10},
+}
+
+_SPARSE_SOLVERS = set(getattr(qpsolvers, "sparse_solvers", ()))
+
+
+@dataclass
+class QPSolution:
+    """Outcome of one solve: ``x`` is None unless ``success``."""
+
+    x: np.ndarray | None
+    success: bool
+    status: str
+    solve_time: float  #: wall time inside the backend [s]
+
+
+class QPSolver(ABC):
+    """A QP backend."""
+
+    name: str
+
+    @abstractmethod
+    def solve(self, qp: QP) -> QPSolution: ...
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name!r})"
+
+
+def available_solvers() -> list[str]:
+    """Names of the QP solvers qpsolvers finds installed."""
+    return list(qpsolvers.available_solvers)
+
+
+def make_solver(name: str, options: dict | None = None) -> QPSolver:
+    """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise."""
+    if not isinstance(name, str) or name not in qpsolvers.available_solvers:
+        raise UnknownSolverError(
+            f"unknown or uninstalled QP solver {name!r}; installed: {', '.join(available_solvers())}"
+        )
+    if name == "daqp":
+        return DaqpBackend(options)
+    return QpsolversBackend(name, options)
+
+
+class QpsolversBackend(QPSolver):
+    """Any qpsolvers backend, called through ``qpsolvers.solve_problem``."""
+
+    def __init__(self, name: str, options: dict | None = None) -> None:
+        self.name = name
+        self.settings = {**DEFAULT_SETTINGS.get(name, {}), **(options or {})}
+        self._sparse = name in _SPARSE_SOLVERS
+
+    def solve(self, qp: QP) -> QPSolution:
+        matrix = sp.csc_matrix if self._sparse else (lambda m: m)
+        problem = qpsolvers.Problem(
+            matrix(qp.H),
+            qp.c,
+            matrix(qp.G) if qp.n_ineq else None,
+            qp.h if qp.n_ineq else None,
+            matrix(qp.A) if qp.n_eq else None,
+            qp.b if qp.n_eq else None,
+            qp.lb if qp.has_bounds else None,
+            qp.ub if qp.has_bounds else None,
+        )
+        start = time.perf_counter()
+        try:
+            solution = qpsolvers.solve_problem(problem, solver=self.name, **self.settings)
+        except Exception as exc:  # backends raise many types; report, never propagate
+            return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+        elapsed = time.perf_counter() - start
+        x = solution.x
+        if not solution.found or x is None or not np.all(np.isfinite(x)):
+            return QPSolution(None, False, "not found", elapsed)
+        return QPSolution(np.asarray(x, dtype=np.float64), True, "optimal", elapsed)
+
+
+class DaqpBackend(QPSolver):
+    """DAQP called directly on the QP buffers (no copies, no qpsolvers conversion)."""
+
+    name = "daqp"
+
+    def __init__(self, options: dict | None = None) -> None:
+        import daqp
+
+        self._solve = daqp.solve
+        self.settings = dict(options or {})
+        self._sense: np.ndarray | None = None
+
+    def _sense_for(self, qp: QP) -> np.ndarray:
+        size = qp.n + qp.n_ineq + qp.n_eq
+        if self._sense is None or self._sense.size != size:
+            self._sense = np.zeros(size, dtype=np.int32)
+            self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
+        return self._sense
+
+    def solve(self, qp: QP) -> QPSolution:
+        sense = self._sense_for(qp)
+        start = time.perf_counter()
+        try:
+            x, _, exitflag, _ = self._solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense, **self.settings)
+        except Exception as exc:
+            return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+        elapsed = time.perf_counter() - start
+        if exitflag < 1 or not np.all(np.isfinite(x)):
+            return QPSolution(None, False, _DAQP_EXITFLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)
+        return QPSolution(x, True, "optimal", elapsed)
+
+
+_DAQP_EXITFLAGS = {
+    -1: "infeasible",
+    -2: "cycling detected",
+    -3: "unbounded",
+    -4: "iteration limit",
+    -5: "nonconvex",
+    -6: "initial point infeasible",
+    2: "soft optimal",
+}

@@ -1,0 +1,61 @@
+"""Track a commanded planar base twist."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kinematics import Kinematics
+from ..robot import Robot
+from ..errors import InvalidInputError
+from ..validation import as_vector, as_weights
+from .task import Task
+
+
+class BaseVelocityTask(Task):
+    """Make the mobile base follow a twist ``(v_x, v_y, omega)`` given in the **base frame**.
+
+    With base yaw ``theta`` and world rates ``(xdot, ydot, thetadot)``, the base-frame
+    twist is ``S(theta) v`` with ``S = [[c, s, 0], [-s, c, 0], [0, 0, 1]]`` on the base
+    coordinates. Rows: ``W (S v - twist*)``.
+
+    Args:
+        cost: [cost] / [m/s]^2 (and [rad/s]^2 for the yaw row), scalar or one per row.
+    """
+
+    dim = 3
+
+    def __init__(self, cost, name: str | None = None) -> None:
+        super().__init__(name)
+        self.cost = as_weights(cost, 3, "cost")
+        self._weights = np.sqrt(self.cost)
+        self.twist = np.zeros(3)  #: commanded (v_x [m/s], v_y [m/s], omega [rad/s]), base frame
+        self._achieved = np.zeros(3)
+
+    def set_target(self, twist) -> None:
+        """Command a base-frame twist ``(v_x, v_y, omega)``."""
+        self.twist[...] = as_vector(twist, 3, "base twist")
+
+    def bind(self, robot: Robot) -> None:
+        if not robot.base.is_mobile:
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a fixed base")
+        self._x, self._y, self._yaw = robot.base.indices
+
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        yaw = kin.q[self._yaw]
+        cos, sin = np.cos(yaw), np.sin(yaw)
+        w = self._weights
+        jacobian.fill(0.0)
+        jacobian[0, self._x], jacobian[0, self._y] = w[0] * cos, w[0] * sin
+        jacobian[1, self._x], jacobian[1, self._y] = -w[1] * sin, w[1] * cos
+        jacobian[2, self._yaw] = w[2]
+        np.multiply(self.twist, w, out=target)
+        self._cos_sin = (cos, sin)
+
+    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
+        cos, sin = self._cos_sin
+        xdot, ydot, yawdot = v[self._x], v[self._y], v[self._yaw]
+        self._achieved[:] = (cos * xdot + sin * ydot, -sin * xdot + cos * ydot, yawdot)
+        errors[self.name] = float(np.linalg.norm(self._achieved - self.twist))
+
+    def __repr__(self) -> str:
+        return f"BaseVelocityTask(cost={self.cost.tolist()})"

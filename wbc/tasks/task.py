@@ -1,0 +1,46 @@
+"""Task base class: one weighted least-squares term of the control QP.
+
+A task contributes ``|| W (J v - r) ||^2`` to the cost, where ``v`` is the joint
+velocity [SI units of each coordinate per second], ``J`` (dim x nv) the task
+Jacobian, ``r`` (dim) the desired task velocity and ``W = diag(sqrt(cost))``.
+Tasks write ``W J`` and ``W r`` straight into rows of the controller's stacked
+buffers, so the whole stack costs a single ``H = Js^T Js`` product per tick.
+
+Gains follow the per-tick convention of Pink and mink: ``gain`` in (0, 1] is the
+fraction of the current error ``e`` the task asks to remove in one tick of length
+``dt``, i.e. ``r = gain * e / dt`` (+ feed-forward), a continuous-time gain of
+``gain / dt`` [1/s].
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+
+import numpy as np
+
+from ..kinematics import Kinematics
+from ..robot import Robot
+
+
+class Task(ABC):
+    """Base class of all tasks."""
+
+    #: number of task rows
+    dim: int
+
+    def __init__(self, name: str | None = None) -> None:
+        self.name = name or self.default_name()
+
+    def default_name(self) -> str:
+        return type(self).__name__
+
+    def bind(self, robot: Robot) -> None:
+        """Resolve names against ``robot`` and allocate buffers (called once by the controller)."""
+
+    @abstractmethod
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        """Write ``W J`` into ``jacobian`` (dim x nv) and ``W r`` into ``target`` (dim)."""
+
+    @abstractmethod
+    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
+        """Add this tick's error measures (unweighted, SI units) to ``errors``."""

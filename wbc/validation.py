@@ -1,0 +1,77 @@
+"""Checks at the API boundary: everything that enters wbc is validated here, once.
+
+All checks raise :class:`~wbc.errors.InvalidInputError` with a message that names
+the offending argument, before any kinematics or solver code runs.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
+
+
+def as_vector(value, size: int, name: str) -> np.ndarray:
+    """Return ``value`` as a finite float64 vector of length ``size``."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    if array.shape != (size,):
+        raise InvalidInputError(f"{name} must have shape ({size},), got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise InvalidInputError(f"{name} contains NaN or inf: {array}")
+    return array
+
+
+def as_weights(value, size: int, name: str) -> np.ndarray:
+    """Return a scalar or per-axis cost as a non-negative finite vector of length ``size``."""
+    array = np.asarray(value, dtype=np.float64)
+    if array.ndim == 0:
+        array = np.full(size, float(array))
+    array = as_vector(array, size, name)
+    if np.any(array < 0.0):
+        raise InvalidInputError(f"{name} must be >= 0, got {array}")
+    return array
+
+
+def as_positive(value, name: str) -> float:
+    """Return ``value`` as a finite float > 0."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name} must be a number, got {value!r}") from exc
+    if not np.isfinite(number) or number <= 0.0:
+        raise InvalidInputError(f"{name} must be finite and > 0, got {value!r}")
+    return number
+
+
+def as_gain(value, name: str = "gain") -> float:
+    """Return a per-tick gain in (0, 1]."""
+    gain = as_positive(value, name)
+    if gain > 1.0:
+        raise InvalidInputError(f"{name} must lie in (0, 1], got {gain}")
+    return gain
+
+
+def as_pose(value, name: str) -> np.ndarray:
+    """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation."""
+    try:
+        pose = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name} must be a 4x4 numeric array") from exc
+    if pose.shape != (4, 4):
+        raise InvalidInputError(f"{name} must be a 4x4 homogeneous transform, got shape {pose.shape}")
+    if not np.all(np.isfinite(pose)):
+        raise InvalidInputError(f"{name} contains NaN or inf")
+    if np.max(np.abs(pose[3] - (0.0, 0.0, 0.0, 1.0))) > 1e-12:
+        raise InvalidInputError(f"{name}: last row must be [0, 0, 0, 1], got {pose[3]}")
+    rotation = pose[:3, :3]
+    orthogonality = np.max(np.abs(rotation.T @ rotation - np.eye(3)))
+    if orthogonality > ROTATION_TOLERANCE or abs(np.linalg.det(rotation) - 1.0) > ROTATION_TOLERANCE:
+        raise InvalidInputError(
+            f"{name}: the 3x3 block is not a rotation matrix (|R^T R - I| = {orthogonality:.2e})"
+        )
+    return pose
