@@ -17,7 +17,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .constraints.constraint import Constraint, ConstraintRows
-from .diagnostics import TickDiagnostics
+from .diagnostics import ActiveSetLabels, TickDiagnostics
 from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
 from .qp import QP
@@ -43,7 +43,7 @@ class Controller:
     """
 
     def __init__(self, robot: Robot, tasks: Sequence[Task], constraints: Sequence[Constraint] = (),
-                 solver: str = "daqp", dt: float = 0.01, damping: float = 1e-6,
+                 solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
                  solver_options: dict | None = None) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
@@ -92,9 +92,9 @@ class Controller:
         bounded = [c for c in self.constraints if c.has_bounds]
         self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
         self._upper = np.full((max(len(bounded), 1), nv), np.inf)
+        self._bound_gap = np.zeros((len(self._lower), 2, nv))
         self._constraint_blocks = []
-        self._row_labels: list[str] = []
-        self._bound_owners = bounded
+        row_labels: list[str] = []
         i_ineq = i_eq = 0
         for constraint in self.constraints:
             k = bounded.index(constraint) if constraint.has_bounds else None
@@ -105,13 +105,16 @@ class Controller:
                                    self.qp.G[i_ineq:i_ineq + p], self.qp.h[i_ineq:i_ineq + p],
                                    self.qp.A[i_eq:i_eq + e], self.qp.b[i_eq:i_eq + e])
             self._constraint_blocks.append((constraint, block))
-            labels = constraint.row_labels()
-            self._row_labels += [f"{constraint.name}: {label}" for label in labels[:p]]
+            row_labels += [f"{constraint.name}: {label}" for label in constraint.row_labels()[:p]]
+            constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
         for constraint in self.constraints:
             labels = constraint.row_labels()[constraint.n_inequalities:]
-            self._row_labels += [f"{constraint.name}: {label}" for label in labels]
-        self._coordinate_names = _velocity_names(self.robot)
+            row_labels += [f"{constraint.name}: {label}" for label in labels]
+        names = _velocity_names(self.robot)
+        bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
+                        for c in bounded] or [[""] * (2 * nv)]
+        self._labels = ActiveSetLabels(bound_labels, row_labels)
         self._diag = np.arange(nv) * (nv + 1)
 
     # --------------------------------------------------------------- hot path
@@ -135,8 +138,10 @@ class Controller:
 
         for constraint, block in self._constraint_blocks:
             constraint.compute(kin, dt, block)
-        np.max(self._lower, axis=0, out=qp.lb)
-        np.min(self._upper, axis=0, out=qp.ub)
+        qp.lb[:], qp.ub[:] = self._lower[0], self._upper[0]
+        for lower, upper in zip(self._lower[1:], self._upper[1:]):
+            np.maximum(qp.lb, lower, out=qp.lb)
+            np.minimum(qp.ub, upper, out=qp.ub)
         if qp.n_eq:
             qp.sync_equalities()
 
@@ -152,33 +157,29 @@ class Controller:
     # ------------------------------------------------------------ diagnostics
     def _diagnostics(self, v, solution, start: float) -> TickDiagnostics:
         errors: dict[str, float] = {}
-        active: list[str] = []
-        violation = float("nan")
-        if v is not None:
-            for task in self.tasks:
-                task.report(v, errors)
-            violation = self.qp.violation(v)
-            active = self._active_constraints(v)
-        return TickDiagnostics(
-            tick=self._tick, solver=self.solver.name, status=solution.status, success=solution.success,
-            solve_time=solution.solve_time, tick_time=time.perf_counter() - start,
-            task_errors=errors, max_violation=violation, active_constraints=active,
-            v=None if v is None else v.copy(),
-        )
-
-    def _active_constraints(self, v: np.ndarray) -> list[str]:
-        labels = []
-        for k, constraint in enumerate(self._bound_owners):
-            for i in np.flatnonzero(np.abs(v - self._upper[k]) <= ACTIVE_TOLERANCE):
-                labels.append(f"{constraint.name}: {self._coordinate_names[i]} upper")
-            for i in np.flatnonzero(np.abs(v - self._lower[k]) <= ACTIVE_TOLERANCE):
-                labels.append(f"{constraint.name}: {self._coordinate_names[i]} lower")
+        if v is None:
+            return TickDiagnostics(self._tick, self.solver.name, solution.status, False, solution.solve_time,
+                                   time.perf_counter() - start, errors, float("nan"))
+        for task in self.tasks:
+            task.report(v, errors)
         qp = self.qp
-        if qp.n_ineq:
-            for i in np.flatnonzero(qp.G @ v >= qp.h - ACTIVE_TOLERANCE):
-                labels.append(self._row_labels[i])
-        labels += self._row_labels[qp.n_ineq:]  # equalities are always active
-        return labels
+        gap = self._bound_gap
+        np.subtract(v, self._upper, out=gap[:, 0])
+        np.subtract(v, self._lower, out=gap[:, 1])
+        bound_mask = (np.abs(gap) <= ACTIVE_TOLERANCE).reshape(len(gap), -1)
+        violation = max(gap[:, 0].max(), -gap[:, 1].min(), 0.0)
+        row_mask = None
+        if qp.n_ineq or qp.n_eq:
+            rows = qp.C @ v
+            rows -= qp.upper[qp.n:]
+            row_mask = np.ones(rows.size, dtype=bool)
+            row_mask[: qp.n_ineq] = rows[: qp.n_ineq] >= -ACTIVE_TOLERANCE
+            violation = max(violation, rows[: qp.n_ineq].max(initial=0.0), np.abs(rows[qp.n_ineq:]).max(initial=0.0))
+        return TickDiagnostics(
+            self._tick, self.solver.name, solution.status, True, solution.solve_time,
+            time.perf_counter() - start, errors, float(violation), v.copy(),
+            bound_mask, row_mask, self._labels,
+        )
 
     def __repr__(self) -> str:
         return (f"Controller({self.robot.name!r}, tasks={self.tasks}, constraints={self.constraints}, "

@@ -47,16 +47,6 @@ class QP:
         """Mirror ``b`` into the lower bound of the equality rows (call after writing ``b``)."""
         self.lower[self.n + self.n_ineq :] = self.b
 
-    def violation(self, x: np.ndarray) -> float:
-        """Largest constraint violation of ``x`` (0 when feasible)."""
-        worst = 0.0
-        if self.n_ineq or self.n_eq:
-            rows = self.C @ x
-            worst = max(worst, float(np.max(rows - self.upper[self.n :], initial=0.0)))
-            worst = max(worst, float(np.max(self.lower[self.n :] - rows, initial=0.0)))
-        worst = max(worst, float(np.max(x - self.ub, initial=0.0)), float(np.max(self.lb - x, initial=0.0)))
-        return worst
-
     def copy(self) -> "QP":
         """A deep copy (used to record QPs for tests and benchmarks)."""
         other = QP(self.n, self.n_ineq, self.n_eq)

@@ -48,6 +48,9 @@ class Constraint(ABC):
     def bind(self, robot: Robot) -> None:
         """Resolve the robot's limits and allocate (called once by the controller)."""
 
+    def write_static(self, rows: ConstraintRows) -> None:
+        """Write the parts that never change (called once after allocation)."""
+
     @abstractmethod
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         """Write this tick's bounds / rows."""

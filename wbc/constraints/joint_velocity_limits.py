@@ -31,9 +31,12 @@ class JointVelocityLimits(Constraint):
         self.n_inequalities = 4 if self._base_rows else 0
         self._limit = limit
 
-    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+    def write_static(self, rows: ConstraintRows) -> None:
         np.negative(self._limit, out=rows.lower)
         rows.upper[...] = self._limit
+        rows.h.fill(self._linear_limit if self._base_rows else 0.0)
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         if self._base_rows:
             yaw = kin.q[self._yaw]
             cos, sin = np.cos(yaw), np.sin(yaw)
@@ -42,7 +45,6 @@ class JointVelocityLimits(Constraint):
             G[1, self._x], G[1, self._y] = -cos, -sin
             G[2, self._x], G[2, self._y] = -sin, cos
             G[3, self._x], G[3, self._y] = sin, -cos
-            rows.h.fill(self._linear_limit)
 
     def row_labels(self) -> list[str]:
         return ["base v_x upper", "base v_x lower", "base v_y upper", "base v_y lower"][: self.n_inequalities]

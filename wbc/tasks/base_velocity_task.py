@@ -8,7 +8,7 @@ from ..kinematics import Kinematics
 from ..robot import Robot
 from ..errors import InvalidInputError
 from ..validation import as_vector, as_weights
-from .task import Task
+from .task import Task, _norm
 
 
 class BaseVelocityTask(Task):
@@ -55,7 +55,7 @@ class BaseVelocityTask(Task):
         cos, sin = self._cos_sin
         xdot, ydot, yawdot = v[self._x], v[self._y], v[self._yaw]
         self._achieved[:] = (cos * xdot + sin * ydot, -sin * xdot + cos * ydot, yawdot)
-        errors[self.name] = float(np.linalg.norm(self._achieved - self.twist))
+        errors[self.name] = _norm(self._achieved - self.twist)
 
     def __repr__(self) -> str:
         return f"BaseVelocityTask(cost={self.cost.tolist()})"

@@ -8,7 +8,7 @@ import pinocchio as pin
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..validation import as_gain, as_pose, as_vector, as_weights
-from .task import Task
+from .task import Task, _norm
 
 
 class FrameTask(Task):
@@ -77,6 +77,7 @@ class FrameTask(Task):
 
     def bind(self, robot: Robot) -> None:
         self._frame_id = robot.frame_id(self.frame)
+        self._keys = (f"{self.name}.position", f"{self.name}.orientation")
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         if not self._has_target:
@@ -92,8 +93,8 @@ class FrameTask(Task):
         target *= self._weights
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[f"{self.name}.position"] = float(np.linalg.norm(self.error[:3]))
-        errors[f"{self.name}.orientation"] = float(np.linalg.norm(self.error[3:]))
+        errors[self._keys[0]] = _norm(self.error[:3])
+        errors[self._keys[1]] = _norm(self.error[3:])
 
     def __repr__(self) -> str:
         return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "

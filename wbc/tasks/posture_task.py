@@ -9,7 +9,7 @@ from ..kinematics import Kinematics
 from ..robot import Robot
 from ..errors import InvalidInputError
 from ..validation import as_gain, as_weights
-from .task import Task
+from .task import Task, _norm
 
 
 class PostureTask(Task):
@@ -69,7 +69,7 @@ class PostureTask(Task):
         target *= self._weights
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self.name] = float(np.linalg.norm(self.error))
+        errors[self.name] = _norm(self.error)
 
     def __repr__(self) -> str:
         return f"PostureTask(cost={self._cost_spec!r}, gain={self.gain}, joints={self._joint_spec!r})"

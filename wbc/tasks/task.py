@@ -14,6 +14,7 @@ fraction of the current error ``e`` the task asks to remove in one tick of lengt
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 
 import numpy as np
@@ -44,3 +45,8 @@ class Task(ABC):
     @abstractmethod
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         """Add this tick's error measures (unweighted, SI units) to ``errors``."""
+
+
+def _norm(vector: np.ndarray) -> float:
+    """Euclidean norm of a small vector (cheaper than np.linalg.norm on the hot path)."""
+    return math.sqrt(float(vector @ vector))

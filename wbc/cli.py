@@ -1,0 +1,79 @@
+"""Command line: ``wbc run SCENARIO [--plot FILE.png]``, ``wbc solvers``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from .errors import WbcError
+
+
+def _run(args: argparse.Namespace) -> int:
+    from .closed_loop import run
+    from .scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    result = run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress)
+    summary = result.summary()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(format_summary(scenario.name, result.solver, summary))
+    if args.plot:
+        from .plotting import plot_run
+
+        print(f"plot written to {plot_run(result, args.plot, scenario.robot.joint_names)}")
+    return 0
+
+
+def format_summary(name: str, solver: str, s: dict) -> str:
+    return "\n".join([
+        f"scenario {name}  (solver {solver})",
+        f"  ticks                      {s['ticks']}",
+        f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / {s['position_error_max_m'] * 1e3:.4f} mm",
+        f"  orientation err  rms / max {s['orientation_error_rms_rad'] * 1e3:.4f} / "
+        f"{s['orientation_error_max_rad'] * 1e3:.4f} mrad",
+        f"  final error      pos / ori {s['final_position_error_m'] * 1e3:.2e} mm / "
+        f"{s['final_orientation_error_rad'] * 1e3:.2e} mrad",
+        f"  worst limit violation      position {s['worst_position_limit_violation']:.2e}, "
+        f"velocity {s['worst_velocity_limit_violation']:.2e}",
+        f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
+        f"  (solve median {s['solve_time_median_us']:.1f} µs)",
+    ])
+
+
+def _solvers(args: argparse.Namespace) -> int:
+    from .solvers import available_solvers
+
+    print("\n".join(available_solvers()))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run_parser = sub.add_parser("run", help="run a scenario (tasks/*.toml) in closed loop")
+    run_parser.add_argument("scenario", help="path of a scenario TOML file")
+    run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run")
+    run_parser.add_argument("--solver", help="override the scenario's QP solver")
+    run_parser.add_argument("--duration", type=float, help="override the duration [s]")
+    run_parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run_parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run_parser.set_defaults(handler=_run)
+    solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
+    solvers_parser.set_defaults(handler=_solvers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except WbcError as exc:
+        print(f"wbc: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""Reference motions for a FrameTask: ``reference(t) -> (pose 4x4, twist 6)``.
+
+Twists are world-aligned at the frame origin, ordered (linear [m/s]; angular [rad/s]),
+matching :meth:`wbc.Robot.frame_jacobian`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .validation import as_pose, as_positive, as_vector
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF convention)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+@dataclass
+class ConstantPose:
+    """A fixed target pose (zero feed-forward twist)."""
+
+    pose: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.pose = as_pose(self.pose, "target pose")
+        self._twist = np.zeros(6)
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.pose, self._twist
+
+
+@dataclass
+class Circle:
+    """Constant-orientation circle through the start pose.
+
+    ``p(t) = centre + radius (cos phi(t) a + sin phi(t) b)`` with ``a`` = ``start_axis``
+    (unit vector from the centre to the start point), ``b = normal x a`` and the
+    centre placed so that ``p(0)`` is the start position. The phase accelerates
+    uniformly during ``ramp_time`` [s] to the rate ``2 pi / period`` so the target
+    velocity is continuous (no step at t = 0).
+    """
+
+    start: np.ndarray  #: 4x4 start pose (its rotation is held)
+    radius: float  #: [m]
+    period: float  #: [s] per revolution after the ramp
+    normal: np.ndarray  #: unit normal of the circle plane (direction of rotation by right hand)
+    start_axis: np.ndarray  #: unit vector from the centre toward the start point
+    ramp_time: float = 1.0  #: [s]
+
+    def __post_init__(self) -> None:
+        self.start = as_pose(self.start, "circle start pose")
+        self.radius = as_positive(self.radius, "radius")
+        self.period = as_positive(self.period, "period")
+        normal = as_vector(self.normal, 3, "normal")
+        axis = as_vector(self.start_axis, 3, "start_axis")
+        normal = normal / np.linalg.norm(normal)
+        axis = axis - normal * (normal @ axis)
+        if np.linalg.norm(axis) < 1e-9:
+            raise ValueError("start_axis must not be parallel to normal")
+        self.normal, self.start_axis = normal, axis / np.linalg.norm(axis)
+        self._b = np.cross(self.normal, self.start_axis)
+        self.centre = self.start[:3, 3] - self.radius * self.start_axis
+        self._pose = self.start.copy()
+        self._twist = np.zeros(6)
+
+    def phase(self, t: float) -> tuple[float, float]:
+        """Phase [rad] and its rate [rad/s] at time ``t``."""
+        rate = 2.0 * np.pi / self.period
+        ramp = max(self.ramp_time, 0.0)
+        if t <= 0.0:
+            return 0.0, 0.0
+        if t < ramp:
+            return 0.5 * rate * t * t / ramp, rate * t / ramp
+        return rate * (t - 0.5 * ramp), rate
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        phi, rate = self.phase(t)
+        a, b = self.start_axis, self._b
+        self._pose[:3, 3] = self.centre + self.radius * (np.cos(phi) * a + np.sin(phi) * b)
+        self._twist[:3] = self.radius * rate * (-np.sin(phi) * a + np.cos(phi) * b)
+        return self._pose, self._twist

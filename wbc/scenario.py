@@ -1,0 +1,150 @@
+"""Declarative scenarios (``tasks/*.toml``): robot, task stack, constraints, solver, reference.
+
+Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
+
+    [robot]       name = "youbot" | path, initial_configuration = [...]
+    [controller]  solver, dt [s], duration [s], damping
+    [[tasks]]     type = "FrameTask" | "PostureTask" | "BaseVelocityTask", + constructor arguments
+    [[constraints]] type = "JointPositionLimits" | "JointVelocityLimits", + constructor arguments
+    [reference]   type = "circle" | "pose", for the first FrameTask (or ``task = name``)
+"""
+
+from __future__ import annotations
+
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import constraints as constraint_module
+from . import tasks as task_module
+from .controller import Controller
+from .errors import ScenarioError, WbcError
+from .references import Circle, ConstantPose, rpy_matrix
+from .robot import Robot, load_robot
+from .tasks import FrameTask, PostureTask
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+TASK_TYPES = {name: getattr(task_module, name) for name in ("FrameTask", "PostureTask", "BaseVelocityTask")}
+CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in ("JointPositionLimits", "JointVelocityLimits")}
+
+
+@dataclass
+class Scenario:
+    """A parsed scenario, ready to run."""
+
+    name: str
+    robot: Robot
+    q0: np.ndarray
+    tasks: list
+    constraints: list
+    solver: str
+    dt: float
+    duration: float
+    damping: float
+    reference: object | None = None
+    reference_task: FrameTask | None = None
+    source: Path | None = None
+    spec: dict = field(default_factory=dict)
+
+    def make_controller(self, solver: str | None = None) -> Controller:
+        return Controller(self.robot, self.tasks, self.constraints, solver=solver or self.solver,
+                          dt=self.dt, damping=self.damping)
+
+    @property
+    def ticks(self) -> int:
+        return int(round(self.duration / self.dt))
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Parse a scenario file; raises ScenarioError with the offending key on any mistake."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as stream:
+            spec = tomllib.load(stream)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise ScenarioError(f"cannot read scenario {path}: {exc}") from exc
+    try:
+        return _build(spec, path)
+    except ScenarioError:
+        raise
+    except (WbcError, TypeError, ValueError, KeyError) as exc:
+        raise ScenarioError(f"{path}: {exc}") from exc
+
+
+def _build(spec: dict, path: Path) -> Scenario:
+    robot_spec = _section(spec, "robot")
+    name = robot_spec.get("name")
+    if name is None:
+        raise ScenarioError(f"{path}: [robot] needs a name")
+    model_ref = name if not str(name).endswith((".urdf", ".toml")) else (path.parent / name)
+    robot = load_robot(model_ref)
+    q0 = robot.check_configuration(robot_spec.get("initial_configuration", robot.neutral()))
+
+    control = _section(spec, "controller")
+    tasks = [_instantiate(entry, TASK_TYPES, "tasks", robot, q0) for entry in spec.get("tasks", [])]
+    constraints = [_instantiate(entry, CONSTRAINT_TYPES, "constraints", robot, q0)
+                   for entry in spec.get("constraints", [])]
+    scenario = Scenario(
+        name=spec.get("name", path.stem), robot=robot, q0=q0, tasks=tasks, constraints=constraints,
+        solver=control.get("solver", "daqp"), dt=float(control.get("dt", 0.01)),
+        duration=float(control.get("duration", 10.0)), damping=float(control.get("damping", 1e-6)),
+        source=path, spec=spec,
+    )
+    if "reference" in spec:
+        scenario.reference_task, scenario.reference = _reference(spec["reference"], tasks, robot, q0)
+    return scenario
+
+
+def _section(spec: dict, key: str) -> dict:
+    value = spec.get(key, {})
+    if not isinstance(value, dict):
+        raise ScenarioError(f"[{key}] must be a table")
+    return value
+
+
+def _instantiate(entry: dict, registry: dict, section: str, robot: Robot, q0: np.ndarray):
+    entry = dict(entry)
+    kind = entry.pop("type", None)
+    if kind not in registry:
+        raise ScenarioError(f"[[{section}]] type {kind!r} unknown; known: {sorted(registry)}")
+    if registry[kind] is PostureTask and entry.get("target") == "initial":
+        entry["target"] = q0
+    try:
+        return registry[kind](**entry)
+    except TypeError as exc:
+        raise ScenarioError(f"[[{section}]] {kind}: {exc}") from exc
+
+
+def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
+    spec = dict(spec)
+    frame_tasks = [t for t in tasks if isinstance(t, FrameTask)]
+    wanted = spec.pop("task", None)
+    matches = [t for t in frame_tasks if wanted is None or t.name == wanted]
+    if not matches:
+        raise ScenarioError(f"[reference] needs a FrameTask{'' if wanted is None else f' named {wanted!r}'}")
+    task = matches[0]
+    start = robot.frame_pose(q0, task.frame)
+    kind = spec.pop("type", None)
+    if kind == "circle":
+        reference = Circle(start=start, radius=spec.pop("radius"), period=spec.pop("period"),
+                           normal=spec.pop("normal", [0.0, 0.0, 1.0]),
+                           start_axis=spec.pop("start_axis", [1.0, 0.0, 0.0]),
+                           ramp_time=spec.pop("ramp_time", 1.0))
+    elif kind == "pose":
+        pose = start.copy()
+        if "position" in spec:
+            pose[:3, 3] = spec.pop("position")
+        if "rpy" in spec:
+            pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
+        reference = ConstantPose(pose)
+    else:
+        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose")
+    if spec:
+        raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
+    return task, reference
