@@ -23,11 +23,14 @@ from .qp import QP
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict] = {
-    "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True, "max_iter": 200_000},
+    "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True, "max_iter": 200_000, "verbose": False,
+             "raise_error": False},
     "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
-    "clarabel": {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10},
-    "piqp": {"eps_abs": 1e-10, "eps_rel": 1e-10},
-    "highs": {"primal_feasibility_tolerance": 1e-9, "dual_feasibility_tolerance": 1e-9},
+    "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10},
+    "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12},
+    # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks
+    "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
+              "qp_regularization_value": 0.0},
     "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
     "ecos": {"abstol": 1e-10, "reltol": 1e-10, "feastol": 1e-10},
 }

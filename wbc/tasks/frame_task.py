@@ -7,6 +7,7 @@ import pinocchio as pin
 
 from ..kinematics import Kinematics
 from ..robot import Robot
+from ..errors import InvalidInputError
 from ..validation import as_gain, as_pose, as_vector, as_weights
 from .task import Task, _norm
 
@@ -81,7 +82,7 @@ class FrameTask(Task):
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         if not self._has_target:
-            raise RuntimeError(f"{self.name}: no target set; call set_target() before stepping")
+            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
         placement = kin.frame_placement(self._frame_id)
         error = self.error
         np.subtract(self._target_position, placement.translation, out=error[:3])

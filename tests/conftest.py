@@ -1,0 +1,27 @@
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import wbc
+
+ROOT = Path(__file__).resolve().parents[1]
+TASKS = ROOT / "tasks"
+
+
+@pytest.fixture(scope="session")
+def youbot() -> wbc.Robot:
+    return wbc.load_robot("youbot")
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261122)
+
+
+def random_youbot_configurations(rng: np.random.Generator, count: int) -> np.ndarray:
+    """Base anywhere in a 10 m square with any heading; arm joints uniform within eq. (1)."""
+    deg = np.pi / 180.0
+    low = np.array([-5.0, -5.0, -np.pi, -169 * deg, -65 * deg, -151 * deg, -102.5 * deg, -167.5 * deg])
+    high = np.array([5.0, 5.0, np.pi, 169 * deg, 90 * deg, 146 * deg, 102.5 * deg, 167.5 * deg])
+    return rng.uniform(low, high, size=(count, 8))

@@ -1,0 +1,157 @@
+"""Public API surface and bad input: clear exceptions at the boundary, before any solver runs."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+import wbc
+
+
+def make_controller(robot, **kwargs):
+    task = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.5, gain=0.5)
+    q = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
+    task.set_target_from_configuration(robot, q)
+    return wbc.Controller(robot, [task], [wbc.JointPositionLimits(), wbc.JointVelocityLimits()], **kwargs), q
+
+
+def test_public_names_are_importable_from_wbc():
+    for name in ("load_robot", "Robot", "Controller", "FrameTask", "BaseVelocityTask", "PostureTask",
+                 "JointPositionLimits", "JointVelocityLimits", "available_solvers"):
+        assert hasattr(wbc, name), name
+
+
+def test_robot_interface(youbot):
+    q = youbot.neutral()
+    assert q.shape == (8,) and youbot.within_limits(q)
+    assert youbot.frame_pose(q, "ee").shape == (4, 4)
+    assert youbot.frame_jacobian(q, "ee").shape == (6, 8)
+    v = np.arange(8) * 0.1
+    np.testing.assert_allclose(youbot.integrate(q, v, 0.5), q + 0.05 * np.arange(8), atol=1e-15)
+    with pytest.raises(ValueError):
+        youbot.lower[0] = 1.0  # limits are read-only
+
+
+def test_step_returns_nv_vector_and_diagnostics(youbot):
+    controller, q = make_controller(youbot)
+    v = controller.step(q)
+    assert v.shape == (8,) and np.all(np.isfinite(v))
+    last = controller.last
+    assert last.success and last.status == "optimal" and last.solver == "daqp"
+    assert last.solve_time > 0 and last.tick_time >= last.solve_time
+    assert set(last.task_errors) == {"FrameTask(ee).position", "FrameTask(ee).orientation"}
+    assert last.task_errors["FrameTask(ee).position"] < 1e-12
+    assert isinstance(last.active_constraints, list)
+
+
+def test_active_constraints_name_the_saturated_limits(youbot):
+    controller, q = make_controller(youbot)
+    target = youbot.frame_pose(q, "ee")
+    target[2, 3] += 0.3  # far: the command saturates
+    controller.tasks[0].set_target(target)
+    v = controller.step(q)
+    active = controller.last.active_constraints
+    assert active, "a far target must saturate some speed limit"
+    for label in active:
+        assert label.startswith(("JointVelocityLimits", "JointPositionLimits"))
+    saturated = np.flatnonzero(np.abs(np.abs(v[3:]) - np.pi / 2) < 1e-7) + 3
+    for i in saturated:
+        assert any(youbot.joint_names[i] in label for label in active)
+
+
+@pytest.mark.parametrize("bad", [np.full(8, np.nan), np.r_[np.zeros(7), np.inf], np.zeros(7), np.zeros((8, 1)),
+                                 "not a vector", None])
+def test_bad_configuration_is_rejected(youbot, bad):
+    controller, _ = make_controller(youbot)
+    with pytest.raises(wbc.InvalidInputError):
+        controller.step(bad)
+    with pytest.raises(wbc.InvalidInputError):
+        youbot.frame_pose(bad, "ee")
+
+
+def test_unknown_frame_is_reported_with_a_suggestion(youbot):
+    with pytest.raises(wbc.UnknownFrameError, match="did you mean"):
+        youbot.frame_pose(youbot.neutral(), "e")
+    with pytest.raises(wbc.UnknownFrameError):
+        wbc.Controller(youbot, [wbc.FrameTask("gripper", 1.0, 1.0)])
+
+
+def test_unknown_solver_lists_the_installed_ones(youbot):
+    with pytest.raises(wbc.UnknownSolverError, match="daqp"):
+        make_controller(youbot, solver="no_such_solver")
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.01, np.nan, np.inf])
+def test_bad_dt_is_rejected(youbot, dt):
+    with pytest.raises(wbc.InvalidInputError):
+        make_controller(youbot, dt=dt)
+    with pytest.raises(wbc.InvalidInputError):
+        youbot.integrate(youbot.neutral(), np.zeros(8), dt)
+
+
+def test_bad_targets_are_rejected():
+    task = wbc.FrameTask("ee", 1.0, 1.0)
+    pose = np.eye(4)
+    for bad in (pose[:3], np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]), np.diag([-1.0, 1.0, -1.0, 1.0]) @ np.diag([1, 1, -1, 1.0])):
+        with pytest.raises(wbc.InvalidInputError):
+            task.set_target(bad)
+    with pytest.raises(wbc.InvalidInputError):
+        task.set_target(pose, twist=[0, 0, 0, np.nan, 0, 0])
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.FrameTask("ee", 1.0, 1.0, gain=1.5)
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.FrameTask("ee", -1.0, 1.0)
+
+
+def test_stepping_without_a_target_is_an_error(youbot):
+    controller = wbc.Controller(youbot, [wbc.FrameTask("ee", 1.0, 1.0)])
+    with pytest.raises(wbc.InvalidInputError, match="set_target"):
+        controller.step(youbot.neutral())
+
+
+def test_controller_rejects_empty_or_foreign_stacks(youbot):
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.Controller(youbot, [])
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.Controller(youbot, [object()])
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.Controller(youbot, [wbc.PostureTask(1.0)], [object()])
+
+
+def test_load_robot_errors(tmp_path):
+    with pytest.raises(wbc.ModelError):
+        wbc.load_robot("no_such_robot")
+    broken = tmp_path / "broken.urdf"
+    broken.write_text("<robot name='x'><joint name='j' type='revolute'/></robot>")
+    with pytest.raises(wbc.ModelError):
+        wbc.load_robot(broken)
+
+
+def test_any_urdf_path_loads_and_a_planar_base_is_detected(tmp_path):
+    urdf = tmp_path / "copy.urdf"
+    shutil.copy(wbc.model_path("youbot", "urdf"), urdf)  # no sidecar next to it
+    robot = wbc.load_robot(urdf)
+    assert robot.base.kind is wbc.BaseKind.PLANAR and robot.base.indices == (0, 1, 2)
+    assert robot.base.max_linear_speed == 0.8 and robot.base.max_yaw_rate == 1.0
+
+
+def test_fixed_base_urdf(tmp_path):
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text("""<robot name="arm">
+      <link name="base"/><link name="l1"/><link name="tip"/>
+      <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+        <limit lower="-1" upper="1" effort="1" velocity="2"/></joint>
+      <joint name="tip_joint" type="fixed"><parent link="l1"/><child link="tip"/><origin xyz="0.5 0 0"/></joint>
+    </robot>""")
+    robot = wbc.load_robot(urdf)
+    assert robot.base.kind is wbc.BaseKind.FIXED and robot.nv == 1
+    np.testing.assert_allclose(robot.frame_pose([np.pi / 2], "tip")[:3, 3], [0, 0.5, 0], atol=1e-15)
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.Controller(robot, [wbc.BaseVelocityTask(1.0)])
+
+
+def test_tasks_have_readable_repr():
+    assert "FrameTask(frame='ee'" in repr(wbc.FrameTask("ee", 1.0, 0.5, gain=0.3))
+    assert "PostureTask" in repr(wbc.PostureTask(1e-3))
+    assert "BaseVelocityTask" in repr(wbc.BaseVelocityTask(1.0))
+    assert repr(wbc.JointPositionLimits(0.3)) == "JointPositionLimits(gain=0.3)"
