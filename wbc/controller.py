@@ -26,8 +26,6 @@ from .solvers import QPSolver, make_solver
 from .tasks.task import Task
 from .validation import as_positive
 
-ACTIVE_TOLERANCE = 1e-7  #: a bound or row within this of equality counts as active
-
 
 class Controller:
     """QP whole-body velocity controller.
@@ -92,7 +90,6 @@ class Controller:
         bounded = [c for c in self.constraints if c.has_bounds]
         self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
         self._upper = np.full((max(len(bounded), 1), nv), np.inf)
-        self._bound_gap = np.zeros((len(self._lower), 2, nv))
         self._constraint_blocks = []
         row_labels: list[str] = []
         i_ineq = i_eq = 0
@@ -159,26 +156,18 @@ class Controller:
         errors: dict[str, float] = {}
         if v is None:
             return TickDiagnostics(self._tick, self.solver.name, solution.status, False, solution.solve_time,
-                                   time.perf_counter() - start, errors, float("nan"))
+                                   time.perf_counter() - start, errors)
         for task in self.tasks:
             task.report(v, errors)
         qp = self.qp
-        gap = self._bound_gap
-        np.subtract(v, self._upper, out=gap[:, 0])
-        np.subtract(v, self._lower, out=gap[:, 1])
-        bound_mask = (np.abs(gap) <= ACTIVE_TOLERANCE).reshape(len(gap), -1)
-        violation = max(gap[:, 0].max(), -gap[:, 1].min(), 0.0)
-        row_mask = None
+        rows = None
         if qp.n_ineq or qp.n_eq:
             rows = qp.C @ v
             rows -= qp.upper[qp.n:]
-            row_mask = np.ones(rows.size, dtype=bool)
-            row_mask[: qp.n_ineq] = rows[: qp.n_ineq] >= -ACTIVE_TOLERANCE
-            violation = max(violation, rows[: qp.n_ineq].max(initial=0.0), np.abs(rows[qp.n_ineq:]).max(initial=0.0))
         return TickDiagnostics(
             self._tick, self.solver.name, solution.status, True, solution.solve_time,
-            time.perf_counter() - start, errors, float(violation), v.copy(),
-            bound_mask, row_mask, self._labels,
+            time.perf_counter() - start, errors, v.copy(), self._lower.copy(), self._upper.copy(),
+            rows, qp.n_ineq, self._labels,
         )
 
     def __repr__(self) -> str:
