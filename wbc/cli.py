@@ -40,7 +40,10 @@ def format_summary(name: str, solver: str, s: dict) -> str:
         f"velocity {s['worst_velocity_limit_violation']:.2e}",
         f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
         f"  (solve median {s['solve_time_median_us']:.1f} µs)",
-    ])
+    ] + ([f"  worst wheel speed          {s['worst_wheel_speed_ratio'] * 100:.1f} % of its limit"]
+         if "worst_wheel_speed_ratio" in s else [])
+      + ([f"  max lateral base slip      {s['max_lateral_slip_m_s']:.2e} m/s"]
+         if "max_lateral_slip_m_s" in s else []))
 
 
 def _solvers(args: argparse.Namespace) -> int:

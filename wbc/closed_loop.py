@@ -27,11 +27,18 @@ class RunResult:
     position_violation: np.ndarray  #: (T+1,) max over joints of distance outside [lower, upper]
     velocity_violation: np.ndarray  #: (T,) max over coordinates of |v| beyond its limit
     velocity_ratio: np.ndarray  #: (T, nv) |v_i| / limit_i (base linear entries in the base frame)
+    wheel_ratio: np.ndarray | None = None  #: (T, n_wheels) |u_i| / u_max, if the base has wheels
+    lateral_slip: np.ndarray | None = None  #: (T,) |base-frame v_y| [m/s] of a nonholonomic base
 
     def summary(self) -> dict[str, float]:
         """The numbers ``wbc run`` prints."""
         us = 1e6
-        return {
+        extra = {}
+        if self.wheel_ratio is not None:
+            extra["worst_wheel_speed_ratio"] = float(self.wheel_ratio.max())
+        if self.lateral_slip is not None:
+            extra["max_lateral_slip_m_s"] = float(self.lateral_slip.max())
+        return extra | {
             "ticks": int(self.time.size),
             "position_error_rms_m": float(np.sqrt(np.mean(self.position_error ** 2))),
             "position_error_max_m": float(self.position_error.max()),
@@ -72,7 +79,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         last = controller.last
         if task is not None:
             pos_err[k] = np.linalg.norm(task.error[:3])
-            ori_err[k] = np.linalg.norm(task.error[3:])
+            ori_err[k] = np.linalg.norm(task.error[3:])  # 0 for a PositionTask
         solve_t[k], tick_t[k] = last.solve_time, last.tick_time
         vs[k] = v
         q = robot.integrate(q, v, dt)
@@ -83,8 +90,31 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         q=qs, v=vs, position_error=pos_err, orientation_error=ori_err, solve_time=solve_t, tick_time=tick_t,
         position_violation=position_violation(robot, qs),
         velocity_violation=np.max(np.maximum(ratio - 1.0, 0.0) * robot.velocity_limit, axis=1),
-        velocity_ratio=ratio,
+        velocity_ratio=ratio, wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
+        lateral_slip=lateral_slip(robot, qs[:-1], vs),
     )
+
+
+def base_twists(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+    """(T, 3) base-frame twists (v_x, v_y, omega) of a mobile base."""
+    x, y, heading = robot.base.indices
+    cos, sin = np.cos(qs[:, heading]), np.sin(qs[:, heading])
+    return np.stack([cos * vs[:, x] + sin * vs[:, y], -sin * vs[:, x] + cos * vs[:, y], vs[:, heading]], axis=1)
+
+
+def wheel_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
+    """(T, n_wheels) ``|u_i| / u_max`` of a wheeled base with a declared speed limit, else None."""
+    wheels = robot.base.wheels
+    if wheels is None or not np.isfinite(wheels.max_speed):
+        return None
+    return np.abs(base_twists(robot, qs, vs) @ wheels.inverse_matrix().T) / wheels.max_speed
+
+
+def lateral_slip(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
+    """(T,) sideways base speed [m/s] of a nonholonomic base, else None."""
+    if not robot.base.is_nonholonomic:
+        return None
+    return np.abs(base_twists(robot, qs, vs)[:, 1])
 
 
 def position_violation(robot, qs: np.ndarray) -> np.ndarray:
@@ -97,11 +127,10 @@ def position_violation(robot, qs: np.ndarray) -> np.ndarray:
 
 def velocity_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
     """``|v_i| / limit_i`` per tick; mobile-base linear speeds are taken in the base frame."""
-    speeds = np.abs(vs).copy()
+    speeds = np.abs(vs)
     if robot.base.is_mobile:
-        x, y, yaw = robot.base.indices
-        cos, sin = np.cos(qs[:, yaw]), np.sin(qs[:, yaw])
-        speeds[:, x] = np.abs(cos * vs[:, x] + sin * vs[:, y])
-        speeds[:, y] = np.abs(-sin * vs[:, x] + cos * vs[:, y])
+        x, y, _ = robot.base.indices
+        twists = base_twists(robot, qs, vs)
+        speeds[:, x], speeds[:, y] = np.abs(twists[:, 0]), np.abs(twists[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(np.isfinite(robot.velocity_limit), speeds / robot.velocity_limit, 0.0)

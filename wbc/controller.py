@@ -7,6 +7,10 @@ The whole hot path is :meth:`Controller.step`. Every buffer is allocated once in
     H = Js^T Js + damping I,   c = -Js^T rs
     lb = max_k lower_k,  ub = min_k upper_k   (bounds of all constraints)
     G v <= h,  A v = b                         (rows of all constraints)
+
+Two optional stages: tasks that need the holonomic preview (SteeringTask) get
+``v_h = -H^-1 c`` of the other tasks before their rows are added; with
+``reduced=True`` the QP is rewritten over the real inputs ``u`` (``v = S(q) u``).
 """
 
 from __future__ import annotations
@@ -33,16 +37,20 @@ class Controller:
     Args:
         robot: the robot model.
         tasks: cost terms (at least one).
-        constraints: hard limits.
+        constraints: hard limits. A nonholonomic base needs :class:`NonholonomicBase`
+            unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
         dt: control period [s]; per-tick gains and dampers refer to it.
         damping: Tikhonov term ``damping * |v|^2`` [cost] / [unit/s]^2, keeps H positive definite.
         solver_options: settings passed to the backend (override :data:`wbc.solvers.DEFAULT_SETTINGS`).
+        reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
+            no-slip rows then hold by construction and are skipped). ``step`` still returns v;
+            ``last.u`` holds the inputs in both forms.
     """
 
     def __init__(self, robot: Robot, tasks: Sequence[Task], constraints: Sequence[Constraint] = (),
                  solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
-                 solver_options: dict | None = None) -> None:
+                 solver_options: dict | None = None, reduced: bool = False) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
@@ -60,6 +68,13 @@ class Controller:
         for item in self.constraints:
             if not isinstance(item, Constraint):
                 raise InvalidInputError(f"not a Constraint: {item!r}")
+        self.reduced = bool(reduced)
+        if self.reduced:
+            self.constraints = [c for c in self.constraints if not getattr(c, "satisfied_by_input_map", False)]
+        elif robot.base.is_nonholonomic and not any(getattr(c, "satisfied_by_input_map", False)
+                                                    for c in self.constraints):
+            raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
+                                    "NonholonomicBase() to the constraints or use reduced=True")
         self.solver: QPSolver = make_solver(solver, solver_options)
         self.kinematics = Kinematics(robot)
         self._tick = 0
@@ -68,39 +83,43 @@ class Controller:
 
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
-        nv = self.robot.nv
+        robot, nv = self.robot, self.robot.nv
         for task in self.tasks:
-            task.bind(self.robot)
+            task.bind(robot)
         for constraint in self.constraints:
-            constraint.bind(self.robot)
+            constraint.bind(robot)
 
-        rows = sum(task.dim for task in self.tasks)
+        # task rows: ordinary tasks first, preview tasks (SteeringTask) last
+        ordered = [t for t in self.tasks if not t.uses_preview] + [t for t in self.tasks if t.uses_preview]
+        rows = sum(task.dim for task in ordered)
         self._Js = np.zeros((rows, nv))
         self._rs = np.zeros(rows)
-        self._task_blocks = []
+        self._task_blocks, self._preview_blocks = [], []
         start = 0
-        for task in self.tasks:
+        for task in ordered:
             stop = start + task.dim
-            self._task_blocks.append((task, self._Js[start:stop], self._rs[start:stop]))
+            block = (task, self._Js[start:stop], self._rs[start:stop])
+            (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
+        self._plain_rows = sum(task.dim for task, _, _ in self._task_blocks)
 
         n_ineq = sum(c.n_inequalities for c in self.constraints)
         n_eq = sum(c.n_equalities for c in self.constraints)
-        self.qp = QP(nv, n_ineq, n_eq)
+        self._qp_v = QP(nv, n_ineq, n_eq)
         bounded = [c for c in self.constraints if c.has_bounds]
         self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
         self._upper = np.full((max(len(bounded), 1), nv), np.inf)
         self._constraint_blocks = []
         row_labels: list[str] = []
         i_ineq = i_eq = 0
+        qp = self._qp_v
         for constraint in self.constraints:
             k = bounded.index(constraint) if constraint.has_bounds else None
             lower = self._lower[k] if k is not None else np.full(nv, -np.inf)
             upper = self._upper[k] if k is not None else np.full(nv, np.inf)
             p, e = constraint.n_inequalities, constraint.n_equalities
-            block = ConstraintRows(lower, upper,
-                                   self.qp.G[i_ineq:i_ineq + p], self.qp.h[i_ineq:i_ineq + p],
-                                   self.qp.A[i_eq:i_eq + e], self.qp.b[i_eq:i_eq + e])
+            block = ConstraintRows(lower, upper, qp.G[i_ineq:i_ineq + p], qp.h[i_ineq:i_ineq + p],
+                                   qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
             self._constraint_blocks.append((constraint, block))
             row_labels += [f"{constraint.name}: {label}" for label in constraint.row_labels()[:p]]
             constraint.write_static(block)
@@ -108,11 +127,25 @@ class Controller:
         for constraint in self.constraints:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
-        names = _velocity_names(self.robot)
+        names = _velocity_names(robot)
         bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
                         for c in bounded] or [[""] * (2 * nv)]
         self._labels = ActiveSetLabels(bound_labels, row_labels)
         self._diag = np.arange(nv) * (nv + 1)
+        self._preview = np.zeros(nv)
+
+        self._nonholonomic = robot.base.is_nonholonomic
+        self._S = robot.input_map(robot.neutral())
+        if self.reduced:
+            nu = robot.nu
+            self.qp = QP(nu, n_ineq, n_eq)  # what the solver sees
+            self._HS = np.zeros((nv, nu))
+            unit_rows = np.flatnonzero(np.sum(self._S != 0.0, axis=1) == 1)
+            self._bound_v = unit_rows  # v coordinates whose bounds are bounds on one input
+            self._bound_u = np.argmax(self._S[unit_rows] != 0.0, axis=1)
+            self._coupled_v = np.setdiff1d(np.arange(nv), unit_rows)  # base x, y: no bounds allowed
+        else:
+            self.qp = qp
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
@@ -123,7 +156,7 @@ class Controller:
         """
         start = time.perf_counter()
         q = self.robot.check_configuration(q)
-        kin, dt, qp = self.kinematics, self.dt, self.qp
+        kin, dt, qp = self.kinematics, self.dt, self._qp_v
         kin.update(q)
 
         for task, jacobian, target in self._task_blocks:
@@ -132,6 +165,8 @@ class Controller:
         qp.H.flat[self._diag] += self.damping
         np.matmul(self._Js.T, self._rs, out=qp.c)
         np.negative(qp.c, out=qp.c)
+        if self._preview_blocks:
+            self._add_preview_tasks(kin, dt, qp)
 
         for constraint, block in self._constraint_blocks:
             constraint.compute(kin, dt, block)
@@ -142,37 +177,74 @@ class Controller:
         if qp.n_eq:
             qp.sync_equalities()
 
-        solution = self.solver.solve(qp)
+        if self._nonholonomic:
+            S = self.robot.input_map(q, out=self._S)
+            if self.reduced:
+                self._reduce(S)
+        solution = self.solver.solve(self.qp)
         self._tick += 1
         if not solution.success:
-            self.last = self._diagnostics(None, solution, start)
+            self.last = self._diagnostics(None, None, solution, start)
             raise SolverError(f"{self.solver.name} failed at tick {self._tick}: {solution.status}")
-        v = solution.x
-        self.last = self._diagnostics(v, solution, start)
+        if self.reduced:
+            u = solution.x
+            v = S @ u
+        elif self._nonholonomic:
+            v = solution.x
+            u = S.T @ v
+        else:
+            v = u = solution.x
+        self.last = self._diagnostics(v, u, solution, start)
         return v
 
+    def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
+        """Holonomic relaxation of the plain tasks, then the rows of the preview tasks."""
+        self._preview[:] = np.linalg.solve(qp.H, qp.c)
+        np.negative(self._preview, out=self._preview)
+        for task, jacobian, target in self._preview_blocks:
+            task.compute_preview(kin, dt, jacobian, target, self._preview)
+        rows = slice(self._plain_rows, None)
+        qp.H += self._Js[rows].T @ self._Js[rows]
+        qp.c -= self._Js[rows].T @ self._rs[rows]
+
+    def _reduce(self, S: np.ndarray) -> None:
+        """Rewrite the QP over v as a QP over u with v = S u."""
+        qv, qu = self._qp_v, self.qp
+        if np.any(np.isfinite(qv.lb[self._coupled_v])) or np.any(np.isfinite(qv.ub[self._coupled_v])):
+            raise InvalidInputError("reduced=True needs the base x, y rates unbounded "
+                                    "(express base speed limits as rows, as JointVelocityLimits does)")
+        np.matmul(qv.H, S, out=self._HS)
+        np.matmul(S.T, self._HS, out=qu.H)
+        np.matmul(S.T, qv.c, out=qu.c)
+        np.matmul(qv.C, S, out=qu.C)
+        qu.upper[qu.n:] = qv.upper[qv.n:]
+        qu.lower[qu.n:] = qv.lower[qv.n:]
+        qu.lb[self._bound_u] = qv.lb[self._bound_v]
+        qu.ub[self._bound_u] = qv.ub[self._bound_v]
+
     # ------------------------------------------------------------ diagnostics
-    def _diagnostics(self, v, solution, start: float) -> TickDiagnostics:
+    def _diagnostics(self, v, u, solution, start: float) -> TickDiagnostics:
         errors: dict[str, float] = {}
         if v is None:
             return TickDiagnostics(self._tick, self.solver.name, solution.status, False, solution.solve_time,
                                    time.perf_counter() - start, errors)
         for task in self.tasks:
             task.report(v, errors)
-        qp = self.qp
+        qp = self._qp_v
         rows = None
         if qp.n_ineq or qp.n_eq:
             rows = qp.C @ v
             rows -= qp.upper[qp.n:]
+        v = v.copy()
         return TickDiagnostics(
             self._tick, self.solver.name, solution.status, True, solution.solve_time,
-            time.perf_counter() - start, errors, v.copy(), self._lower.copy(), self._upper.copy(),
-            rows, qp.n_ineq, self._labels,
+            time.perf_counter() - start, errors, v, self._lower.copy(), self._upper.copy(),
+            rows, qp.n_ineq, self._labels, u=u if self._nonholonomic else v,
         )
 
     def __repr__(self) -> str:
         return (f"Controller({self.robot.name!r}, tasks={self.tasks}, constraints={self.constraints}, "
-                f"solver={self.solver.name!r}, dt={self.dt})")
+                f"solver={self.solver.name!r}, dt={self.dt}, reduced={self.reduced})")
 
 
 def _velocity_names(robot: Robot) -> list[str]:

@@ -14,7 +14,8 @@ class TickDiagnostics:
     * ``solve_time`` -- time inside the QP backend [s]; ``tick_time`` -- whole ``step`` [s];
     * ``task_errors`` -- each task's error before the command (unweighted, [m] / [rad] /
       [m/s]); keys like ``"FrameTask(ee).position"``;
-    * ``v`` -- the command (a copy);
+    * ``v`` -- the command (a copy); ``u`` -- the same command over the real inputs,
+      ``v = robot.input_map(q) u`` (equal to ``v`` for holonomic bases);
     * ``max_violation`` -- largest violation of any bound or row by the command (solver tolerance);
     * ``active_constraints`` -- labels of the bounds / rows that hold with equality (within
       :data:`ACTIVE_TOLERANCE`) at the command.
@@ -24,16 +25,16 @@ class TickDiagnostics:
     """
 
     __slots__ = ("tick", "solver", "status", "success", "solve_time", "tick_time", "task_errors",
-                 "v", "_lower", "_upper", "_row_residual", "_n_ineq", "_labels", "_active", "_violation")
+                 "v", "u", "_lower", "_upper", "_row_residual", "_n_ineq", "_labels", "_active", "_violation")
 
     def __init__(self, tick: int, solver: str, status: str, success: bool, solve_time: float,
                  tick_time: float, task_errors: dict[str, float], v: np.ndarray | None = None,
                  lower: np.ndarray | None = None, upper: np.ndarray | None = None,
                  row_residual: np.ndarray | None = None, n_ineq: int = 0,
-                 labels: "ActiveSetLabels | None" = None) -> None:
+                 labels: "ActiveSetLabels | None" = None, u: np.ndarray | None = None) -> None:
         self.tick, self.solver, self.status, self.success = tick, solver, status, success
         self.solve_time, self.tick_time = solve_time, tick_time
-        self.task_errors, self.v = task_errors, v
+        self.task_errors, self.v, self.u = task_errors, v, u
         self._lower, self._upper = lower, upper  # (k, nv): bounds of each bounding constraint
         self._row_residual, self._n_ineq = row_residual, n_ineq  # C v - upper(rows)
         self._labels = labels

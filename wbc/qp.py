@@ -35,6 +35,7 @@ class QP:
         self.C = np.zeros((p + e, n))
         self.upper = np.full(n + p + e, np.inf)
         self.lower = np.full(n + p + e, -np.inf)
+        self.upper[n + p :] = self.lower[n + p :] = 0.0  # equality rows: b = 0 until written
         self.lb, self.ub = self.lower[:n], self.upper[:n]
         self.G, self.h = self.C[:p], self.upper[n : n + p]
         self.A, self.b = self.C[p:], self.upper[n + p :]

@@ -1,4 +1,5 @@
-"""Reference motions for a FrameTask: ``reference(t) -> (pose 4x4, twist 6)``.
+"""Reference motions: ``reference(t) -> (pose 4x4, twist 6)`` for a FrameTask,
+``reference(t) -> (point 3, velocity 3)`` for a PositionTask.
 
 Twists are world-aligned at the frame origin, ordered (linear [m/s]; angular [rad/s]),
 matching :meth:`wbc.Robot.frame_jacobian`.
@@ -35,6 +36,20 @@ class ConstantPose:
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         return self.pose, self._twist
+
+
+@dataclass
+class ConstantPoint:
+    """A fixed target point [m] for a PositionTask (zero feed-forward velocity)."""
+
+    position: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.position = as_vector(self.position, 3, "target position")
+        self._velocity = np.zeros(3)
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        return self.position, self._velocity
 
 
 @dataclass

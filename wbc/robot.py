@@ -23,8 +23,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .base import FIXED_BASE, BaseKind, MecanumWheels, MobileBase
-from .errors import ModelError, UnknownFrameError
+from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .errors import InvalidInputError, ModelError, UnknownFrameError
 from .validation import as_positive, as_vector
 
 if sys.version_info >= (3, 11):
@@ -70,6 +70,7 @@ class Robot:
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
+        self._input_map = self._allocate_input_map()
         self._frame_ids: dict[str, int] = {}
         for index, frame in enumerate(model.frames):
             self._frame_ids.setdefault(frame.name, index)
@@ -117,6 +118,58 @@ class Robot:
     def within_limits(self, q, tol: float = 0.0) -> bool:
         q = self.check_configuration(q)
         return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
+
+    # ------------------------------------------------------------ mobile base
+    @property
+    def nu(self) -> int:
+        """Number of real inputs: nv, or nv - 1 for a nonholonomic base (no lateral input)."""
+        return self._input_map.shape[1]
+
+    def _allocate_input_map(self) -> np.ndarray:
+        if not self.base.is_nonholonomic:
+            return np.eye(self.nv)
+        x, y, heading = self.base.indices
+        others = [i for i in range(self.nv) if i not in (x, y, heading)]
+        S = np.zeros((self.nv, self.nv - 1))
+        S[heading, 1] = 1.0
+        S[others, np.arange(2, self.nv - 1)] = 1.0
+        return S
+
+    def input_map(self, q, out: np.ndarray | None = None) -> np.ndarray:
+        """``S(q)`` (nv x nu) with ``v = S(q) u`` over the real inputs ``u``.
+
+        Identity for fixed and holonomic bases. For a nonholonomic base
+        ``u = (v, omega, other coordinates in order)``: forward speed [m/s], heading
+        rate [rad/s], then the joint rates, and ``(xdot, ydot) = v (cos, sin)(heading)``.
+        The task Jacobian over inputs is ``frame_jacobian(q, frame) @ input_map(q)``.
+        """
+        S = self._input_map if out is None else out
+        if self.base.is_nonholonomic:
+            x, y, heading = self.base.indices
+            angle = q[heading]
+            S[x, 0], S[y, 0] = np.cos(angle), np.sin(angle)
+        elif out is not None:
+            out[...] = self._input_map
+        return S.copy() if out is None else S
+
+    def base_twist(self, q, v) -> np.ndarray:
+        """Base-frame twist ``(v_x, v_y, omega)`` of the velocity ``v`` at ``q``."""
+        if not self.base.is_mobile:
+            raise InvalidInputError(f"robot '{self.name}' has a fixed base")
+        q, v = self.check_configuration(q), self.check_velocity(v)
+        x, y, heading = self.base.indices
+        c, s = np.cos(q[heading]), np.sin(q[heading])
+        return np.array([c * v[x] + s * v[y], -s * v[x] + c * v[y], v[heading]])
+
+    def wheel_speeds(self, q, v) -> np.ndarray:
+        """Wheel angular rates [rad/s] realising ``v`` (mecanum: 4, differential drive: 2).
+
+        Order and sign conventions: :class:`~wbc.base.MecanumWheels`,
+        :class:`~wbc.base.DifferentialWheels`.
+        """
+        if self.base.wheels is None:
+            raise InvalidInputError(f"robot '{self.name}' declares no wheel geometry")
+        return self.base.wheels.inverse_matrix() @ self.base_twist(q, v)
 
     # ------------------------------------------------------------ kinematics
     def frame_pose(self, q, frame: str) -> np.ndarray:
@@ -234,14 +287,25 @@ def _base_from_params(model: pin.Model, spec: dict) -> MobileBase:
         if joint.nq != 1 or joint.nv != 1:
             raise ModelError(f"base joint {joint_name!r} must be a 1-DOF joint")
         indices.append(joint.idx_v)
-    wheels = spec.get("wheels")
     return MobileBase(
         kind=kind,
         indices=tuple(indices),
         max_linear_speed=float(spec.get("max_linear_speed", np.inf)),
         max_yaw_rate=float(spec.get("max_yaw_rate", np.inf)),
-        wheels=MecanumWheels(**wheels) if wheels else None,
+        wheels=_wheels_from_params(kind, spec.get("wheels")),
     )
+
+
+def _wheels_from_params(kind: BaseKind, spec: dict | None) -> MecanumWheels | DifferentialWheels | None:
+    if not spec:
+        return None
+    wheel_type = {BaseKind.MECANUM: MecanumWheels, BaseKind.UNICYCLE: DifferentialWheels}.get(kind)
+    if wheel_type is None:
+        raise ModelError(f"a {kind.value} base has no wheel model in wbc; remove [base.wheels]")
+    try:
+        return wheel_type(**spec)
+    except TypeError as exc:
+        raise ModelError(f"[base.wheels] of a {kind.value} base: {exc}") from exc
 
 
 def _detect_planar_base(model: pin.Model) -> MobileBase:

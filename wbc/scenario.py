@@ -4,9 +4,11 @@ Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
 
     [robot]       name = "youbot" | path, initial_configuration = [...]
     [controller]  solver, dt [s], duration [s], damping
-    [[tasks]]     type = "FrameTask" | "PostureTask" | "BaseVelocityTask", + constructor arguments
-    [[constraints]] type = "JointPositionLimits" | "JointVelocityLimits", + constructor arguments
-    [reference]   type = "circle" | "pose", for the first FrameTask (or ``task = name``)
+    [controller]  ... reduced = true|false (solve over the real inputs of a nonholonomic base)
+    [[tasks]]     type = any name in TASK_TYPES, + constructor arguments
+    [[constraints]] type = any name in CONSTRAINT_TYPES, + constructor arguments
+    [reference]   type = "circle" | "pose" for the first FrameTask, "point" for the first
+                  PositionTask (or ``task = name``)
 """
 
 from __future__ import annotations
@@ -21,17 +23,18 @@ from . import constraints as constraint_module
 from . import tasks as task_module
 from .controller import Controller
 from .errors import ScenarioError, WbcError
-from .references import Circle, ConstantPose, rpy_matrix
+from .references import Circle, ConstantPoint, ConstantPose, rpy_matrix
 from .robot import Robot, load_robot
-from .tasks import FrameTask, PostureTask
+from .tasks import FrameTask, PositionTask, PostureTask
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
 
-TASK_TYPES = {name: getattr(task_module, name) for name in ("FrameTask", "PostureTask", "BaseVelocityTask")}
-CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in ("JointPositionLimits", "JointVelocityLimits")}
+TASK_TYPES = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
+CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in constraint_module.__all__
+                    if name not in ("Constraint", "ConstraintRows")}
 
 
 @dataclass
@@ -47,14 +50,15 @@ class Scenario:
     dt: float
     duration: float
     damping: float
+    reduced: bool = False
     reference: object | None = None
-    reference_task: FrameTask | None = None
+    reference_task: FrameTask | PositionTask | None = None
     source: Path | None = None
     spec: dict = field(default_factory=dict)
 
     def make_controller(self, solver: str | None = None) -> Controller:
         return Controller(self.robot, self.tasks, self.constraints, solver=solver or self.solver,
-                          dt=self.dt, damping=self.damping)
+                          dt=self.dt, damping=self.damping, reduced=self.reduced)
 
     @property
     def ticks(self) -> int:
@@ -93,8 +97,8 @@ def _build(spec: dict, path: Path) -> Scenario:
     scenario = Scenario(
         name=spec.get("name", path.stem), robot=robot, q0=q0, tasks=tasks, constraints=constraints,
         solver=control.get("solver", "daqp"), dt=float(control.get("dt", 0.01)),
-        duration=float(control.get("duration", 10.0)), damping=float(control.get("damping", 1e-6)),
-        source=path, spec=spec,
+        duration=float(control.get("duration", 10.0)), damping=float(control.get("damping", 1e-3)),
+        reduced=bool(control.get("reduced", False)), source=path, spec=spec,
     )
     if "reference" in spec:
         scenario.reference_task, scenario.reference = _reference(spec["reference"], tasks, robot, q0)
@@ -123,14 +127,15 @@ def _instantiate(entry: dict, registry: dict, section: str, robot: Robot, q0: np
 
 def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
     spec = dict(spec)
-    frame_tasks = [t for t in tasks if isinstance(t, FrameTask)]
+    kind = spec.pop("type", None)
+    task_type = PositionTask if kind == "point" else FrameTask
     wanted = spec.pop("task", None)
-    matches = [t for t in frame_tasks if wanted is None or t.name == wanted]
+    matches = [t for t in tasks if isinstance(t, task_type) and (wanted is None or t.name == wanted)]
     if not matches:
-        raise ScenarioError(f"[reference] needs a FrameTask{'' if wanted is None else f' named {wanted!r}'}")
+        raise ScenarioError(f"[reference] of type {kind!r} needs a {task_type.__name__}"
+                            f"{'' if wanted is None else f' named {wanted!r}'}")
     task = matches[0]
     start = robot.frame_pose(q0, task.frame)
-    kind = spec.pop("type", None)
     if kind == "circle":
         reference = Circle(start=start, radius=spec.pop("radius"), period=spec.pop("period"),
                            normal=spec.pop("normal", [0.0, 0.0, 1.0]),
@@ -143,8 +148,10 @@ def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
         if "rpy" in spec:
             pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
         reference = ConstantPose(pose)
+    elif kind == "point":
+        reference = ConstantPoint(spec.pop("position"))
     else:
-        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose")
+        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, point")
     if spec:
         raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
     return task, reference

@@ -27,7 +27,9 @@ DEFAULT_SETTINGS: dict[str, dict] = {
              "raise_error": False},
     "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
     "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10},
-    "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12},
+    # without the duality-gap check PIQP stops on small residuals alone (seen 1e-4 off)
+    "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12, "check_duality_gap": True,
+             "eps_duality_gap_abs": 1e-12, "eps_duality_gap_rel": 1e-12},
     # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
               "qp_regularization_value": 0.0},

@@ -2,7 +2,9 @@
 
 from .base_velocity_task import BaseVelocityTask
 from .frame_task import FrameTask
+from .position_task import PositionTask
 from .posture_task import PostureTask
+from .steering_task import SteeringTask
 from .task import Task
 
-__all__ = ["Task", "FrameTask", "PostureTask", "BaseVelocityTask"]
+__all__ = ["Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask"]

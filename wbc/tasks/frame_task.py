@@ -8,8 +8,8 @@ import pinocchio as pin
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..errors import InvalidInputError
-from ..validation import as_gain, as_pose, as_vector, as_weights
-from .task import Task, _norm
+from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
+from .task import Task, _norm, _saturate
 
 
 class FrameTask(Task):
@@ -25,24 +25,32 @@ class FrameTask(Task):
         W ( J v - gain/dt * e - xi* ),   W = diag(sqrt(position_cost) I3, sqrt(orientation_cost) I3)
 
     ``xi*`` is an optional feed-forward twist of a moving target (world-aligned,
-    (linear [m/s]; angular [rad/s])) given to :meth:`set_target`.
+    (linear [m/s]; angular [rad/s])) given to :meth:`set_target`. The feedback part
+    ``gain/dt * e`` can be bounded: its linear part to ``max_speed`` [m/s] and its angular
+    part to ``max_angular_speed`` [rad/s] (each scaled down in norm, direction kept).
 
     Args:
         frame: frame name in the robot model.
         position_cost: [cost] / [m]^2 weight of the position rows, scalar or per axis.
         orientation_cost: [cost] / [rad]^2 weight of the orientation rows, scalar or per axis.
         gain: fraction of the error removed per tick, in (0, 1].
+        max_speed: [m/s] bound on the linear feedback velocity; ``None`` = unbounded.
+        max_angular_speed: [rad/s] bound on the angular feedback velocity; ``None`` = unbounded.
     """
 
     dim = 6
 
     def __init__(self, frame: str, position_cost=1.0, orientation_cost=1.0, gain: float = 1.0,
+                 max_speed: float | None = None, max_angular_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
         self.position_cost = as_weights(position_cost, 3, "position_cost")
         self.orientation_cost = as_weights(orientation_cost, 3, "orientation_cost")
         self.gain = as_gain(gain)
+        self.max_speed = np.inf if max_speed is None else as_positive(max_speed, "max_speed")
+        self.max_angular_speed = (np.inf if max_angular_speed is None
+                                  else as_positive(max_angular_speed, "max_angular_speed"))
         self._weights = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
         self._target_rotation = np.eye(3)
         self._target_position = np.zeros(3)
@@ -90,6 +98,8 @@ class FrameTask(Task):
         error[3:] = pin.log3(self._rotation_error)
         np.multiply(self._weights[:, None], kin.frame_jacobian(self._frame_id), out=jacobian)
         np.multiply(error, self.gain / dt, out=target)
+        _saturate(target[:3], self.max_speed)
+        _saturate(target[3:], self.max_angular_speed)
         target += self._feedforward
         target *= self._weights
 
@@ -99,4 +109,5 @@ class FrameTask(Task):
 
     def __repr__(self) -> str:
         return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "
-                f"orientation_cost={self.orientation_cost.tolist()}, gain={self.gain})")
+                f"orientation_cost={self.orientation_cost.tolist()}, gain={self.gain}, "
+                f"max_speed={self.max_speed}, max_angular_speed={self.max_angular_speed})")

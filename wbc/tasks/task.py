@@ -28,6 +28,9 @@ class Task(ABC):
 
     #: number of task rows
     dim: int
+    #: True for tasks that need the holonomic preview (see SteeringTask); they are
+    #: computed after all others through ``compute_preview``
+    uses_preview: bool = False
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or self.default_name()
@@ -50,3 +53,10 @@ class Task(ABC):
 def _norm(vector: np.ndarray) -> float:
     """Euclidean norm of a small vector (cheaper than np.linalg.norm on the hot path)."""
     return math.sqrt(float(vector @ vector))
+
+
+def _saturate(vector: np.ndarray, limit: float) -> None:
+    """Scale ``vector`` in place so that its norm is at most ``limit``."""
+    norm = _norm(vector)
+    if norm > limit:
+        vector *= limit / norm

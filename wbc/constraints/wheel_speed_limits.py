@@ -1,0 +1,74 @@
+"""Wheel speed limits of a wheeled base."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..base import BaseKind
+from ..errors import InvalidInputError
+from ..kinematics import Kinematics
+from ..robot import Robot
+from ..validation import as_positive
+from .constraint import Constraint, ConstraintRows
+
+
+class WheelSpeedLimits(Constraint):
+    """``|u_i| <= u_max`` for the wheel speeds ``u = H0 B(heading) v`` of the base.
+
+    ``B`` rotates the world base rates into the base-frame twist ``(v_x, v_y, omega)``
+    (see :mod:`wbc.base`) and ``H0`` is the wheel model's inverse kinematics
+    (:meth:`MecanumWheels.inverse_matrix`, :meth:`DifferentialWheels.inverse_matrix`).
+    Each wheel gives two rows, ``+-H0_i B v <= u_max``.
+
+    Args:
+        max_speed: wheel speed limit [rad/s]; default: the model's ``[base.wheels] max_speed``.
+    """
+
+    required_kind: BaseKind | None = None
+
+    def __init__(self, max_speed: float | None = None, name: str | None = None) -> None:
+        super().__init__(name)
+        self._max_speed = None if max_speed is None else as_positive(max_speed, "max_speed")
+
+    def bind(self, robot: Robot) -> None:
+        base = robot.base
+        if base.wheels is None or (self.required_kind is not None and base.kind is not self.required_kind):
+            wanted = self.required_kind.value if self.required_kind else "wheeled"
+            raise InvalidInputError(f"{self.name} needs a {wanted} base with wheel geometry; "
+                                    f"robot '{robot.name}' has a {base.kind.value} base")
+        self._H0 = base.wheels.inverse_matrix()
+        self.max_speed = self._max_speed if self._max_speed is not None else base.wheels.max_speed
+        if not np.isfinite(self.max_speed):
+            raise InvalidInputError(f"{self.name}: no wheel speed limit given or declared by the model")
+        self._x, self._y, self._heading = base.indices
+        self.n_wheels = self._H0.shape[0]
+        self.n_inequalities = 2 * self.n_wheels
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        rows.h.fill(self.max_speed)
+        rows.G[: self.n_wheels, self._heading] = self._H0[:, 2]
+        rows.G[self.n_wheels:, self._heading] = -self._H0[:, 2]
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        angle = kin.q[self._heading]
+        c, s = np.cos(angle), np.sin(angle)
+        H0, n, G = self._H0, self.n_wheels, rows.G
+        # d u / d xdot = H0[:, 0] c - H0[:, 1] s ;  d u / d ydot = H0[:, 0] s + H0[:, 1] c
+        np.multiply(H0[:, 0], c, out=G[:n, self._x])
+        G[:n, self._x] -= s * H0[:, 1]
+        np.multiply(H0[:, 0], s, out=G[:n, self._y])
+        G[:n, self._y] += c * H0[:, 1]
+        np.negative(G[:n, self._x], out=G[n:, self._x])
+        np.negative(G[:n, self._y], out=G[n:, self._y])
+
+    def row_labels(self) -> list[str]:
+        return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(max_speed={self._max_speed})"
+
+
+class MecanumWheelLimits(WheelSpeedLimits):
+    """:class:`WheelSpeedLimits` for the four Swedish wheels of a mecanum base (the youBot)."""
+
+    required_kind = BaseKind.MECANUM
