@@ -9,8 +9,9 @@ Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base
 (base pose and base-frame twists).
 """
 
-from .base import BaseKind, MecanumWheels, MobileBase
-from .constraints import Constraint, JointPositionLimits, JointVelocityLimits
+from .base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .constraints import (Constraint, JointPositionLimits, JointVelocityLimits, MecanumWheelLimits,
+                          NonholonomicBase, WheelSpeedLimits)
 from .controller import Controller
 from .diagnostics import TickDiagnostics
 from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, UnknownFrameError,
@@ -18,16 +19,17 @@ from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, 
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
-from .tasks import BaseVelocityTask, FrameTask, PostureTask, Task
+from .tasks import BaseVelocityTask, FrameTask, PositionTask, PostureTask, SteeringTask, Task
 
 __version__ = "0.1.0"
 
 __all__ = [
-    "BaseKind", "MecanumWheels", "MobileBase",
-    "Constraint", "JointPositionLimits", "JointVelocityLimits",
+    "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
+    "Constraint", "JointPositionLimits", "JointVelocityLimits", "MecanumWheelLimits", "NonholonomicBase",
+    "WheelSpeedLimits",
     "Controller", "TickDiagnostics", "QP",
     "InvalidInputError", "ModelError", "ScenarioError", "SolverError", "UnknownFrameError",
     "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
-    "Task", "FrameTask", "PostureTask", "BaseVelocityTask",
+    "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask",
 ]

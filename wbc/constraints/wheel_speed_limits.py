@@ -58,8 +58,9 @@ class WheelSpeedLimits(Constraint):
         G[:n, self._x] -= s * H0[:, 1]
         np.multiply(H0[:, 0], s, out=G[:n, self._y])
         G[:n, self._y] += c * H0[:, 1]
-        np.negative(G[:n, self._x], out=G[n:, self._x])
-        np.negative(G[:n, self._y], out=G[n:, self._y])
+        # np.multiply, not np.negative: numpy 2.4's negative miscomputes strided views of one array
+        np.multiply(G[:n, self._x], -1.0, out=G[n:, self._x])
+        np.multiply(G[:n, self._y], -1.0, out=G[n:, self._y])
 
     def row_labels(self) -> list[str]:
         return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]
