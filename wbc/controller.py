@@ -21,7 +21,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .constraints.constraint import Constraint, ConstraintRows
-from .diagnostics import ActiveSetLabels, TickDiagnostics
+from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
 from .qp import QP
@@ -99,6 +99,7 @@ class Controller:
         for task in ordered:
             stop = start + task.dim
             block = (task, self._Js[start:stop], self._rs[start:stop])
+            task.write_static(block[1])
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
         self._plain_rows = sum(task.dim for task, _, _ in self._task_blocks)
@@ -128,10 +129,10 @@ class Controller:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
         names = _velocity_names(robot)
-        bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
-                        for c in bounded] or [[""] * (2 * nv)]
-        self._labels = ActiveSetLabels(bound_labels, row_labels)
-        self._diag = np.arange(nv) * (nv + 1)
+        self._bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
+                              for c in bounded] or [[""] * (2 * nv)]
+        self._row_labels = row_labels
+        self._damping_matrix = self.damping * np.eye(nv)
         self._preview = np.zeros(nv)
 
         self._nonholonomic = robot.base.is_nonholonomic
@@ -162,18 +163,15 @@ class Controller:
         for task, jacobian, target in self._task_blocks:
             task.compute(kin, dt, jacobian, target)
         np.matmul(self._Js.T, self._Js, out=qp.H)
-        qp.H.flat[self._diag] += self.damping
-        np.matmul(self._Js.T, self._rs, out=qp.c)
-        np.negative(qp.c, out=qp.c)
+        qp.H += self._damping_matrix
+        np.matmul(self._rs, self._Js, out=qp.c)
+        qp.c *= -1.0
         if self._preview_blocks:
             self._add_preview_tasks(kin, dt, qp)
 
         for constraint, block in self._constraint_blocks:
             constraint.compute(kin, dt, block)
-        qp.lb[:], qp.ub[:] = self._lower[0], self._upper[0]
-        for lower, upper in zip(self._lower[1:], self._upper[1:]):
-            np.maximum(qp.lb, lower, out=qp.lb)
-            np.minimum(qp.ub, upper, out=qp.ub)
+        _intersect(self._lower, self._upper, qp.lb, qp.ub)
         if qp.n_eq:
             qp.sync_equalities()
 
@@ -184,7 +182,8 @@ class Controller:
         solution = self.solver.solve(self.qp)
         self._tick += 1
         if not solution.success:
-            self.last = self._diagnostics(None, None, solution, start)
+            self.last = TickDiagnostics(self, self._tick, solution.status, False, solution.solve_time,
+                                        time.perf_counter() - start)
             raise SolverError(f"{self.solver.name} failed at tick {self._tick}: {solution.status}")
         if self.reduced:
             u = solution.x
@@ -194,7 +193,8 @@ class Controller:
             u = S.T @ v
         else:
             v = u = solution.x
-        self.last = self._diagnostics(v, u, solution, start)
+        self.last = TickDiagnostics(self, self._tick, solution.status, True, solution.solve_time,
+                                    time.perf_counter() - start, v, u)
         return v
 
     def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
@@ -223,28 +223,42 @@ class Controller:
         qu.ub[self._bound_u] = qv.ub[self._bound_v]
 
     # ------------------------------------------------------------ diagnostics
-    def _diagnostics(self, v, u, solution, start: float) -> TickDiagnostics:
-        errors: dict[str, float] = {}
-        if v is None:
-            return TickDiagnostics(self._tick, self.solver.name, solution.status, False, solution.solve_time,
-                                   time.perf_counter() - start, errors)
-        for task in self.tasks:
-            task.report(v, errors)
+    def constraint_violation(self, v: np.ndarray) -> float:
+        """Largest violation of this tick's bounds and rows by ``v`` (0 when feasible)."""
         qp = self._qp_v
-        rows = None
+        worst = max(float(np.max(v - qp.ub)), float(np.max(qp.lb - v)), 0.0)
         if qp.n_ineq or qp.n_eq:
-            rows = qp.C @ v
-            rows -= qp.upper[qp.n:]
-        v = v.copy()
-        return TickDiagnostics(
-            self._tick, self.solver.name, solution.status, True, solution.solve_time,
-            time.perf_counter() - start, errors, v, self._lower.copy(), self._upper.copy(),
-            rows, qp.n_ineq, self._labels, u=u if self._nonholonomic else v,
-        )
+            rows = qp.C @ v - qp.upper[qp.n:]
+            worst = max(worst, float(np.max(rows[: qp.n_ineq], initial=0.0)),
+                        float(np.max(np.abs(rows[qp.n_ineq:]), initial=0.0)))
+        return worst
+
+    def active_constraints(self, v: np.ndarray) -> list[str]:
+        """Labels of this tick's bounds and rows that ``v`` meets with equality."""
+        at_upper = np.abs(v - self._upper) <= ACTIVE_TOLERANCE
+        at_lower = np.abs(v - self._lower) <= ACTIVE_TOLERANCE
+        names = [self._bound_labels[k][i] for k, i in zip(*np.nonzero(np.concatenate([at_upper, at_lower], 1)))]
+        qp = self._qp_v
+        if qp.n_ineq:
+            rows = qp.C[: qp.n_ineq] @ v - qp.h
+            names += [self._row_labels[i] for i in np.flatnonzero(rows >= -ACTIVE_TOLERANCE)]
+        return names + self._row_labels[qp.n_ineq:]  # equality rows always hold
 
     def __repr__(self) -> str:
         return (f"Controller({self.robot.name!r}, tasks={self.tasks}, constraints={self.constraints}, "
                 f"solver={self.solver.name!r}, dt={self.dt}, reduced={self.reduced})")
+
+
+def _intersect(lowers: np.ndarray, uppers: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> None:
+    """``lb = max_k lowers[k]``, ``ub = min_k uppers[k]`` with as few numpy calls as possible."""
+    if len(lowers) == 1:
+        lb[:], ub[:] = lowers[0], uppers[0]
+        return
+    np.maximum(lowers[0], lowers[1], out=lb)
+    np.minimum(uppers[0], uppers[1], out=ub)
+    for lower, upper in zip(lowers[2:], uppers[2:]):
+        np.maximum(lb, lower, out=lb)
+        np.minimum(ub, upper, out=ub)
 
 
 def _velocity_names(robot: Robot) -> list[str]:

@@ -10,9 +10,10 @@ that all backends return the same command; override them with ``options``.
 
 from __future__ import annotations
 
+import math
 import time
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import qpsolvers
@@ -40,14 +41,18 @@ DEFAULT_SETTINGS: dict[str, dict] = {
 _SPARSE_SOLVERS = set(getattr(qpsolvers, "sparse_solvers", ()))
 
 
-@dataclass
-class QPSolution:
+class QPSolution(NamedTuple):
     """Outcome of one solve: ``x`` is None unless ``success``."""
 
     x: np.ndarray | None
     success: bool
     status: str
     solve_time: float  #: wall time inside the backend [s]
+
+
+def _finite(x: np.ndarray) -> bool:
+    """True when every entry of ``x`` is finite (one dot product; overflow falls back)."""
+    return math.isfinite(x.dot(x)) or bool(np.all(np.isfinite(x)))
 
 
 class QPSolver(ABC):
@@ -105,39 +110,66 @@ class QpsolversBackend(QPSolver):
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
         x = solution.x
-        if not solution.found or x is None or not np.all(np.isfinite(x)):
+        if not solution.found or x is None or not _finite(np.asarray(x, dtype=np.float64)):
             return QPSolution(None, False, "not found", elapsed)
         return QPSolution(np.asarray(x, dtype=np.float64), True, "optimal", elapsed)
 
 
 class DaqpBackend(QPSolver):
-    """DAQP called directly on the QP buffers (no copies, no qpsolvers conversion)."""
+    """DAQP through a persistent ``daqp.Model`` workspace on the QP buffers.
+
+    The workspace is set up once; each tick only updates the data. With
+    ``warm_start=True`` (default) the solve starts from the previous tick's active set,
+    which in a control loop usually means zero or one active-set change. ``options``
+    are DAQP settings (``iter_limit``, ``time_limit`` [s], ``primal_tol``, ...) plus
+    ``warm_start``.
+    """
 
     name = "daqp"
 
     def __init__(self, options: dict | None = None) -> None:
         import daqp
 
-        self._solve = daqp.solve
-        self.settings = dict(options or {})
-        self._sense: np.ndarray | None = None
+        self._daqp = daqp
+        settings = dict(options or {})
+        self.warm_start = bool(settings.pop("warm_start", True))
+        self.settings = settings
+        self._model = None
+        self._shape: tuple[int, int, int] | None = None
+        self._sense = np.zeros(0, dtype=np.int32)
 
-    def _sense_for(self, qp: QP) -> np.ndarray:
-        size = qp.n + qp.n_ineq + qp.n_eq
-        if self._sense is None or self._sense.size != size:
-            self._sense = np.zeros(size, dtype=np.int32)
-            self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
-        return self._sense
+    def _setup(self, qp: QP) -> int:
+        self._shape = (qp.n, qp.n_ineq, qp.n_eq)
+        self._sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
+        self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
+        self._model = self._daqp.Model()
+        if self.settings:
+            self._model.settings = self.settings
+        exitflag, _ = self._model.setup(qp.H, qp.c, qp.C, qp.upper, qp.lower, self._sense)
+        return exitflag
+
+    def reset(self) -> None:
+        """Forget the workspace (the next solve starts cold)."""
+        self._model = None
 
     def solve(self, qp: QP) -> QPSolution:
-        sense = self._sense_for(qp)
         start = time.perf_counter()
         try:
-            x, _, exitflag, _ = self._solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense, **self.settings)
+            if self._model is None or self._shape != (qp.n, qp.n_ineq, qp.n_eq):
+                exitflag = self._setup(qp)
+            elif self.warm_start:
+                exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C, bupper=qp.upper, blower=qp.lower)
+            else:
+                exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C, bupper=qp.upper, blower=qp.lower,
+                                              sense=self._sense)
+            if exitflag >= 0:
+                x, _, exitflag, _ = self._model.solve()
         except Exception as exc:
+            self._model = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
-        if exitflag < 1 or not np.all(np.isfinite(x)):
+        if exitflag < 1 or not _finite(x):
+            self._model = None  # never warm start from a failed solve
             return QPSolution(None, False, _DAQP_EXITFLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)
         return QPSolution(x, True, "optimal", elapsed)
 

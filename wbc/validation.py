@@ -6,6 +6,8 @@ the offending argument, before any kinematics or solver code runs.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .errors import InvalidInputError
@@ -14,14 +16,24 @@ ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rota
 
 
 def as_vector(value, size: int, name: str) -> np.ndarray:
-    """Return ``value`` as a finite float64 vector of length ``size``."""
-    try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
-    if array.shape != (size,):
-        raise InvalidInputError(f"{name} must have shape ({size},), got {array.shape}")
-    if not np.all(np.isfinite(array)):
+    """Return ``value`` as a finite float64 vector of length ``size``.
+
+    Fast path for the control loop: a float64 array of the right shape is checked
+    with one dot product (``x.x`` is NaN or inf iff some entry is, or on overflow,
+    which falls through to the element-wise check).
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
+        array = value
+    else:
+        if np.iscomplexobj(value):
+            raise InvalidInputError(f"{name} must be real, got complex values")
+        try:
+            array = np.asarray(value, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
+        if array.shape != (size,):
+            raise InvalidInputError(f"{name} must have shape ({size},), got {array.shape}")
+    if not math.isfinite(array.dot(array)) and not np.all(np.isfinite(array)):
         raise InvalidInputError(f"{name} contains NaN or inf: {array}")
     return array
 

@@ -43,13 +43,28 @@ class JointPositionLimits(Constraint):
         self._v_index = np.array(v_index, dtype=int)
         self._lower = robot.lower[self._q_index].copy()
         self._upper = robot.upper[self._q_index].copy()
-        self._scratch = np.zeros(len(q_index))
+        # one contiguous block of q and v (the common case): slices instead of gathers
+        self._slices = None
+        if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
+            self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        if self._slices is not None:
+            self._views = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        q = np.take(kin.q, self._q_index, out=self._scratch)
         scale = self.gain / dt
-        rows.lower[self._v_index] = (self._lower - q) * scale
-        rows.upper[self._v_index] = (self._upper - q) * scale
+        if self._slices is not None:
+            q = kin.q[self._slices[0]]
+            lower, upper = self._views
+            np.subtract(self._lower, q, out=lower)
+            np.subtract(self._upper, q, out=upper)
+            lower *= scale
+            upper *= scale
+        else:
+            q = kin.q[self._q_index]
+            rows.lower[self._v_index] = (self._lower - q) * scale
+            rows.upper[self._v_index] = (self._upper - q) * scale
 
     def __repr__(self) -> str:
         return f"JointPositionLimits(gain={self.gain})"

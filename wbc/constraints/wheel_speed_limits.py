@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..base import BaseKind
@@ -43,24 +45,32 @@ class WheelSpeedLimits(Constraint):
         self._x, self._y, self._heading = base.indices
         self.n_wheels = self._H0.shape[0]
         self.n_inequalities = 2 * self.n_wheels
+        self._H0_xy = np.ascontiguousarray(self._H0[:, :2])
+        self._rotation = np.eye(2)
+        self._xy = slice(self._x, self._x + 2) if self._y == self._x + 1 else None
+        self._scratch = np.zeros((self.n_wheels, 2))
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.h.fill(self.max_speed)
-        rows.G[: self.n_wheels, self._heading] = self._H0[:, 2]
-        rows.G[self.n_wheels:, self._heading] = -self._H0[:, 2]
+        n, G = self.n_wheels, rows.G
+        G[:n, self._heading] = self._H0[:, 2]
+        G[n:, self._heading] = -self._H0[:, 2]
+        self._views = (G[:n, self._xy] if self._xy is not None else self._scratch,
+                       G[:n, self._x], G[:n, self._y], G[n:, self._x], G[n:, self._y])
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         angle = kin.q[self._heading]
-        c, s = np.cos(angle), np.sin(angle)
-        H0, n, G = self._H0, self.n_wheels, rows.G
-        # d u / d xdot = H0[:, 0] c - H0[:, 1] s ;  d u / d ydot = H0[:, 0] s + H0[:, 1] c
-        np.multiply(H0[:, 0], c, out=G[:n, self._x])
-        G[:n, self._x] -= s * H0[:, 1]
-        np.multiply(H0[:, 0], s, out=G[:n, self._y])
-        G[:n, self._y] += c * H0[:, 1]
+        c, s = math.cos(angle), math.sin(angle)
+        rotation = self._rotation  # d(v_x, v_y) / d(xdot, ydot) transposed: [[c, s], [-s, c]]
+        rotation[0, 0] = rotation[1, 1] = c
+        rotation[0, 1], rotation[1, 0] = s, -s
+        block, forward_x, forward_y, backward_x, backward_y = self._views
+        np.matmul(self._H0_xy, rotation, out=block)  # [du/dxdot, du/dydot]
+        if self._xy is None:
+            forward_x[:], forward_y[:] = block[:, 0], block[:, 1]
         # np.multiply, not np.negative: numpy 2.4's negative miscomputes strided views of one array
-        np.multiply(G[:n, self._x], -1.0, out=G[n:, self._x])
-        np.multiply(G[:n, self._y], -1.0, out=G[n:, self._y])
+        np.multiply(forward_x, -1.0, out=backward_x)
+        np.multiply(forward_y, -1.0, out=backward_y)
 
     def row_labels(self) -> list[str]:
         return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]

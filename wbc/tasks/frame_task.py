@@ -52,12 +52,17 @@ class FrameTask(Task):
         self.max_angular_speed = (np.inf if max_angular_speed is None
                                   else as_positive(max_angular_speed, "max_angular_speed"))
         self._weights = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
+        self._weight_column = self._weights[:, None]
+        self._saturating = bool(np.isfinite(self.max_speed) or np.isfinite(self.max_angular_speed))
+        self._dt, self._gain_weights = None, self._weights
         self._target_rotation = np.eye(3)
         self._target_position = np.zeros(3)
         self._feedforward = np.zeros(6)
+        self._weighted_feedforward = np.zeros(6)
+        self._has_feedforward = False
         self._has_target = False
-        self._rotation_error = np.zeros((3, 3))
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
+        self._position_error, self._orientation_error = self.error[:3], self.error[3:]
         self._frame_id = -1
 
     def default_name(self) -> str:
@@ -72,6 +77,8 @@ class FrameTask(Task):
             self._feedforward.fill(0.0)
         else:
             self._feedforward[...] = as_vector(twist, 6, "target twist")
+        np.multiply(self._feedforward, self._weights, out=self._weighted_feedforward)
+        self._has_feedforward = twist is not None
         self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
@@ -91,21 +98,26 @@ class FrameTask(Task):
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
+        if dt != self._dt:
+            self._dt, self._gain_weights = dt, self._weights * (self.gain / dt)
         placement = kin.frame_placement(self._frame_id)
+        np.subtract(self._target_position, placement.translation, out=self._position_error)
+        self._orientation_error[:] = pin.log3(self._target_rotation @ placement.rotation.T)
         error = self.error
-        np.subtract(self._target_position, placement.translation, out=error[:3])
-        np.matmul(self._target_rotation, placement.rotation.T, out=self._rotation_error)
-        error[3:] = pin.log3(self._rotation_error)
-        np.multiply(self._weights[:, None], kin.frame_jacobian(self._frame_id), out=jacobian)
-        np.multiply(error, self.gain / dt, out=target)
-        _saturate(target[:3], self.max_speed)
-        _saturate(target[3:], self.max_angular_speed)
-        target += self._feedforward
-        target *= self._weights
+        np.multiply(kin.frame_jacobian(self._frame_id), self._weight_column, out=jacobian)
+        if self._saturating:
+            np.multiply(error, self.gain / dt, out=target)
+            _saturate(target[:3], self.max_speed)
+            _saturate(target[3:], self.max_angular_speed)
+            target *= self._weights
+        else:
+            np.multiply(error, self._gain_weights, out=target)
+        if self._has_feedforward:
+            target += self._weighted_feedforward
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self._keys[0]] = _norm(self.error[:3])
-        errors[self._keys[1]] = _norm(self.error[3:])
+        errors[self._keys[0]] = _norm(self._position_error)
+        errors[self._keys[1]] = _norm(self._orientation_error)
 
     def __repr__(self) -> str:
         return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "

@@ -35,38 +35,59 @@ class PostureTask(Task):
         self._joint_spec = joints
         self.gain = as_gain(gain)
         self.dim = 0
+        self._robot: Robot | None = None
+        self.target: np.ndarray | None = None  #: reference configuration, set when bound
 
     def bind(self, robot: Robot) -> None:
         model = robot.model
         base = set(robot.base.indices) if robot.base.is_mobile else set()
         if self._joint_spec is None:
-            indices = [i for i in range(robot.nv) if i not in base]
+            joints = [j for j in model.joints[1:] if j.idx_v not in base]
         else:
-            indices = []
+            joints = []
             for joint_name in self._joint_spec:
                 if not model.existJointName(joint_name):
                     raise InvalidInputError(f"{self.name}: unknown joint {joint_name!r}")
-                joint = model.joints[model.getJointId(joint_name)]
-                indices.extend(range(joint.idx_v, joint.idx_v + joint.nv))
+                joints.append(model.joints[model.getJointId(joint_name)])
+        indices = [i for j in joints for i in range(j.idx_v, j.idx_v + j.nv)]
         self.indices = np.array(indices, dtype=int)
         self.dim = len(indices)
         self.cost = as_weights(self._cost_spec, self.dim, "cost")
         self._weights = np.sqrt(self.cost)
-        self.target = robot.neutral() if self._target_spec is None else robot.check_configuration(self._target_spec)
-        self._model = model
+        self._robot, self._model = robot, model
         self._weighted_selection = np.zeros((self.dim, robot.nv))
         self._weighted_selection[np.arange(self.dim), self.indices] = self._weights
         self.error = np.zeros(self.dim)
+        self._dt, self._gain_weights = None, self._weights
+        # vector-space shortcut: 1-DOF joints (nq = nv) forming one contiguous block of q and v
+        q_index = np.array([j.idx_q for j in joints], dtype=int)
+        simple = all(j.nq == 1 and j.nv == 1 for j in joints) and self.dim > 0
+        contiguous = simple and np.all(np.diff(q_index) == 1) and np.all(np.diff(self.indices) == 1)
+        self._q_slice = slice(int(q_index[0]), int(q_index[-1]) + 1) if contiguous else None
+        self._apply_target(robot.neutral() if self._target_spec is None else self._target_spec)
+
+    def _apply_target(self, q) -> None:
+        self.target = self._robot.check_configuration(q).copy()
+        if self._q_slice is not None:
+            self._target_selected = self.target[self._q_slice].copy()
 
     def set_target(self, q) -> None:
-        self.target = np.array(q, dtype=np.float64)
+        """New reference configuration (size nq)."""
+        self._target_spec = q
+        if self._robot is not None:
+            self._apply_target(q)
+
+    def write_static(self, jacobian: np.ndarray) -> None:
+        jacobian[...] = self._weighted_selection
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        full_error = pin.difference(self._model, kin.q, self.target)
-        np.take(full_error, self.indices, out=self.error)
-        jacobian[...] = self._weighted_selection
-        np.multiply(self.error, self.gain / dt, out=target)
-        target *= self._weights
+        if dt != self._dt:
+            self._dt, self._gain_weights = dt, self._weights * (self.gain / dt)
+        if self._q_slice is not None:
+            np.subtract(self._target_selected, kin.q[self._q_slice], out=self.error)
+        else:
+            np.take(pin.difference(self._model, kin.q, self.target), self.indices, out=self.error)
+        np.multiply(self.error, self._gain_weights, out=target)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = _norm(self.error)

@@ -41,6 +41,9 @@ class Task(ABC):
     def bind(self, robot: Robot) -> None:
         """Resolve names against ``robot`` and allocate buffers (called once by the controller)."""
 
+    def write_static(self, jacobian: np.ndarray) -> None:
+        """Write rows that never change, once after allocation (e.g. a constant ``W J``)."""
+
     @abstractmethod
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         """Write ``W J`` into ``jacobian`` (dim x nv) and ``W r`` into ``target`` (dim)."""
