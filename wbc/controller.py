@@ -26,7 +26,7 @@ from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
 from .qp import QP
 from .robot import Robot
-from .solvers import QPSolver, make_solver
+from .solvers import QPSolution, QPSolver, make_solver
 from .tasks.task import Task
 from .validation import as_positive
 
@@ -46,11 +46,25 @@ class Controller:
         reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms.
+        strict: raise :class:`SolverError` when the QP cannot be solved, instead of the
+            fallback below.
+
+    Failure handling (never a NaN, never an exception in the loop unless ``strict``):
+
+    1. *Soft bounds* (position dampers) are clipped into the *hard* ones (speed limits)
+       every tick, so conflicting limits never make the QP infeasible (a joint outside its
+       range returns at top speed).
+    2. If the backend fails (infeasible rows, iteration / time budget, numerical trouble),
+       the same QP is solved again by DAQP with the rows of soft constraints made
+       *elastic* (violations penalised with weight 1e6): hard limits hold, the violation
+       shows in ``last.max_violation``; status ``"fallback: elastic ..."``.
+    3. If that fails too, or the QP data holds NaN, the command is ``v = 0`` (it satisfies
+       every hard limit: speed, wheel and no-slip limits); status ``"fallback: zero ..."``.
     """
 
     def __init__(self, robot: Robot, tasks: Sequence[Task], constraints: Sequence[Constraint] = (),
                  solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
-                 solver_options: dict | None = None, reduced: bool = False) -> None:
+                 solver_options: dict | None = None, reduced: bool = False, strict: bool = False) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
@@ -69,6 +83,7 @@ class Controller:
             if not isinstance(item, Constraint):
                 raise InvalidInputError(f"not a Constraint: {item!r}")
         self.reduced = bool(reduced)
+        self.strict = bool(strict)
         if self.reduced:
             self.constraints = [c for c in self.constraints if not getattr(c, "satisfied_by_input_map", False)]
         elif robot.base.is_nonholonomic and not any(getattr(c, "satisfied_by_input_map", False)
@@ -76,6 +91,9 @@ class Controller:
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
         self.solver: QPSolver = make_solver(solver, solver_options)
+        # the elastic fallback honours a DAQP per-tick budget given to the primary solver
+        self._fallback_settings = {key: value for key, value in (solver_options or {}).items()
+                                   if solver == "daqp" and key in ("iter_limit", "time_limit")}
         self.kinematics = Kinematics(robot)
         self._tick = 0
         self.last: TickDiagnostics | None = None
@@ -107,11 +125,15 @@ class Controller:
         n_ineq = sum(c.n_inequalities for c in self.constraints)
         n_eq = sum(c.n_equalities for c in self.constraints)
         self._qp_v = QP(nv, n_ineq, n_eq)
-        bounded = [c for c in self.constraints if c.has_bounds]
+        bounded = ([c for c in self.constraints if c.has_bounds and c.hard]
+                   + [c for c in self.constraints if c.has_bounds and not c.hard])
+        self._n_hard_bounds = sum(c.hard for c in bounded)
         self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
         self._upper = np.full((max(len(bounded), 1), nv), np.inf)
+        self._soft_bounds = np.zeros((2, nv))  # scratch: intersection of the soft bounds
         self._constraint_blocks = []
         row_labels: list[str] = []
+        soft_rows: list[int] = []
         i_ineq = i_eq = 0
         qp = self._qp_v
         for constraint in self.constraints:
@@ -123,6 +145,8 @@ class Controller:
                                    qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
             self._constraint_blocks.append((constraint, block))
             row_labels += [f"{constraint.name}: {label}" for label in constraint.row_labels()[:p]]
+            if not constraint.hard:
+                soft_rows += range(i_ineq, i_ineq + p)
             constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
         for constraint in self.constraints:
@@ -132,6 +156,8 @@ class Controller:
         self._bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
                               for c in bounded] or [[""] * (2 * nv)]
         self._row_labels = row_labels
+        self._soft_rows = np.array(soft_rows, dtype=int)  # indices among the inequality rows
+        self._elastic = None  # DAQP workspace of the fallback, built on first use
         self._damping_matrix = self.damping * np.eye(nv)
         self._preview = np.zeros(nv)
 
@@ -171,7 +197,7 @@ class Controller:
 
         for constraint, block in self._constraint_blocks:
             constraint.compute(kin, dt, block)
-        _intersect(self._lower, self._upper, qp.lb, qp.ub)
+        self._merge_bounds(qp)
         if qp.n_eq:
             qp.sync_equalities()
 
@@ -179,12 +205,13 @@ class Controller:
             S = self.robot.input_map(q, out=self._S)
             if self.reduced:
                 self._reduce(S)
-        solution = self.solver.solve(self.qp)
+        if qp.has_nan():
+            solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
+        else:
+            solution = self.solver.solve(self.qp)
         self._tick += 1
         if not solution.success:
-            self.last = TickDiagnostics(self, self._tick, solution.status, False, solution.solve_time,
-                                        time.perf_counter() - start)
-            raise SolverError(f"{self.solver.name} failed at tick {self._tick}: {solution.status}")
+            solution = self._fallback(solution)
         if self.reduced:
             u = solution.x
             v = S @ u
@@ -193,9 +220,65 @@ class Controller:
             u = S.T @ v
         else:
             v = u = solution.x
-        self.last = TickDiagnostics(self, self._tick, solution.status, True, solution.solve_time,
-                                    time.perf_counter() - start, v, u)
+        self.last = TickDiagnostics(self, self._tick, solution.status, solution.status == "optimal",
+                                    solution.solve_time, time.perf_counter() - start, v, u)
         return v
+
+    def _merge_bounds(self, qp: QP) -> None:
+        """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them."""
+        k = self._n_hard_bounds
+        if k == 0 or k == len(self._lower):
+            _intersect(self._lower, self._upper, qp.lb, qp.ub)
+            return
+        soft_lb, soft_ub = self._soft_bounds
+        _intersect(self._lower[:k], self._upper[:k], qp.lb, qp.ub)  # hard
+        _intersect(self._lower[k:], self._upper[k:], soft_lb, soft_ub)
+        np.maximum(soft_lb, qp.lb, out=soft_lb)  # max(hard_lb, soft_lb) ...
+        np.minimum(soft_lb, qp.ub, out=soft_lb)  # ... clipped to <= hard_ub
+        np.minimum(soft_ub, qp.ub, out=soft_ub)  # min(hard_ub, soft_ub) ...
+        np.maximum(soft_ub, qp.lb, out=qp.ub)  # ... clipped to >= hard_lb
+        qp.lb[:] = soft_lb
+
+    def _fallback(self, failed: QPSolution) -> QPSolution:
+        """Elastic re-solve, then the zero command (see the class docstring)."""
+        if self.strict:
+            raise SolverError(f"{self.solver.name} failed at tick {self._tick}: {failed.status}")
+        reason = f"{self.solver.name}: {failed.status}"
+        elapsed = failed.solve_time
+        if not failed.status.startswith("QP data holds NaN"):
+            elastic = self._elastic_solve()
+            elapsed += elastic.solve_time
+            if elastic.success:
+                return QPSolution(elastic.x, False, f"fallback: elastic soft rows after {reason}", elapsed)
+            reason += f"; elastic: {elastic.status}"
+        return QPSolution(np.zeros(self.qp.n), False, f"fallback: zero command after {reason}", elapsed)
+
+    def _elastic_solve(self) -> QPSolution:
+        """DAQP, cold, on the same QP with soft inequality rows elastic; hard limits checked."""
+        import daqp
+
+        qp = self.qp
+        start = time.perf_counter()
+        sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
+        sense[qp.n + self._soft_rows] = 8  # soft (elastic) rows
+        sense[qp.n + qp.n_ineq:] = 5  # equalities
+        try:
+            x, _, exitflag, _ = daqp.solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense,
+                                           **self._fallback_settings)
+        except Exception as exc:  # noqa: BLE001 -- any backend error means: no elastic solution
+            return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+        elapsed = time.perf_counter() - start
+        if exitflag < 1 or not np.all(np.isfinite(x)):
+            return QPSolution(None, False, f"exitflag {exitflag}", elapsed)
+        hard = np.ones(qp.n_ineq, dtype=bool)
+        hard[self._soft_rows] = False
+        rows = qp.C @ x
+        violation = max(float(np.max(x - qp.ub)), float(np.max(qp.lb - x)),
+                        float(np.max(rows[: qp.n_ineq][hard] - qp.h[hard], initial=0.0)),
+                        float(np.max(np.abs(rows[qp.n_ineq:] - qp.b), initial=0.0)))
+        if violation > 1e-6:
+            return QPSolution(None, False, f"hard limits violated by {violation:.1e}", elapsed)
+        return QPSolution(x, True, "optimal", elapsed)
 
     def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
         """Holonomic relaxation of the plain tasks, then the rows of the preview tasks."""

@@ -30,15 +30,25 @@ class QP:
 
     def __post_init__(self) -> None:
         n, p, e = self.n, self.n_ineq, self.n_eq
-        self.H = np.zeros((n, n))
-        self.c = np.zeros(n)
-        self.C = np.zeros((p + e, n))
-        self.upper = np.full(n + p + e, np.inf)
-        self.lower = np.full(n + p + e, -np.inf)
+        m = n + p + e
+        # one flat buffer behind every array, so a single call can screen it for NaN
+        self.data = np.zeros(n * n + n + (p + e) * n + 2 * m)
+        sizes = np.cumsum([0, n * n, n, (p + e) * n, m, m])
+        self.H = self.data[sizes[0]:sizes[1]].reshape(n, n)
+        self.c = self.data[sizes[1]:sizes[2]]
+        self.C = self.data[sizes[2]:sizes[3]].reshape(p + e, n)
+        self.upper = self.data[sizes[3]:sizes[4]]
+        self.lower = self.data[sizes[4]:sizes[5]]
+        self.upper.fill(np.inf)
+        self.lower.fill(-np.inf)
         self.upper[n + p :] = self.lower[n + p :] = 0.0  # equality rows: b = 0 until written
         self.lb, self.ub = self.lower[:n], self.upper[:n]
         self.G, self.h = self.C[:p], self.upper[n : n + p]
         self.A, self.b = self.C[p:], self.upper[n + p :]
+
+    def has_nan(self) -> bool:
+        """True when any matrix, vector or bound holds a NaN (a bug upstream, never solved)."""
+        return bool(np.isnan(self.data).any())
 
     @property
     def has_bounds(self) -> bool:
@@ -51,6 +61,5 @@ class QP:
     def copy(self) -> "QP":
         """A deep copy (used to record QPs for tests and benchmarks)."""
         other = QP(self.n, self.n_ineq, self.n_eq)
-        for name in ("H", "c", "C", "upper", "lower"):
-            getattr(other, name)[...] = getattr(self, name)
+        other.data[...] = self.data
         return other

@@ -40,6 +40,10 @@ DEFAULT_SETTINGS: dict[str, dict] = {
 
 _SPARSE_SOLVERS = set(getattr(qpsolvers, "sparse_solvers", ()))
 
+#: qpsolvers backends that use a primal warm start (``initvals``); DAQP warm-starts its
+#: active set through :class:`DaqpBackend`; the others ignore it
+WARM_START_SOLVERS = frozenset({"daqp", "osqp", "proxqp"})
+
 
 class QPSolution(NamedTuple):
     """Outcome of one solve: ``x`` is None unless ``success``."""
@@ -84,12 +88,19 @@ def make_solver(name: str, options: dict | None = None) -> QPSolver:
 
 
 class QpsolversBackend(QPSolver):
-    """Any qpsolvers backend, called through ``qpsolvers.solve_problem``."""
+    """Any qpsolvers backend, called through ``qpsolvers.solve_problem``.
+
+    With ``warm_start`` (option, default True) the previous solution is passed as the
+    primal initial guess to the backends in :data:`WARM_START_SOLVERS`.
+    """
 
     def __init__(self, name: str, options: dict | None = None) -> None:
         self.name = name
-        self.settings = {**DEFAULT_SETTINGS.get(name, {}), **(options or {})}
+        settings = {**DEFAULT_SETTINGS.get(name, {}), **(options or {})}
+        self.warm_start = bool(settings.pop("warm_start", True)) and name in WARM_START_SOLVERS
+        self.settings = settings
         self._sparse = name in _SPARSE_SOLVERS
+        self._previous: np.ndarray | None = None
 
     def solve(self, qp: QP) -> QPSolution:
         matrix = sp.csc_matrix if self._sparse else (lambda m: m)
@@ -103,16 +114,23 @@ class QpsolversBackend(QPSolver):
             qp.lb if qp.has_bounds else None,
             qp.ub if qp.has_bounds else None,
         )
+        initvals = self._previous if self.warm_start and self._previous is not None else None
+        if initvals is not None and initvals.shape != qp.c.shape:
+            initvals = None
         start = time.perf_counter()
         try:
-            solution = qpsolvers.solve_problem(problem, solver=self.name, **self.settings)
+            solution = qpsolvers.solve_problem(problem, solver=self.name, initvals=initvals, **self.settings)
         except Exception as exc:  # backends raise many types; report, never propagate
+            self._previous = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
         x = solution.x
         if not solution.found or x is None or not _finite(np.asarray(x, dtype=np.float64)):
+            self._previous = None
             return QPSolution(None, False, "not found", elapsed)
-        return QPSolution(np.asarray(x, dtype=np.float64), True, "optimal", elapsed)
+        x = np.asarray(x, dtype=np.float64)
+        self._previous = x
+        return QPSolution(x, True, "optimal", elapsed)
 
 
 class DaqpBackend(QPSolver):
@@ -181,5 +199,6 @@ _DAQP_EXITFLAGS = {
     -4: "iteration limit",
     -5: "nonconvex",
     -6: "initial point infeasible",
+    -7: "time limit",
     2: "soft optimal",
 }

@@ -4,7 +4,7 @@ A constraint may contribute
 
 * **bounds** ``lb <= v <= ub`` (it writes its own ``lower``/``upper`` vectors of
   size nv, ``-inf``/``+inf`` where it has no opinion; the controller intersects
-  all of them), and/or
+  them, soft ones clipped into the hard ones), and/or
 * **inequality rows** ``G v <= h`` (``n_inequalities`` rows), and/or
 * **equality rows** ``A v = b`` (``n_equalities`` rows).
 
@@ -41,6 +41,11 @@ class Constraint(ABC):
     has_bounds: bool = False
     n_inequalities: int = 0
     n_equalities: int = 0
+    #: hard constraints (actuator limits, no-slip rows) always hold and are jointly feasible
+    #: at v = 0; soft ones (position dampers, barriers) yield to them when they conflict:
+    #: soft bounds are clipped into the hard ones every tick, and soft rows become elastic
+    #: in the controller's fallback solve
+    hard: bool = True
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or type(self).__name__

@@ -20,11 +20,17 @@ class JointPositionLimits(Constraint):
     The limits are approached geometrically (at most the fraction ``gain`` of the
     remaining margin per tick). Unbounded coordinates (the mobile base) are skipped.
 
+    The constraint is *soft* with respect to the speed limits: a configuration outside
+    its limits (after a collision, an encoder offset) asks for ``v`` beyond the speed
+    limit; the controller then clips the bound to the speed limit, so the joint moves
+    back inside at top speed instead of making the QP infeasible.
+
     Args:
         gain: fraction of the remaining margin that may be consumed per tick, (0, 1].
     """
 
     has_bounds = True
+    hard = False  # yields to the speed limits: from outside the limits, return at top speed
 
     def __init__(self, gain: float = 0.5, name: str | None = None) -> None:
         super().__init__(name)
