@@ -70,6 +70,8 @@ def as_gain(value, name: str = "gain") -> float:
 
 def as_pose(value, name: str) -> np.ndarray:
     """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation."""
+    if np.iscomplexobj(value):
+        raise InvalidInputError(f"{name} must be real, got complex values")
     try:
         pose = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -23,7 +23,9 @@ class JointPositionLimits(Constraint):
     The constraint is *soft* with respect to the speed limits: a configuration outside
     its limits (after a collision, an encoder offset) asks for ``v`` beyond the speed
     limit; the controller then clips the bound to the speed limit, so the joint moves
-    back inside at top speed instead of making the QP infeasible.
+    back at top speed instead of making the QP infeasible. Outside the limits the full
+    margin is used (``gain = 1``), so the joint lands on its limit as soon as the speed
+    limit allows, instead of approaching it geometrically from outside.
 
     Args:
         gain: fraction of the remaining margin that may be consumed per tick, (0, 1].
@@ -50,6 +52,8 @@ class JointPositionLimits(Constraint):
         self._lower = robot.lower[self._q_index].copy()
         self._upper = robot.upper[self._q_index].copy()
         # one contiguous block of q and v (the common case): slices instead of gathers
+        self._scratch = np.zeros(len(q_index))
+        self._lower_margin, self._upper_margin = np.zeros(len(q_index)), np.zeros(len(q_index))
         self._slices = None
         if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
@@ -59,18 +63,26 @@ class JointPositionLimits(Constraint):
             self._views = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        scale = self.gain / dt
         if self._slices is not None:
             q = kin.q[self._slices[0]]
             lower, upper = self._views
-            np.subtract(self._lower, q, out=lower)
-            np.subtract(self._upper, q, out=upper)
-            lower *= scale
-            upper *= scale
         else:
             q = kin.q[self._q_index]
-            rows.lower[self._v_index] = (self._lower - q) * scale
-            rows.upper[self._v_index] = (self._upper - q) * scale
+            lower, upper = self._lower_margin, self._upper_margin
+        scratch = self._scratch
+        # margins m = limit - q; inside: gain * m, outside: the full m (back on the limit in one tick)
+        np.subtract(self._upper, q, out=upper)
+        np.multiply(upper, self.gain, out=scratch)
+        np.minimum(scratch, upper, out=upper)
+        np.subtract(self._lower, q, out=lower)
+        np.multiply(lower, self.gain, out=scratch)
+        np.maximum(scratch, lower, out=lower)
+        inverse_dt = 1.0 / dt
+        upper *= inverse_dt
+        lower *= inverse_dt
+        if self._slices is None:
+            rows.lower[self._v_index] = lower
+            rows.upper[self._v_index] = upper
 
     def __repr__(self) -> str:
         return f"JointPositionLimits(gain={self.gain})"

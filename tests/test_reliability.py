@@ -1,0 +1,220 @@
+"""Bounded, safe ticks: limits from outside, infeasible QPs, NaN, budgets, stale diagnostics,
+and property tests over random states, targets, weights and every installed solver."""
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import wbc
+from wbc.constraints.constraint import Constraint
+from wbc.diagnostics import StaleDiagnosticsError
+from wbc.tasks.task import Task
+
+HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
+
+
+class PushJoint(Constraint):
+    """One row ``v[index] >= speed`` (beyond the speed limit when ``speed`` is large)."""
+
+    n_inequalities = 1
+
+    def __init__(self, index: int, speed: float, hard: bool) -> None:
+        super().__init__()
+        self.index, self.speed, self.hard = index, speed, hard
+
+    def write_static(self, rows):
+        rows.G[0, self.index], rows.h[0] = -1.0, -self.speed
+
+    def compute(self, kin, dt, rows):
+        pass
+
+
+class NanTask(Task):
+    """A buggy task that writes NaN."""
+
+    dim = 1
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(1.0)
+        target.fill(np.nan)
+
+    def report(self, v, errors):
+        pass
+
+
+def hold(robot, q):
+    task = wbc.FrameTask("ee", 1.0, 0.5, gain=0.5)
+    task.set_target_from_configuration(robot, q)
+    return task
+
+
+def within_hard_limits(robot, q, v, tol=1e-7):
+    base_twist = robot.base_twist(q, v)
+    limits = robot.velocity_limit
+    ok = np.all(np.abs(v[3:]) <= limits[3:] + tol) and abs(base_twist[2]) <= limits[2] + tol
+    return ok and np.all(np.abs(base_twist[:2]) <= robot.base.max_linear_speed + tol)
+
+
+@pytest.mark.parametrize("joint", range(3, 8))
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_start_outside_the_position_limits_moves_back_inside(youbot, joint, side):
+    q = HOME.copy()
+    q[joint] = youbot.upper[joint] + 0.3 if side == "upper" else youbot.lower[joint] - 0.3
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)], [wbc.JointPositionLimits(), wbc.JointVelocityLimits()])
+    v = controller.step(q)
+    assert controller.last.status == "optimal"
+    assert (v[joint] < 0) if side == "upper" else (v[joint] > 0)
+    assert abs(v[joint]) == pytest.approx(np.pi / 2)  # back at top speed, never beyond it
+    for _ in range(30):
+        q = youbot.integrate(q, controller.step(q), controller.dt)
+    assert youbot.lower[joint] - 1e-12 <= q[joint] <= youbot.upper[joint] + 1e-12  # on the limit, up to rounding
+
+
+def test_conflicting_soft_row_falls_back_to_the_elastic_solve(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)],
+                                [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), PushJoint(4, 5.0, hard=False)])
+    v = controller.step(HOME)
+    last = controller.last
+    assert last.status.startswith("fallback: elastic") and "infeasible" in last.status and not last.success
+    assert np.all(np.isfinite(v)) and within_hard_limits(youbot, HOME, v)
+    assert v[4] == pytest.approx(np.pi / 2, abs=1e-6)  # as close to the soft row as the hard limit allows
+    assert last.max_violation == pytest.approx(5.0 - np.pi / 2, abs=1e-5)
+
+
+def test_conflicting_hard_rows_give_the_zero_command(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)], [wbc.JointVelocityLimits(), PushJoint(4, 5.0, hard=True)])
+    v = controller.step(HOME)
+    assert controller.last.status.startswith("fallback: zero command") and not controller.last.success
+    np.testing.assert_array_equal(v, 0.0)
+
+
+def test_strict_mode_raises(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)], [wbc.JointVelocityLimits(), PushJoint(4, 5.0, hard=True)],
+                                strict=True)
+    with pytest.raises(wbc.SolverError, match="infeasible"):
+        controller.step(HOME)
+
+
+@pytest.mark.parametrize("solver", wbc.available_solvers())
+def test_infeasible_qp_never_escapes_as_an_exception_or_nan(youbot, solver):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)],
+                                [wbc.JointVelocityLimits(), PushJoint(4, 5.0, hard=False)], solver=solver)
+    v = controller.step(HOME)
+    assert controller.last.status.startswith("fallback") and np.all(np.isfinite(v))
+    assert within_hard_limits(youbot, HOME, v)
+
+
+def test_nan_from_a_task_is_never_solved(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME), NanTask()], [wbc.JointVelocityLimits()])
+    v = controller.step(HOME)
+    np.testing.assert_array_equal(v, 0.0)
+    assert "NaN" in controller.last.status
+
+
+def test_iteration_budget_exhaustion_is_handled(youbot):
+    task = hold(youbot, HOME)
+    target = youbot.frame_pose(HOME, "ee")
+    target[:3, 3] += [0.3, 0.3, 0.3]
+    task.set_target(target)
+    budget = {"iter_limit": 1, "warm_start": False}
+    controller = wbc.Controller(youbot, [task], [wbc.JointPositionLimits(), wbc.JointVelocityLimits()],
+                                solver_options=budget)
+    v = controller.step(HOME)
+    assert "iteration limit" in controller.last.status
+    assert np.all(np.isfinite(v)) and within_hard_limits(youbot, HOME, v)
+
+
+def test_warm_start_returns_the_cold_solution(youbot):
+    from wbc.closed_loop import run
+    from wbc.scenario import load_scenario
+    from conftest import TASKS
+
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    warm = scenario.make_controller()
+    cold = wbc.Controller(scenario.robot, scenario.tasks, scenario.constraints, dt=scenario.dt,
+                          damping=scenario.damping, solver_options={"warm_start": False})
+    q = scenario.q0.copy()
+    for k in range(300):
+        scenario.reference_task.set_target(*scenario.reference(k * scenario.dt))
+        v = warm.step(q)
+        np.testing.assert_allclose(cold.step(q), v, rtol=0, atol=1e-9)
+        q = scenario.robot.integrate(q, v, scenario.dt)
+
+
+def test_diagnostics_are_read_now_or_frozen(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)], [wbc.JointVelocityLimits()])
+    controller.step(HOME)
+    first = controller.last
+    frozen = controller.last.freeze()
+    controller.step(HOME)
+    assert frozen.task_errors and isinstance(frozen.active_constraints, list)
+    second = controller.last
+    controller.step(HOME)
+    with pytest.raises(StaleDiagnosticsError):
+        _ = second.task_errors
+    assert first is frozen
+
+
+def test_bad_targets_of_every_task_are_rejected():
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.PositionTask("ee").set_target([0.0, np.nan, 0.0])
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.BaseVelocityTask(1.0).set_target([0.0, 0.0])
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.FrameTask("ee", 1.0, 1.0).set_target(np.eye(4).astype(complex))
+    with pytest.raises(wbc.InvalidInputError):
+        wbc.PositionTask("ee", max_speed=0.0)
+
+
+# --------------------------------------------------------------------------- properties
+YOUBOT = wbc.load_robot("youbot")
+DELUCA = wbc.load_robot("deluca_mm")
+
+
+def _state(data, robot, margin):
+    """A configuration within the limits widened by ``margin`` (slightly outside allowed)."""
+    low = np.where(np.isfinite(robot.lower), robot.lower - margin, -3.0)
+    high = np.where(np.isfinite(robot.upper), robot.upper + margin, 3.0)
+    fractions = data.draw(st.lists(st.floats(0.0, 1.0), min_size=robot.nq, max_size=robot.nq))
+    return low + np.array(fractions) * (high - low)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), solver=st.sampled_from(wbc.available_solvers()),
+       margin=st.sampled_from([0.0, 0.05]), reach=st.floats(0.0, 3.0),
+       position_cost=st.floats(1e-3, 1e2), orientation_cost=st.floats(0.0, 1e2),
+       posture_cost=st.floats(0.0, 1.0), gain=st.floats(0.01, 1.0))
+def test_youbot_commands_are_always_finite_and_within_limits(data, solver, margin, reach, position_cost,
+                                                             orientation_cost, posture_cost, gain):
+    q = _state(data, YOUBOT, margin)
+    task = wbc.FrameTask("ee", position_cost, orientation_cost, gain=gain)
+    target = YOUBOT.frame_pose(q, "ee")
+    direction = data.draw(st.lists(st.floats(-1, 1), min_size=3, max_size=3))
+    target[:3, 3] += reach * np.array(direction)  # reachable and unreachable
+    task.set_target(target)
+    tasks = [task] + ([wbc.PostureTask(posture_cost)] if posture_cost > 0 else [])
+    controller = wbc.Controller(YOUBOT, tasks, [wbc.JointPositionLimits(), wbc.JointVelocityLimits(),
+                                                wbc.MecanumWheelLimits()], solver=solver)
+    v = controller.step(q)
+    assert v.shape == (8,) and np.all(np.isfinite(v))
+    assert within_hard_limits(YOUBOT, q, v, tol=1e-6)
+    assert np.all(np.abs(YOUBOT.wheel_speeds(q, v)) <= YOUBOT.base.wheels.max_speed * (1 + 1e-6))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data(), solver=st.sampled_from(wbc.available_solvers()), margin=st.sampled_from([0.0, 0.05]),
+       reduced=st.booleans(), cost=st.floats(1e-3, 1e2), gain=st.floats(0.01, 1.0))
+def test_nonholonomic_commands_never_slip(data, solver, margin, reduced, cost, gain):
+    q = _state(data, DELUCA, margin)
+    task = wbc.PositionTask("wrist_center", cost, gain=gain)
+    task.set_target(data.draw(st.lists(st.floats(-3, 3), min_size=3, max_size=3)))
+    controller = wbc.Controller(DELUCA, [task, wbc.SteeringTask(), wbc.PostureTask(1e-3)],
+                                [wbc.NonholonomicBase(), wbc.JointPositionLimits(), wbc.JointVelocityLimits()],
+                                solver=solver, reduced=reduced)
+    v = controller.step(q)
+    assert np.all(np.isfinite(v))
+    twist = DELUCA.base_twist(q, v)
+    assert abs(twist[1]) <= 1e-7
+    assert abs(twist[0]) <= 0.5 + 1e-6 and abs(twist[2]) <= 1.0 + 1e-6
+    assert np.all(np.abs(v[3:]) <= DELUCA.velocity_limit[3:] + 1e-6)
