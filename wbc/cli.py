@@ -14,7 +14,13 @@ def _run(args: argparse.Namespace) -> int:
     from .scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
-    result = run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress)
+    simulation = None
+    if args.sim == "mujoco":
+        from .simulation import MujocoSimulation
+
+        simulation = MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise, delay=args.delay)
+    result = run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
+                 simulation=simulation)
     summary = result.summary()
     if args.json:
         print(json.dumps(summary, indent=2))
@@ -63,6 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
     run_parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     run_parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run_parser.add_argument("--sim", choices=["kinematic", "mujoco"], default="kinematic",
+                            help="close the loop by integrating v (default) or through MuJoCo velocity servos")
+    run_parser.add_argument("--noise", type=float, default=0.0,
+                            help="with --sim mujoco: std of the position measurement noise [rad, m]")
+    run_parser.add_argument("--delay", type=int, choices=[0, 1], default=0,
+                            help="with --sim mujoco: ticks between command and actuation")
     run_parser.set_defaults(handler=_run)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
     solvers_parser.set_defaults(handler=_solvers)

@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from .controller import Controller
 from .scenario import Scenario
@@ -55,12 +56,20 @@ class RunResult:
 
 
 def run(scenario: Scenario, solver: str | None = None, duration: float | None = None,
-        progress: bool = False, controller: Controller | None = None) -> RunResult:
-    """Run ``scenario`` in closed loop and record everything needed for the summary and plots."""
+        progress: bool = False, controller: Controller | None = None, simulation=None) -> RunResult:
+    """Run ``scenario`` in closed loop and record everything needed for the summary and plots.
+
+    Without ``simulation`` the loop is kinematic, ``q <- integrate(q, v, dt)``. With a
+    :class:`~wbc.simulation.MujocoSimulation` the controller sees the (noisy) measured
+    positions, the servos track ``v`` in MuJoCo, and the recorded ``q`` and tracking
+    errors are those of the true simulated state.
+    """
     controller = controller or scenario.make_controller(solver)
     robot, dt = scenario.robot, scenario.dt
     ticks = scenario.ticks if duration is None else int(round(duration / dt))
     q = scenario.q0.copy()
+    if simulation is not None:
+        simulation.reset(q)
     qs = np.zeros((ticks + 1, robot.nq))
     vs = np.zeros((ticks, robot.nv))
     pos_err, ori_err = np.zeros(ticks), np.zeros(ticks)
@@ -75,14 +84,20 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     for k in iterator:
         if reference is not None:
             task.set_target(*reference(k * dt))
-        v = controller.step(q)
+        v = controller.step(q if simulation is None else simulation.measure())
         last = controller.last
         if task is not None:
-            pos_err[k] = np.linalg.norm(task.error[:3])
-            ori_err[k] = np.linalg.norm(task.error[3:])  # 0 for a PositionTask
+            error = task.error if simulation is None else _true_error(robot, task, q, reference(k * dt)[0])
+            pos_err[k] = np.linalg.norm(error[:3])
+            ori_err[k] = np.linalg.norm(error[3:])  # 0 for a PositionTask
         solve_t[k], tick_t[k] = last.solve_time, last.tick_time
         vs[k] = v
-        q = robot.integrate(q, v, dt)
+        if simulation is None:
+            q = robot.integrate(q, v, dt)
+        else:
+            simulation.apply(v)
+            simulation.advance()
+            q = simulation.q
         qs[k + 1] = q
     ratio = velocity_ratio(robot, qs[:-1], vs)
     return RunResult(
@@ -93,6 +108,14 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         velocity_ratio=ratio, wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
         lateral_slip=lateral_slip(robot, qs[:-1], vs),
     )
+
+
+def _true_error(robot, task, q: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """The reference task's error at the true configuration ``q`` (position; orientation)."""
+    pose = robot.frame_pose(q, task.frame)
+    if target.shape == (3,):
+        return target - pose[:3, 3]
+    return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(target[:3, :3] @ pose[:3, :3].T)])
 
 
 def base_twists(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from abc import ABC, abstractmethod
 from typing import NamedTuple
 
@@ -119,7 +120,9 @@ class QpsolversBackend(QPSolver):
             initvals = None
         start = time.perf_counter()
         try:
-            solution = qpsolvers.solve_problem(problem, solver=self.name, initvals=initvals, **self.settings)
+            with warnings.catch_warnings():  # failures are reported in the diagnostics instead
+                warnings.simplefilter("ignore")
+                solution = qpsolvers.solve_problem(problem, solver=self.name, initvals=initvals, **self.settings)
         except Exception as exc:  # backends raise many types; report, never propagate
             self._previous = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
