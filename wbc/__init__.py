@@ -10,24 +10,26 @@ Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base
 """
 
 from .base import BaseKind, MecanumWheels, MobileBase
-from .constraints import Constraint, JointPositionLimits, JointVelocityLimits
+from .constraints import Constraint, JointPositionLimits, JointVelocityLimits, ManipulabilityBarrier
 from .controller import Controller
 from .diagnostics import TickDiagnostics
 from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, UnknownFrameError,
                      UnknownSolverError, WbcError)
+from .manipulability import Manipulability, manipulability, manipulability_gradient
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
-from .tasks import BaseVelocityTask, FrameTask, PostureTask, Task
+from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PostureTask, Task
 
 __version__ = "0.1.0"
 
 __all__ = [
     "BaseKind", "MecanumWheels", "MobileBase",
-    "Constraint", "JointPositionLimits", "JointVelocityLimits",
+    "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
+    "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "QP",
     "InvalidInputError", "ModelError", "ScenarioError", "SolverError", "UnknownFrameError",
     "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
-    "Task", "FrameTask", "PostureTask", "BaseVelocityTask",
+    "Task", "FrameTask", "PostureTask", "BaseVelocityTask", "ManipulabilityTask",
 ]

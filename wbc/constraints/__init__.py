@@ -3,5 +3,6 @@
 from .constraint import Constraint, ConstraintRows
 from .joint_position_limits import JointPositionLimits
 from .joint_velocity_limits import JointVelocityLimits
+from .manipulability_barrier import ManipulabilityBarrier
 
-__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits"]
+__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier"]

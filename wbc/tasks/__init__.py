@@ -2,7 +2,8 @@
 
 from .base_velocity_task import BaseVelocityTask
 from .frame_task import FrameTask
+from .manipulability_task import ManipulabilityTask
 from .posture_task import PostureTask
 from .task import Task
 
-__all__ = ["Task", "FrameTask", "PostureTask", "BaseVelocityTask"]
+__all__ = ["Task", "FrameTask", "PostureTask", "BaseVelocityTask", "ManipulabilityTask"]
