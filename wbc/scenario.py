@@ -4,9 +4,13 @@ Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
 
     [robot]       name = "youbot" | path, initial_configuration = [...]
     [controller]  solver, dt [s], duration [s], damping
-    [[tasks]]     type = "FrameTask" | "PostureTask" | "BaseVelocityTask", + constructor arguments
-    [[constraints]] type = "JointPositionLimits" | "JointVelocityLimits", + constructor arguments
-    [reference]   type = "circle" | "pose", for the first FrameTask (or ``task = name``)
+    [[tasks]]     type = "FrameTask" | "PostureTask" | "BaseVelocityTask" | "ManipulabilityTask",
+                  + constructor arguments
+    [[constraints]] type = "JointPositionLimits" | "JointVelocityLimits" | "ManipulabilityBarrier",
+                  + constructor arguments
+    [reference]   type = "circle" | "pose" | "line", for the first FrameTask (or ``task = name``);
+                  the goal of "pose" and "line" is the start pose with ``configuration`` (the
+                  frame's pose there), ``position`` and/or ``rpy`` applied in that order
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from . import constraints as constraint_module
 from . import tasks as task_module
 from .controller import Controller
 from .errors import ScenarioError, WbcError
-from .references import Circle, ConstantPose, rpy_matrix
+from .references import Circle, ConstantPose, Line, rpy_matrix
 from .robot import Robot, load_robot
 from .tasks import FrameTask, PostureTask
 
@@ -30,8 +34,10 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-TASK_TYPES = {name: getattr(task_module, name) for name in ("FrameTask", "PostureTask", "BaseVelocityTask")}
-CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in ("JointPositionLimits", "JointVelocityLimits")}
+TASK_TYPES = {name: getattr(task_module, name)
+              for name in ("FrameTask", "PostureTask", "BaseVelocityTask", "ManipulabilityTask")}
+CONSTRAINT_TYPES = {name: getattr(constraint_module, name)
+                    for name in ("JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier")}
 
 
 @dataclass
@@ -137,14 +143,25 @@ def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
                            start_axis=spec.pop("start_axis", [1.0, 0.0, 0.0]),
                            ramp_time=spec.pop("ramp_time", 1.0))
     elif kind == "pose":
-        pose = start.copy()
-        if "position" in spec:
-            pose[:3, 3] = spec.pop("position")
-        if "rpy" in spec:
-            pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
-        reference = ConstantPose(pose)
+        reference = ConstantPose(_goal_pose(spec, start, robot, task.frame))
+    elif kind == "line":
+        reference = Line(start=start, end=_goal_pose(spec, start, robot, task.frame), speed=spec.pop("speed"),
+                         ramp_time=spec.pop("ramp_time", 0.5))
     else:
-        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose")
+        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, line")
     if spec:
         raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
     return task, reference
+
+
+def _goal_pose(spec: dict, start: np.ndarray, robot: Robot, frame: str) -> np.ndarray:
+    """The start pose, replaced by the frame's pose at ``configuration`` if given, then
+    with ``position`` and/or ``rpy`` overridden (keys are consumed from ``spec``)."""
+    pose = start.copy()
+    if "configuration" in spec:
+        pose = robot.frame_pose(spec.pop("configuration"), frame).copy()
+    if "position" in spec:
+        pose[:3, 3] = spec.pop("position")
+    if "rpy" in spec:
+        pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
+    return pose
