@@ -10,26 +10,29 @@ Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base
 """
 
 from .base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
-from .constraints import (Constraint, JointPositionLimits, JointVelocityLimits, MecanumWheelLimits,
-                          NonholonomicBase, WheelSpeedLimits)
+from .constraints import (Constraint, JointPositionLimits, JointVelocityLimits, ManipulabilityBarrier,
+                          MecanumWheelLimits, NonholonomicBase, WheelSpeedLimits)
 from .controller import Controller
 from .diagnostics import TickDiagnostics
 from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, UnknownFrameError,
                      UnknownSolverError, WbcError)
+from .manipulability import Manipulability, manipulability, manipulability_gradient
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
-from .tasks import BaseVelocityTask, FrameTask, PositionTask, PostureTask, SteeringTask, Task
+from .tasks import (BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask,
+                    Task)
 
 __version__ = "0.1.0"
 
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
-    "Constraint", "JointPositionLimits", "JointVelocityLimits", "MecanumWheelLimits", "NonholonomicBase",
-    "WheelSpeedLimits",
+    "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
+    "NonholonomicBase", "WheelSpeedLimits",
+    "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "QP",
     "InvalidInputError", "ModelError", "ScenarioError", "SolverError", "UnknownFrameError",
     "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
-    "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask",
+    "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
 ]

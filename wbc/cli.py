@@ -1,4 +1,4 @@
-"""Command line: ``wbc run SCENARIO [--plot FILE.png]``, ``wbc solvers``."""
+"""Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png]``, ``wbc solvers``."""
 
 from __future__ import annotations
 
@@ -13,24 +13,33 @@ def _run(args: argparse.Namespace) -> int:
     from .closed_loop import run
     from .scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
-    simulation = None
-    if args.sim == "mujoco":
-        from .simulation import MujocoSimulation
-
-        simulation = MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise, delay=args.delay)
-    result = run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
-                 simulation=simulation)
-    summary = result.summary()
+    scenarios = [load_scenario(path) for path in args.scenario]
+    runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
+                           simulation=_simulation(args, scenario)))
+            for scenario in scenarios]
+    summaries = [result.summary() for _, result in runs]
     if args.json:
-        print(json.dumps(summary, indent=2))
+        named = [{"scenario": scenario.name} | summary for (scenario, _), summary in zip(runs, summaries)]
+        print(json.dumps(summaries[0] if len(runs) == 1 else named, indent=2))
     else:
-        print(format_summary(scenario.name, result.solver, summary))
+        print("\n".join(format_summary(scenario.name, result.solver, summary)
+                        for (scenario, result), summary in zip(runs, summaries)))
     if args.plot:
-        from .plotting import plot_run
+        from .plotting import manipulability_traces, plot_runs
 
-        print(f"plot written to {plot_run(result, args.plot, scenario.robot.joint_names)}")
+        path = plot_runs([result for _, result in runs], args.plot, scenarios[0].robot.joint_names,
+                         manipulability_traces(runs))
+        print(f"plot written to {path}")
     return 0
+
+
+def _simulation(args: argparse.Namespace, scenario):
+    """The MuJoCo loop asked for by ``--sim mujoco``, or None for the kinematic loop."""
+    if args.sim != "mujoco":
+        return None
+    from .simulation import MujocoSimulation
+
+    return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise, delay=args.delay)
 
 
 def format_summary(name: str, solver: str, s: dict) -> str:
@@ -62,9 +71,9 @@ def _solvers(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
     sub = parser.add_subparsers(dest="command", required=True)
-    run_parser = sub.add_parser("run", help="run a scenario (tasks/*.toml) in closed loop")
-    run_parser.add_argument("scenario", help="path of a scenario TOML file")
-    run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run")
+    run_parser = sub.add_parser("run", help="run scenarios (tasks/*.toml) in closed loop")
+    run_parser.add_argument("scenario", nargs="+", help="path of a scenario TOML file; give several to compare")
+    run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run(s), overlaid")
     run_parser.add_argument("--solver", help="override the scenario's QP solver")
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
     run_parser.add_argument("--json", action="store_true", help="print the summary as JSON")

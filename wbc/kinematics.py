@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 
+from .errors import ModelError
 from .robot import Robot
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -15,7 +18,8 @@ class Kinematics:
 
     :meth:`update` runs ``computeJointJacobians`` (which includes forward
     kinematics) once per tick; frame placements and Jacobians are then read
-    without recomputing the chain. Conventions as in :mod:`wbc.robot`.
+    without recomputing the chain. Kinematic Hessians are computed on the first
+    :meth:`frame_hessian` call of a tick only. Conventions as in :mod:`wbc.robot`.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -23,11 +27,13 @@ class Kinematics:
         self.model = robot.model
         self.data = robot.model.createData()
         self.q = np.zeros(robot.nq)
+        self._hessians_current = False
 
     def update(self, q: np.ndarray) -> None:
         """Recompute for configuration ``q`` (already validated)."""
         self.q[:] = q
         pin.computeJointJacobians(self.model, self.data, self.q)
+        self._hessians_current = False
 
     def frame_placement(self, frame_id: int) -> pin.SE3:
         """World placement of a frame (an SE3 owned by this object's data)."""
@@ -36,3 +42,58 @@ class Kinematics:
     def frame_jacobian(self, frame_id: int) -> np.ndarray:
         """6 x nv frame Jacobian, world-aligned at the frame origin, rows (linear; angular)."""
         return pin.getFrameJacobian(self.model, self.data, frame_id, _LWA)
+
+    def frame_hessian(self, frame_id: int) -> np.ndarray:
+        """Derivative of :meth:`frame_jacobian`: a (6, nv, nv) array ``T`` with
+        ``T[a, j, i] = d J[a, j] / d q_i`` (``q_i`` moved along the i-th tangent direction,
+        i.e. ``pin.integrate(q, t e_i)``), so ``dJ/dt = sum_i T[:, :, i] v_i``.
+        """
+        if not self._hessians_current:
+            pin.computeJointKinematicHessians(self.model, self.data)
+            self._hessians_current = True
+        raw = pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
+        return _hessian_tensor(raw, _hessian_buffer_is_column_major())
+
+
+def _hessian_tensor(raw: np.ndarray, column_major: bool) -> np.ndarray:
+    """View ``raw`` (as returned by Pinocchio's Python binding) as ``T[a, j, i]``."""
+    if not column_major:
+        return raw
+    six, nv, _ = raw.shape
+    return np.ravel(raw, order="K").reshape(nv, nv, six).transpose(2, 1, 0)
+
+
+@functools.cache
+def _hessian_buffer_is_column_major() -> bool:
+    """Which memory layout this Pinocchio's binding gives kinematic Hessians.
+
+    pin 4.1 returns the (6, nv, nv) Eigen tensor as an ndarray with C strides over
+    its column-major buffer, so indexing the array as returned is wrong. Rather than
+    trusting either layout, this is decided once per process: the Hessian of a
+    3-joint probe chain (revolute z, revolute y, prismatic x, so 6 != nv and every
+    block is non-zero) is compared with central differences of its Jacobian.
+    """
+    model = pin.Model()
+    parent = 0
+    for name, joint, translation in (("rz", pin.JointModelRZ(), (0.0, 0.0, 0.0)),
+                                     ("ry", pin.JointModelRY(), (0.3, 0.0, 0.2)),
+                                     ("px", pin.JointModelPX(), (0.0, 0.1, 0.4))):
+        parent = model.addJoint(parent, joint, pin.SE3(np.eye(3), np.array(translation)), name)
+    frame = model.addFrame(pin.Frame("tip", parent, pin.SE3(np.eye(3), np.array([0.2, 0.1, 0.3])),
+                                     pin.FrameType.OP_FRAME))
+    data = model.createData()
+    q, step = np.array([0.3, -0.4, 0.2]), 1e-6
+    pin.computeJointJacobians(model, data, q)
+    pin.computeJointKinematicHessians(model, data)
+    raw = pin.getFrameKinematicHessian(model, data, frame, _LWA)
+    reference = np.zeros((6, 3, 3))
+    for i in range(3):
+        dq = np.zeros(3)
+        dq[i] = step
+        plus = pin.computeFrameJacobian(model, model.createData(), q + dq, frame, _LWA)
+        minus = pin.computeFrameJacobian(model, model.createData(), q - dq, frame, _LWA)
+        reference[:, :, i] = (plus - minus) / (2.0 * step)
+    for column_major in (True, False):
+        if np.allclose(_hessian_tensor(raw, column_major), reference, rtol=0.0, atol=1e-6):
+            return column_major
+    raise ModelError(f"pinocchio {pin.__version__}: kinematic Hessian matches neither memory layout")

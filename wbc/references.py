@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import pinocchio as pin
 
 from .validation import as_pose, as_positive, as_vector
 
@@ -101,4 +102,56 @@ class Circle:
         a, b = self.start_axis, self._b
         self._pose[:3, 3] = self.centre + self.radius * (np.cos(phi) * a + np.sin(phi) * b)
         self._twist[:3] = self.radius * rate * (-np.sin(phi) * a + np.cos(phi) * b)
+        return self._pose, self._twist
+
+
+@dataclass
+class Line:
+    """Straight-line move from ``start`` to ``end`` that arrives at full speed and holds there.
+
+    The path parameter ``s`` in [0, 1] is the travelled fraction of the distance
+    ``L = |p_end - p_start|``: ``p(s) = p_start + s (p_end - p_start)`` and the rotation
+    follows the geodesic ``R(s) = R_start exp(s log(R_start^T R_end))``. The speed
+    ``L ds/dt`` rises uniformly to ``speed`` during ``ramp_time`` [s] (no velocity step
+    at t = 0), stays there, and drops to zero on arrival: the target *stops* at
+    ``end`` rather than braking into it, the hardest case when ``end`` is singular.
+    """
+
+    start: np.ndarray  #: 4x4 start pose
+    end: np.ndarray  #: 4x4 end pose
+    speed: float  #: [m/s] along the line after the ramp
+    ramp_time: float = 0.5  #: [s]
+
+    def __post_init__(self) -> None:
+        self.start = as_pose(self.start, "line start pose")
+        self.end = as_pose(self.end, "line end pose")
+        self.speed = as_positive(self.speed, "speed")
+        self.length = float(np.linalg.norm(self.end[:3, 3] - self.start[:3, 3]))
+        if self.length < 1e-9:
+            raise ValueError("a line needs distinct start and end positions")
+        self._rotation = pin.log3(self.start[:3, :3].T @ self.end[:3, :3])  # start frame
+        self._pose = self.start.copy()
+        self._twist = np.zeros(6)
+
+    def distance(self, t: float) -> tuple[float, float]:
+        """Travelled distance [m] and speed [m/s] at time ``t``."""
+        ramp = max(self.ramp_time, 0.0)
+        if t <= 0.0:
+            return 0.0, 0.0
+        if t < ramp:
+            distance, rate = 0.5 * self.speed * t * t / ramp, self.speed * t / ramp
+        else:
+            distance, rate = self.speed * (t - 0.5 * ramp), self.speed
+        if distance >= self.length:
+            return self.length, 0.0
+        return distance, rate
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        distance, rate = self.distance(t)
+        s, s_rate = distance / self.length, rate / self.length
+        start_rotation = self.start[:3, :3]
+        self._pose[:3, 3] = self.start[:3, 3] + s * (self.end[:3, 3] - self.start[:3, 3])
+        self._pose[:3, :3] = start_rotation @ pin.exp3(s * self._rotation)
+        self._twist[:3] = s_rate * (self.end[:3, 3] - self.start[:3, 3])
+        self._twist[3:] = s_rate * (start_rotation @ self._rotation)
         return self._pose, self._twist

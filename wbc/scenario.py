@@ -7,8 +7,10 @@ Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
     [controller]  ... reduced = true|false (solve over the real inputs of a nonholonomic base)
     [[tasks]]     type = any name in TASK_TYPES, + constructor arguments
     [[constraints]] type = any name in CONSTRAINT_TYPES, + constructor arguments
-    [reference]   type = "circle" | "pose" for the first FrameTask, "point" for the first
-                  PositionTask (or ``task = name``)
+    [reference]   type = "circle" | "pose" | "line" for the first FrameTask, "point" for the
+                  first PositionTask (or ``task = name``); the goal of "pose" and "line" is the
+                  start pose with ``configuration`` (the frame's pose there), ``position`` and/or
+                  ``rpy`` applied in that order
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from . import constraints as constraint_module
 from . import tasks as task_module
 from .controller import Controller
 from .errors import ScenarioError, WbcError
-from .references import Circle, ConstantPoint, ConstantPose, rpy_matrix
+from .references import Circle, ConstantPoint, ConstantPose, Line, rpy_matrix
 from .robot import Robot, load_robot
 from .tasks import FrameTask, PositionTask, PostureTask
 
@@ -142,16 +144,27 @@ def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
                            start_axis=spec.pop("start_axis", [1.0, 0.0, 0.0]),
                            ramp_time=spec.pop("ramp_time", 1.0))
     elif kind == "pose":
-        pose = start.copy()
-        if "position" in spec:
-            pose[:3, 3] = spec.pop("position")
-        if "rpy" in spec:
-            pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
-        reference = ConstantPose(pose)
+        reference = ConstantPose(_goal_pose(spec, start, robot, task.frame))
+    elif kind == "line":
+        reference = Line(start=start, end=_goal_pose(spec, start, robot, task.frame), speed=spec.pop("speed"),
+                         ramp_time=spec.pop("ramp_time", 0.5))
     elif kind == "point":
         reference = ConstantPoint(spec.pop("position"))
     else:
-        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, point")
+        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, line, point")
     if spec:
         raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
     return task, reference
+
+
+def _goal_pose(spec: dict, start: np.ndarray, robot: Robot, frame: str) -> np.ndarray:
+    """The start pose, replaced by the frame's pose at ``configuration`` if given, then
+    with ``position`` and/or ``rpy`` overridden (keys are consumed from ``spec``)."""
+    pose = start.copy()
+    if "configuration" in spec:
+        pose = robot.frame_pose(spec.pop("configuration"), frame).copy()
+    if "position" in spec:
+        pose[:3, 3] = spec.pop("position")
+    if "rpy" in spec:
+        pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
+    return pose

@@ -3,8 +3,9 @@
 from .constraint import Constraint, ConstraintRows
 from .joint_position_limits import JointPositionLimits
 from .joint_velocity_limits import JointVelocityLimits
+from .manipulability_barrier import ManipulabilityBarrier
 from .nonholonomic_base import NonholonomicBase
 from .wheel_speed_limits import MecanumWheelLimits, WheelSpeedLimits
 
-__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits",
+__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
            "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits"]

@@ -3,8 +3,10 @@
 from .base_velocity_task import BaseVelocityTask
 from .frame_task import FrameTask
 from .position_task import PositionTask
+from .manipulability_task import ManipulabilityTask
 from .posture_task import PostureTask
 from .steering_task import SteeringTask
 from .task import Task
 
-__all__ = ["Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask"]
+__all__ = ["Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask",
+           "ManipulabilityTask"]

@@ -1,0 +1,74 @@
+"""Keep a frame's manipulability above a floor: a discrete-time control barrier function."""
+
+from __future__ import annotations
+
+from ..errors import InvalidInputError
+from ..kinematics import Kinematics
+from ..manipulability import Manipulability, row_selection
+from ..robot import Robot
+from ..validation import as_gain, as_positive
+from .constraint import Constraint, ConstraintRows
+
+
+class ManipulabilityBarrier(Constraint):
+    """One inequality row that keeps ``m(q) >= m_min`` (see :mod:`wbc.manipulability`)::
+
+        grad m(q) . v  >=  -gain (m(q) - m_min) / dt      written as   -grad m . v <= gain (m - m_min) / dt
+
+    Why it works: with ``q+ = integrate(q, v dt)``, to first order
+    ``m(q+) = m + dt grad m . v >= m - gain (m - m_min)``, i.e.
+
+        m(q+) - m_min  >=  (1 - gain) (m(q) - m_min),
+
+    so the margin shrinks at most geometrically and never changes sign: m approaches
+    ``m_min`` no faster than the fraction ``gain`` of the margin per tick. ``v = 0``
+    satisfies the row whenever ``m >= m_min``, so the row alone never makes a QP
+    infeasible that was feasible at rest.
+
+    Second order: the exact step adds ``dt^2 / 2 * v^T (Hess m) v + O(dt^3)``, which can
+    be negative, so ``m`` may dip below ``m_min`` by at most about
+    ``dt^2 |Hess m| |v|^2 / 2`` in one tick. From below the floor the row demands
+    ``grad m . v >= gain (m_min - m) / dt > 0`` and the deficit shrinks by ``(1 - gain)``
+    per tick, so dips do not accumulate; they stay ``O(dt^2 |v|^2 / gain)``. Choose
+    ``m_min`` with that slack above the value you must never cross, and ``gain < 1``.
+    Starting below ``m_min`` the row pulls ``m`` back up at the same geometric rate
+    (if the velocity limits allow it).
+
+    Args:
+        frame: frame whose Jacobian defines ``m``.
+        min_value: ``m_min`` > 0, in the units of ``m`` for ``rows``.
+        gain: fraction of the margin ``m - m_min`` that may be consumed per tick, (0, 1].
+        rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
+    """
+
+    n_inequalities = 1
+    hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
+
+    def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: str = "all",
+                 name: str | None = None) -> None:
+        if not isinstance(frame, str):
+            raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
+        self.frame = frame
+        self.min_value = as_positive(min_value, "min_value")
+        self.gain = as_gain(gain)
+        row_selection(rows)
+        self.rows = rows
+        super().__init__(name or f"ManipulabilityBarrier({frame})")
+        self.value = float("nan")  #: m at the last tick
+
+    def bind(self, robot: Robot) -> None:
+        self._manipulability = Manipulability(robot, self.frame, self.rows)
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        manipulability = self._manipulability
+        self.value = manipulability.compute(kin)
+        rows.G[0] = manipulability.gradient
+        rows.G[0] *= -1.0
+        rows.h[0] = self.gain * (self.value - self.min_value) / dt
+
+    def row_labels(self) -> list[str]:
+        return [f"m >= {self.min_value:g}"]
+
+    def __repr__(self) -> str:
+        return (f"ManipulabilityBarrier(frame={self.frame!r}, min_value={self.min_value}, "
+                f"gain={self.gain}, rows={self.rows!r})")

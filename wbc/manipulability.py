@@ -1,0 +1,105 @@
+"""Yoshikawa's manipulability and its analytic gradient.
+
+For the selected rows ``J`` (k x nv) of a frame Jacobian (:meth:`wbc.Robot.frame_jacobian`
+convention) with singular values ``s_1 >= ... >= s_r``, ``r = min(k, nv)``::
+
+    m(q) = s_1 s_2 ... s_r       (= sqrt(det(J J^T)) for wide J, sqrt(det(J^T J)) for tall J)
+
+It is zero exactly where ``J`` loses rank. Units are those of the selected rows
+multiplied together (e.g. [m^3] for ``rows="position"``), so compare values of one
+frame and row selection only.
+
+Gradient (Haviland & Corke, *Manipulator Differential Kinematics II*, generalised by
+the SVD): with ``J = U diag(s) V^T`` and ``ds_l = u_l^T dJ v_l``,
+
+    dm/dq_i = < G , dJ/dq_i >_F ,   G = U diag(c) V^T ,   c_l = prod_{p != l} s_p
+
+and ``dJ/dq_i`` comes from Pinocchio's kinematic Hessian (:meth:`Kinematics.frame_hessian`).
+Where ``J`` has full rank, ``G = m (J^+)^T`` and the formula is the familiar
+``dm/dq_i = m tr((J J^T)^-1 J (dJ/dq_i)^T)``; unlike that form it needs no inverse
+and stays accurate next to a singularity. On the singular set itself m is not
+differentiable (it behaves like ``|f(q)|``); the vector returned there is finite but
+arbitrary. The derivative is taken along the tangent directions
+of ``q`` (``pin.integrate``), so ``dm/dt = grad m . v`` for any joint type,
+prismatic and planar-base joints included.
+
+Note: ``wbc.manipulability`` is the function; import the module's other names with
+``from wbc.manipulability import Manipulability``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .kinematics import Kinematics
+from .robot import Robot
+
+ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
+"""Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
+
+
+def row_selection(rows: str) -> slice:
+    """The Jacobian rows named by ``rows`` (``"all"``, ``"position"`` or ``"orientation"``)."""
+    try:
+        return ROWS[rows]
+    except (KeyError, TypeError):
+        raise InvalidInputError(f"rows must be one of {sorted(ROWS)}, got {rows!r}") from None
+
+
+class Manipulability:
+    """Manipulability ``m`` and its gradient for one frame and row selection.
+
+    :meth:`compute` reads an already updated :class:`~wbc.kinematics.Kinematics`
+    (the controller's, on the hot path) and leaves the results in :attr:`value`
+    and :attr:`gradient` (size nv, overwritten in place).
+    """
+
+    def __init__(self, robot: Robot, frame: str, rows: str = "all") -> None:
+        self.frame = frame
+        self.rows = rows
+        self._rows = row_selection(rows)
+        self.frame_id = robot.frame_id(frame)
+        k = self._rows.stop - self._rows.start
+        self.value = 0.0
+        self.gradient = np.zeros(robot.nv)
+        self._weighted = np.zeros((k, robot.nv))  # G = U diag(c) V^T
+
+    def compute(self, kin: Kinematics) -> float:
+        """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``."""
+        jacobian = kin.frame_jacobian(self.frame_id)[self._rows]
+        u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
+        cofactors = _products_of_the_others(s)
+        np.matmul(u * cofactors, vt, out=self._weighted)
+        hessian = kin.frame_hessian(self.frame_id)[self._rows]
+        np.einsum("aj,aji->i", self._weighted, hessian, out=self.gradient)
+        self.value = float(np.prod(s))
+        return self.value
+
+    def __repr__(self) -> str:
+        return f"Manipulability(frame={self.frame!r}, rows={self.rows!r})"
+
+
+def manipulability(robot: Robot, q, frame: str, rows: str = "all") -> float:
+    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows)."""
+    jacobian = robot.frame_jacobian(q, frame)[row_selection(rows)]
+    return float(np.prod(np.linalg.svd(jacobian, compute_uv=False)))
+
+
+def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> np.ndarray:
+    """``grad m(q)`` (size nv): ``dm/dt = grad m . v`` along any joint velocity ``v``."""
+    evaluator = Manipulability(robot, frame, rows)
+    kin = Kinematics(robot)
+    kin.update(robot.check_configuration(q))
+    evaluator.compute(kin)
+    return evaluator.gradient
+
+
+def _products_of_the_others(s: np.ndarray) -> np.ndarray:
+    """``c_l = prod_{p != l} s_p`` without dividing (exact when some ``s_p`` are zero)."""
+    before = np.cumprod(np.concatenate(([1.0], s[:-1])))
+    after = np.cumprod(np.concatenate(([1.0], s[:0:-1])))[::-1]
+    return before * after
+
+
+__all__ = ["Manipulability", "manipulability", "manipulability_gradient", "row_selection", "ROWS"]

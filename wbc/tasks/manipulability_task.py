@@ -1,0 +1,85 @@
+"""Soft manipulability objective: a least-squares row that raises m toward a target."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import InvalidInputError
+from ..kinematics import Kinematics
+from ..manipulability import Manipulability, row_selection
+from ..robot import Robot
+from ..validation import as_gain, as_positive
+from .task import Task
+
+
+class ManipulabilityTask(Task):
+    """Pull the manipulability ``m`` of a frame (see :mod:`wbc.manipulability`) toward ``m*``.
+
+    The task works on ``ln m``, so it is free of the units of ``m`` and pushes harder the
+    closer the robot is to a singularity (``grad ln m = grad m / m`` grows as ``m -> 0``).
+    One row::
+
+        w ( (grad m / m) . v  -  gain / dt * ln(m* / m) ),    w = sqrt(cost)
+
+    i.e. the per-tick convention of :mod:`wbc.tasks.task` applied to the error
+    ``e = ln m* - ln m``: each tick asks to remove the fraction ``gain`` of the
+    log-ratio. Below ``m*`` the row rewards motion that raises ``m``; above it, motion
+    that lowers it (the task regulates, it is not one-sided). To "maximize" ``m``, set
+    ``m*`` at or above the largest value the robot can reach: near the maximum
+    ``grad m -> 0``, the row fades out and the controller's damping keeps ``v`` finite.
+    Being a cost, it competes with the other tasks: an ``m*`` out of reach keeps pulling
+    and shifts their equilibria (a held gripper pose drifts, more so with a larger
+    ``cost``). For a guarantee use :class:`~wbc.constraints.ManipulabilityBarrier`.
+    Where ``m`` is exactly 0 (the gradient is then 0 or undefined) ``m`` is floored at
+    ``1e-9 m*`` so the row stays finite.
+
+    Args:
+        frame: frame whose Jacobian defines ``m``.
+        cost: weight [cost] / [1/s]^2 of the row (it is in relative units of m per second).
+        gain: fraction of ``ln(m*/m)`` removed per tick, (0, 1].
+        target: ``m*`` > 0 in the units of ``m`` for ``rows``.
+        rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
+    """
+
+    dim = 1
+
+    def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: str = "all",
+                 name: str | None = None) -> None:
+        if not isinstance(frame, str):
+            raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
+        self.frame = frame
+        super().__init__(name)
+        self.cost = float(cost)
+        if not math.isfinite(self.cost) or self.cost < 0.0:
+            raise InvalidInputError(f"cost must be finite and >= 0, got {cost!r}")
+        self.gain = as_gain(gain)
+        self.target = as_positive(target, "target")
+        row_selection(rows)
+        self.rows = rows
+        self._weight = math.sqrt(self.cost)
+        self._floor = 1e-9 * self.target
+        self.value = float("nan")  #: m at the last tick
+        self.error = float("nan")  #: ln(m* / m) at the last tick
+
+    def default_name(self) -> str:
+        return f"ManipulabilityTask({self.frame})"
+
+    def bind(self, robot: Robot) -> None:
+        self._manipulability = Manipulability(robot, self.frame, self.rows)
+
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        manipulability = self._manipulability
+        self.value = manipulability.compute(kin)
+        m = max(self.value, self._floor)
+        self.error = math.log(self.target / m)
+        np.multiply(manipulability.gradient, self._weight / m, out=jacobian[0])
+        target[0] = self._weight * self.gain / dt * self.error
+
+    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
+        errors[self.name] = abs(self.error)
+
+    def __repr__(self) -> str:
+        return (f"ManipulabilityTask(frame={self.frame!r}, cost={self.cost}, gain={self.gain}, "
+                f"target={self.target}, rows={self.rows!r})")
