@@ -55,6 +55,22 @@ class Kinematics:
         return _hessian_tensor(raw, _hessian_buffer_is_column_major())
 
 
+    def contract_frame_hessian(self, frame_id: int, weights: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out[i] = sum_{a, j} weights[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``:
+        the derivative of ``<weights, J>`` along each tangent direction. One matrix-vector
+        product on Pinocchio's buffer in its own memory order (no strided einsum)."""
+        if not self._hessians_current:
+            pin.computeJointKinematicHessians(self.model, self.data)
+            self._hessians_current = True
+        raw = pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
+        nv = self.model.nv
+        if raw.flags.c_contiguous and _hessian_buffer_is_column_major():
+            # memory order is [i][j][a]: rows i, columns (j, a) -> weights transposed, flattened
+            return np.matmul(raw.reshape(nv, 6 * nv), weights.T.ravel(), out=out)
+        tensor = _hessian_tensor(raw, _hessian_buffer_is_column_major())
+        return np.einsum("aj,aji->i", weights, tensor, out=out)
+
+
 def _hessian_tensor(raw: np.ndarray, column_major: bool) -> np.ndarray:
     """View ``raw`` (as returned by Pinocchio's Python binding) as ``T[a, j, i]``."""
     if not column_major:

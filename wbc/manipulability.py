@@ -29,11 +29,16 @@ Note: ``wbc.manipulability`` is the function; import the module's other names wi
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.linalg.lapack import dpotrf, dpotrs
 
 from .errors import InvalidInputError
 from .kinematics import Kinematics
 from .robot import Robot
+
+_GRAM_CONDITION = 1e-8  # det(gram) above this times (mean eigenvalue)^size: closed form is accurate
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
@@ -60,20 +65,36 @@ class Manipulability:
         self.rows = rows
         self._rows = row_selection(rows)
         self.frame_id = robot.frame_id(frame)
-        k = self._rows.stop - self._rows.start
         self.value = 0.0
         self.gradient = np.zeros(robot.nv)
-        self._weighted = np.zeros((k, robot.nv))  # G = U diag(c) V^T
+        self._weights = np.zeros((6, robot.nv))  # G on the selected rows, zero elsewhere
+        self._weighted = self._weights[self._rows]
 
     def compute(self, kin: Kinematics) -> float:
-        """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``."""
+        """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``.
+
+        Well-conditioned ``J`` (the usual case) takes the closed form ``G = m (J^+)^T``
+        from one small Gram matrix (``det`` and ``solve``); near a singularity, where
+        that loses accuracy, the SVD form.
+        """
         jacobian = kin.frame_jacobian(self.frame_id)[self._rows]
-        u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
-        cofactors = _products_of_the_others(s)
-        np.matmul(u * cofactors, vt, out=self._weighted)
-        hessian = kin.frame_hessian(self.frame_id)[self._rows]
-        np.einsum("aj,aji->i", self._weighted, hessian, out=self.gradient)
-        self.value = float(np.prod(s))
+        k, n = jacobian.shape
+        wide = k <= n
+        gram = jacobian @ jacobian.T if wide else jacobian.T @ jacobian
+        size = len(gram)
+        factor, info = dpotrf(gram, lower=1, clean=0)  # Cholesky: det(gram) = prod(diag L)^2
+        diagonal = factor.ravel()[:: size + 1].tolist()
+        determinant = math.prod(diagonal) ** 2 if info == 0 else 0.0
+        if determinant > _GRAM_CONDITION * (sum(gram.ravel()[:: size + 1].tolist()) / size) ** size:
+            self.value = math.sqrt(determinant)
+            # G = m (J J^T)^-1 J  (wide)  or  m J (J^T J)^-1 = m ((J^T J)^-1 J^T)^T  (tall)
+            solution, _ = dpotrs(factor, jacobian if wide else jacobian.T, lower=1)
+            np.multiply(solution if wide else solution.T, self.value, out=self._weighted)
+        else:
+            u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
+            np.matmul(u * _products_of_the_others(s), vt, out=self._weighted)
+            self.value = float(np.prod(s))
+        kin.contract_frame_hessian(self.frame_id, self._weights, self.gradient)
         return self.value
 
     def __repr__(self) -> str:
