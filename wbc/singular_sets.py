@@ -207,7 +207,7 @@ def _scorbot(robot: Robot) -> tuple[SingularSystem, ...]:
 
 # ----------------------------------------------------------------------------- PUMA 560
 def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
-    """det J = -a2 (a3 s3 + d4 c3) (a2 c2 + a3 c23 - d4 s23) s5 (standard DH, Corke)."""
+    """det J = a2 (a3 s3 + d4 c3) (a2 c2 + a3 c23 - d4 s23) s5 (standard DH, Corke; J at the wrist centre)."""
     g = _geometry(robot, ("a2", "a3", "d3", "d4"))
     low, high = robot.lower, robot.upper
     length = g["a2"] + g["d4"]
