@@ -62,7 +62,7 @@ CASES = [("youbot", None, youbot_singular, None, 6), ("youbot", "arm", youbot_ar
 
 
 @pytest.mark.parametrize("name, subsystem, derived, columns, full", CASES)
-def test_thousands_of_random_configurations_agree(robots, rng, name, subsystem, derived, columns, full, ):
+def test_thousands_of_random_configurations_agree(robots, rng, name, subsystem, derived, columns, full):
     robot = robots[name]
     for _ in range(2000):
         q = robot.random_configuration(rng)
