@@ -1,4 +1,5 @@
-"""Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png]``, ``wbc solvers``."""
+"""Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--sim mujoco]``, ``wbc solvers``,
+``wbc singularities MODEL``."""
 
 from __future__ import annotations
 
@@ -68,6 +69,28 @@ def _solvers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _singularities(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .robot import load_robot
+    from .singularity import singular_systems, verify
+
+    robot = load_robot(args.model)
+    rng = np.random.default_rng(args.seed)
+    all_agree = True
+    for system in singular_systems(robot):
+        print(f"{robot.name} / {system.name}: {system.description}")
+        print(f"  frame {system.frame!r}, full rank {system.full_rank}; singular where any of:")
+        for condition in system.conditions:
+            print(f"  - {condition.name}  [rank {condition.rank}]\n      {condition.formula}")
+        print("  numeric check (rank of the Pinocchio Jacobian vs the conditions):")
+        for report in verify(robot, rng, samples=args.samples, on_set=args.on_set, subsystem=system.name):
+            all_agree &= report.agree == report.total
+            print(f"    {report.agree:6d} / {report.total:<6d} agree   {report.label}")
+    print("all agree" if all_agree else "DISAGREEMENT: conditions not confirmed")
+    return 0 if all_agree else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -87,6 +110,12 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.set_defaults(handler=_run)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
     solvers_parser.set_defaults(handler=_solvers)
+    sing_parser = sub.add_parser("singularities", help="print a model's certified singular conditions and check them")
+    sing_parser.add_argument("model", help="shipped model name (e.g. youbot, scorbot_er4pc, puma560)")
+    sing_parser.add_argument("--samples", type=int, default=2000, help="random configurations per subsystem")
+    sing_parser.add_argument("--on-set", type=int, default=200, help="configurations on (and near) each set")
+    sing_parser.add_argument("--seed", type=int, default=0, help="random seed")
+    sing_parser.set_defaults(handler=_singularities)
     return parser
 
 

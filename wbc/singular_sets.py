@@ -1,0 +1,289 @@
+"""Certified singular sets of the shipped models (derivations: docs/singularities.md, tests).
+
+A *system* is a robot, a frame and the joints that move (the columns of its 6 x n frame
+Jacobian). It is singular where the Jacobian rank drops below ``min(6, n)``; the singular
+set is a union of *conditions*, each an intersection of equations ``residuals(q) = 0``.
+Residuals are dimensionless (lengths are divided by the system's ``length_scale``).
+
+Adding a model is one entry in ``_BUILDERS``: a function of the loaded robot returning its
+systems. (``deluca_mm`` -- the arm conditions l2 c2 + l3 c23 = 0 and sin(theta3) = 0 of the
+wheeled base carrying a PUMA -- is to be added there by the issue that ships that model.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ModelError
+from .robot import Robot
+
+Residuals = Callable[[np.ndarray], np.ndarray]
+Projection = Callable[[np.ndarray], "np.ndarray | None"]
+
+
+@dataclass(frozen=True)
+class SingularCondition:
+    """One component of a singular set: all ``residuals(q)`` vanish.
+
+    ``rank`` is the Jacobian rank at generic points of the component; ``project(q)``
+    returns a configuration on the component within the joint limits, changing as few
+    joints of ``q`` as it can, or ``None`` if it finds none (used to sample the set).
+    """
+
+    name: str
+    formula: str
+    residuals: Residuals
+    rank: int
+    project: Projection
+
+    def residual(self, q: np.ndarray) -> float:
+        """max |residual_i(q)| (dimensionless)."""
+        return float(np.max(np.abs(self.residuals(q))))
+
+
+@dataclass(frozen=True)
+class SingularSystem:
+    """A robot, frame and moving joints with its certified singular conditions."""
+
+    robot: str
+    name: str
+    description: str
+    frame: str
+    columns: tuple[int, ...]  #: velocity indices of the moving joints (columns of J)
+    length_scale: float  #: L [m]: linear Jacobian rows are divided by L, prismatic columns multiplied
+    conditions: tuple[SingularCondition, ...]
+
+    @property
+    def full_rank(self) -> int:
+        return min(6, len(self.columns))
+
+
+def _angle_in_limits(candidates, low: float, high: float, current: float) -> float | None:
+    """Of the angles ``candidates + 2 pi k`` inside [low, high], the one closest to ``current``."""
+    best = None
+    for angle in candidates:
+        for k in range(-2, 3):
+            value = angle + 2.0 * np.pi * k
+            if low <= value <= high and (best is None or abs(value - current) < abs(best - current)):
+                best = value
+    return best
+
+
+def _geometry(robot: Robot, keys: tuple[str, ...]) -> dict[str, float]:
+    geometry = robot.parameters.get("geometry", {})
+    missing = [k for k in keys if k not in geometry]
+    if missing:
+        raise ModelError(f"robot {robot.name!r}: [geometry] of its sidecar lacks {missing}")
+    return {k: float(geometry[k]) for k in keys}
+
+
+# ------------------------------------------------------------------------------- youBot
+def _youbot(robot: Robot) -> tuple[SingularSystem, ...]:
+    """q = (X_C, Y_C, theta, theta1..theta5); ell = horizontal distance of E from axis 1."""
+    g = _geometry(robot, ("a1", "a2", "a3", "c"))
+    low, high = robot.lower, robot.upper
+    length = g["a2"] + g["a3"] + g["c"]
+
+    def stretched_up(q):
+        return np.array([np.sin(q[4]), np.sin(q[4] + q[5])])
+
+    def project_stretched_up(q):
+        out = q.copy()
+        out[4:6] = 0.0
+        return out
+
+    def gripper_vertical(q):
+        return np.array([np.sin(q[4] + q[5] + q[6])])
+
+    def project_gripper_vertical(q):
+        theta4 = _angle_in_limits([-q[4] - q[5], np.pi - q[4] - q[5]], low[6], high[6], q[6])
+        if theta4 is None:
+            return None
+        out = q.copy()
+        out[6] = theta4
+        return out
+
+    def elbow(q):
+        return np.array([np.sin(q[5])])
+
+    def project_elbow(q):
+        theta3 = _angle_in_limits([0.0, np.pi], low[5], high[5], q[5])
+        out = q.copy()
+        out[5] = theta3
+        return out
+
+    def on_axis_1(q):
+        t2, t23, t234 = q[4], q[4] + q[5], q[4] + q[5] + q[6]
+        ell = g["a1"] + g["a2"] * np.sin(t2) + g["a3"] * np.sin(t23) + g["c"] * np.sin(t234)
+        return np.array([np.sin(t234), ell / length])
+
+    def project_on_axis_1(q):
+        s23 = -(g["a1"] + g["a2"] * np.sin(q[4])) / g["a3"]
+        if abs(s23) > 1.0:
+            return None
+        t23 = np.arcsin(s23)
+        theta3 = _angle_in_limits([t23 - q[4], np.pi - t23 - q[4]], low[5], high[5], q[5])
+        if theta3 is None:
+            return None
+        t23 = q[4] + theta3
+        theta4 = _angle_in_limits([-t23, np.pi - t23], low[6], high[6], q[6])
+        if theta4 is None:
+            return None
+        out = q.copy()
+        out[5], out[6] = theta3, theta4
+        return out
+
+    whole_body = SingularSystem(
+        robot.name, "whole_body",
+        "platform (X_C, Y_C, theta) and arm, 6 x 8 geometric Jacobian of the gripper tip E",
+        "ee", tuple(range(8)), length, (
+            SingularCondition("links 2 and 3 vertical (Kapustina eq. 4)",
+                              "sin(theta2) = 0 and sin(theta2 + theta3) = 0   (in the limits: theta2 = theta3 = 0)",
+                              stretched_up, 5, project_stretched_up),
+            SingularCondition("gripper axis vertical (theta_E = 0 or pi; missed by the Euler-angle Jacobian)",
+                              "sin(theta2 + theta3 + theta4) = 0", gripper_vertical, 5, project_gripper_vertical),
+        ))
+    arm = SingularSystem(
+        robot.name, "arm", "arm alone, platform fixed: 6 x 5 Jacobian of E (columns theta1..theta5)",
+        "ee", tuple(range(3, 8)), length, (
+            SingularCondition("elbow stretched", "sin(theta3) = 0   (in the limits: theta3 = 0)", elbow, 4, project_elbow),
+            SingularCondition("gripper axis vertical and on axis 1",
+                              "sin(theta2 + theta3 + theta4) = 0 and "
+                              "a1 + a2 sin(theta2) + a3 sin(theta2 + theta3) + c sin(theta2 + theta3 + theta4) = 0",
+                              on_axis_1, 4, project_on_axis_1),
+        ))
+    return whole_body, arm
+
+
+# ------------------------------------------------------------------------------ Scorbot
+def _scorbot(robot: Robot) -> tuple[SingularSystem, ...]:
+    """DH angles theta; in Gierlak's measured angles q3 - q2 = theta3, q4 = theta2 + theta3 + theta4."""
+    g = _geometry(robot, ("l1", "l2", "l3", "d5"))
+    low, high = robot.lower, robot.upper
+    length = g["l2"] + g["l3"] + g["d5"]
+
+    def elbow(q):
+        return np.array([np.sin(q[2])])
+
+    def project_elbow(q):
+        out = q.copy()
+        out[2] = _angle_in_limits([0.0, np.pi], low[2], high[2], q[2])
+        return out
+
+    def tool_on_axis_1(q):
+        q2, q3, q4 = q[1], q[1] + q[2], q[1] + q[2] + q[3]
+        radius = g["l1"] + g["l2"] * np.cos(q2) + g["l3"] * np.cos(q3) + g["d5"] * np.cos(q4)
+        return np.array([np.cos(q4), radius / length])
+
+    def project_tool_on_axis_1(q):
+        c3 = -(g["l1"] + g["l2"] * np.cos(q[1])) / g["l3"]
+        if abs(c3) > 1.0:
+            return None
+        q3 = np.arccos(c3)
+        theta3 = _angle_in_limits([q3 - q[1], -q3 - q[1]], low[2], high[2], q[2])
+        if theta3 is None:
+            return None
+        q3 = q[1] + theta3
+        theta4 = _angle_in_limits([np.pi / 2 - q3, -np.pi / 2 - q3], low[3], high[3], q[3])
+        if theta4 is None:
+            return None
+        out = q.copy()
+        out[2], out[3] = theta3, theta4
+        return out
+
+    return (SingularSystem(
+        robot.name, "arm", "6 x 5 geometric Jacobian of the tool point (DH frame 5)", "ee", tuple(range(5)), length, (
+            SingularCondition("elbow stretched", "sin(theta3) = sin(q3 - q2) = 0   (in the limits: theta3 = 0)",
+                              elbow, 4, project_elbow),
+            SingularCondition("tool axis vertical and on axis 1",
+                              "cos(q4) = 0 and l1 + l2 cos(q2) + l3 cos(q3) + d5 cos(q4) = 0   "
+                              "(q2 = theta2, q3 = theta2 + theta3, q4 = theta2 + theta3 + theta4)",
+                              tool_on_axis_1, 4, project_tool_on_axis_1),
+        )),)
+
+
+# ----------------------------------------------------------------------------- PUMA 560
+def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
+    """det J = a2 (a3 s3 + d4 c3) (a2 c2 + a3 c23 - d4 s23) s5 (standard DH, Corke; J at the wrist centre)."""
+    g = _geometry(robot, ("a2", "a3", "d3", "d4"))
+    low, high = robot.lower, robot.upper
+    length = g["a2"] + g["d4"]
+    forearm = np.hypot(g["a3"], g["d4"])
+
+    def wrist(q):
+        return np.array([np.sin(q[4])])
+
+    def project_wrist(q):
+        out = q.copy()
+        out[4] = _angle_in_limits([0.0, np.pi], low[4], high[4], q[4])
+        return out
+
+    def elbow(q):
+        return np.array([(g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])) / forearm])
+
+    def project_elbow(q):
+        root = np.arctan2(-g["d4"], g["a3"])
+        theta3 = _angle_in_limits([root, root + np.pi], low[2], high[2], q[2])
+        if theta3 is None:
+            return None
+        out = q.copy()
+        out[2] = theta3
+        return out
+
+    def reach(q):
+        return g["a2"] * np.cos(q[1]) + g["a3"] * np.cos(q[1] + q[2]) - g["d4"] * np.sin(q[1] + q[2])
+
+    def shoulder(q):
+        return np.array([reach(q) / length])
+
+    def project_shoulder(q):
+        # reach = A cos(theta2) - B sin(theta2) = rho cos(theta2 + beta)
+        big_a = g["a2"] + g["a3"] * np.cos(q[2]) - g["d4"] * np.sin(q[2])
+        big_b = g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])
+        beta = np.arctan2(big_b, big_a)
+        theta2 = _angle_in_limits([np.pi / 2 - beta, -np.pi / 2 - beta], low[1], high[1], q[1])
+        if theta2 is None:
+            return None
+        out = q.copy()
+        out[1] = theta2
+        return out
+
+    return (SingularSystem(
+        robot.name, "arm", "6 x 6 geometric Jacobian of the flange (origin at the wrist centre)", "ee",
+        tuple(range(6)), length, (
+            SingularCondition("wrist: axes 4 and 6 aligned", "sin(theta5) = 0   (in the limits: theta5 = 0)",
+                              wrist, 5, project_wrist),
+            SingularCondition("elbow: wrist centre on the line of axes 2-3 stretched",
+                              "a3 sin(theta3) + d4 cos(theta3) = 0   (in the limits: theta3 = atan2(-d4, a3))",
+                              elbow, 5, project_elbow),
+            SingularCondition("shoulder: wrist centre in the plane of axis 1 and axis 2 (distance d3 from axis 1)",
+                              "a2 cos(theta2) + a3 cos(theta2 + theta3) - d4 sin(theta2 + theta3) = 0",
+                              shoulder, 5, project_shoulder),
+        )),)
+
+
+_BUILDERS: dict[str, Callable[[Robot], tuple[SingularSystem, ...]]] = {
+    "youbot": _youbot,
+    "scorbot_er4pc": _scorbot,
+    "puma560": _puma560,
+}
+
+
+def registered_models() -> list[str]:
+    """Names of the robots with certified singular conditions."""
+    return sorted(_BUILDERS)
+
+
+def singular_systems(robot: Robot) -> tuple[SingularSystem, ...]:
+    """The systems of ``robot`` (the first is the default); ModelError if none are registered."""
+    builder = _BUILDERS.get(robot.name)
+    if builder is None:
+        raise ModelError(f"no certified singular conditions for robot {robot.name!r}; "
+                         f"known: {registered_models()}")
+    return builder(robot)
+
+
+__all__ = ["SingularCondition", "SingularSystem", "registered_models", "singular_systems"]
