@@ -6,8 +6,9 @@ set is a union of *conditions*, each an intersection of equations ``residuals(q)
 Residuals are dimensionless (lengths are divided by the system's ``length_scale``).
 
 Adding a model is one entry in ``_BUILDERS``: a function of the loaded robot returning its
-systems. (``deluca_mm`` -- the arm conditions l2 c2 + l3 c23 = 0 and sin(theta3) = 0 of the
-wheeled base carrying a PUMA -- is to be added there by the issue that ships that model.)
+systems. A system may use only some rows of the Jacobian (``rows``, e.g. a position task)
+and may be written over the real inputs of a nonholonomic base (``over_inputs``: the
+columns index ``u`` of ``v = S(q) u``, :meth:`Robot.input_map`).
 """
 
 from __future__ import annotations
@@ -55,10 +56,12 @@ class SingularSystem:
     columns: tuple[int, ...]  #: velocity indices of the moving joints (columns of J)
     length_scale: float  #: L [m]: linear Jacobian rows are divided by L, prismatic columns multiplied
     conditions: tuple[SingularCondition, ...]
+    rows: tuple[int, ...] = (0, 1, 2, 3, 4, 5)  #: Jacobian rows of the task (linear 0-2; angular 3-5)
+    over_inputs: bool = False  #: columns index the inputs u of v = S(q) u instead of v
 
     @property
     def full_rank(self) -> int:
-        return min(6, len(self.columns))
+        return min(len(self.rows), len(self.columns))
 
 
 def _angle_in_limits(candidates, low: float, high: float, current: float) -> float | None:
@@ -265,7 +268,88 @@ def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
         )),)
 
 
+# ----------------------------------------------------------------------------- De Luca
+def _deluca_mm(robot: Robot) -> tuple[SingularSystem, ...]:
+    """p_dot = J(q) u, u = (v, omega, th1dot, th2dot, th3dot); R = l2 c2 + l3 c23 (reach).
+
+    The 3 x 3 minors of J (its omega column is zero) are R^2 c(th - th1),
+    l3 R c23 c(th - th1), -l2 l3 s3 s(th - th1) and -l2 l3 R s3; they vanish together
+    exactly on the three conditions below (tests/test_singularity_deluca.py).
+    """
+    g = _geometry(robot, ("l2", "l3"))
+    low, high = robot.lower, robot.upper
+    length = g["l2"] + g["l3"]
+    heading, theta1, theta2, theta3 = 2, 3, 4, 5
+
+    def reach(q):
+        return (g["l2"] * np.cos(q[theta2]) + g["l3"] * np.cos(q[theta2] + q[theta3])) / length
+
+    def project_on_axis_1(q):
+        # R = A cos(theta2) - B sin(theta2) with A = l2 + l3 c3, B = l3 s3
+        big_a = g["l2"] + g["l3"] * np.cos(q[theta3])
+        big_b = g["l3"] * np.sin(q[theta3])
+        beta = np.arctan2(big_b, big_a)
+        value = _angle_in_limits([np.pi / 2 - beta, -np.pi / 2 - beta], low[theta2], high[theta2], q[theta2])
+        if value is None:
+            return None
+        out = q.copy()
+        out[theta2] = value
+        return out
+
+    def project_stretched(q):
+        value = _angle_in_limits([0.0, np.pi], low[theta3], high[theta3], q[theta3])
+        if value is None:
+            return None
+        out = q.copy()
+        out[theta3] = value
+        return out
+
+    def steer(q, offset):
+        if q is None:
+            return None
+        out = q.copy()
+        out[heading] = q[theta1] + offset  # the steering angle is unbounded
+        return out
+
+    def project_double(q):
+        stretched = project_stretched(q)
+        return None if stretched is None else project_on_axis_1(stretched)
+
+    def on_axis_1(q):
+        return np.array([reach(q)])
+
+    def stretched(q):
+        return np.array([np.sin(q[theta3])])
+
+    arm_conditions = (
+        SingularCondition("wrist centre on axis 1", "l2 cos(theta2) + l3 cos(theta2 + theta3) = 0",
+                          on_axis_1, 2, project_on_axis_1),
+        SingularCondition("link 3 stretched or folded", "sin(theta3) = 0", stretched, 2, project_stretched),
+    )
+    whole = (
+        SingularCondition("wrist centre on axis 1, wheels parallel to the arm plane",
+                          "l2 cos(theta2) + l3 cos(theta2 + theta3) = 0 and sin(theta - theta1) = 0",
+                          lambda q: np.array([reach(q), np.sin(q[heading] - q[theta1])]), 2,
+                          lambda q: steer(project_on_axis_1(q), np.pi * (q[0] > 0))),
+        SingularCondition("link 3 stretched or folded, wheels normal to the arm plane",
+                          "sin(theta3) = 0 and cos(theta - theta1) = 0",
+                          lambda q: np.array([np.sin(q[theta3]), np.cos(q[heading] - q[theta1])]), 2,
+                          lambda q: steer(project_stretched(q), np.pi / 2 if q[0] > 0 else -np.pi / 2)),
+        SingularCondition("double arm singularity (the base cannot help)",
+                          "l2 cos(theta2) + l3 cos(theta2 + theta3) = 0 and sin(theta3) = 0",
+                          lambda q: np.array([reach(q), np.sin(q[theta3])]), 2, project_double),
+    )
+    return (
+        SingularSystem(robot.name, "whole_body", "3 x 5 Jacobian of the wrist centre over the inputs "
+                       "u = (v, omega, theta1dot, theta2dot, theta3dot) (De Luca's J(q))", "wrist_center",
+                       tuple(range(5)), length, whole, rows=(0, 1, 2), over_inputs=True),
+        SingularSystem(robot.name, "arm", "arm alone: 3 x 3 Jacobian of the wrist centre (columns theta1..3)",
+                       "wrist_center", (3, 4, 5), length, arm_conditions, rows=(0, 1, 2)),
+    )
+
+
 _BUILDERS: dict[str, Callable[[Robot], tuple[SingularSystem, ...]]] = {
+    "deluca_mm": _deluca_mm,
     "youbot": _youbot,
     "scorbot_er4pc": _scorbot,
     "puma560": _puma560,

@@ -79,11 +79,23 @@ def scaled_jacobian(robot: Robot, q, frame: str | None = None, subsystem: str | 
     """J_s = diag(I/L, I) J diag(c) (see the module docstring); L = 1 m if none is known."""
     frame, columns, scale = _setup(robot, frame, subsystem, length_scale)
     scale = 1.0 if scale is None else scale
-    jacobian = robot.frame_jacobian(q, frame)[:, columns]
-    translational = np.all(jacobian[3:] == 0.0, axis=0)
+    rows, over_inputs = _rows_and_inputs(robot, subsystem)
+    jacobian = robot.frame_jacobian(q, frame)
+    if over_inputs:
+        jacobian = jacobian @ robot.input_map(robot.check_configuration(q))
+    jacobian = jacobian[:, columns]
+    translational = np.all(jacobian[3:] == 0.0, axis=0) & np.any(jacobian[:3] != 0.0, axis=0)
     jacobian[:3] /= scale
     jacobian[:, translational] *= scale
-    return jacobian
+    return jacobian[list(rows)]
+
+
+def _rows_and_inputs(robot: Robot, subsystem: str | None) -> tuple[tuple[int, ...], bool]:
+    """Task rows and input form of the registered system (all rows over v otherwise)."""
+    if robot.name in registered_models():
+        system = singular_system(robot, subsystem)
+        return system.rows, system.over_inputs
+    return tuple(range(6)), False
 
 
 def numeric_rank(robot: Robot, q, frame: str | None = None, tol: float = RANK_TOLERANCE,
@@ -96,7 +108,8 @@ def numeric_rank(robot: Robot, q, frame: str | None = None, tol: float = RANK_TO
 
 def lost_directions(robot: Robot, q, frame: str | None = None, tol: float = RANK_TOLERANCE,
                     subsystem: str | None = None) -> np.ndarray:
-    """Left null space of J: a 6 x k matrix W with orthonormal columns and W^T J = 0.
+    """Left null space of J: a 6 x k matrix W with orthonormal columns and W^T J = 0
+    (len(rows) x k for a system on some rows only, e.g. 3 x k for De Luca's wrist centre).
 
     Every achievable twist t = J v (linear; angular, world-aligned at the frame origin)
     satisfies W^T t = 0; read as wrenches (force; moment), the columns of W are loads the
@@ -108,7 +121,8 @@ def lost_directions(robot: Robot, q, frame: str | None = None, tol: float = RANK
     u, sigma, _ = np.linalg.svd(scaled)
     rank = int(np.sum(sigma > tol * sigma[0])) if sigma[0] > 0.0 else 0
     # W_s^T D J C = 0 with D = diag(I/L, I)  =>  (D W_s)^T J = 0
-    unscale = np.r_[np.full(3, 1.0 / (1.0 if scale is None else scale)), np.ones(3)]
+    rows, _ = _rows_and_inputs(robot, subsystem)
+    unscale = np.r_[np.full(3, 1.0 / (1.0 if scale is None else scale)), np.ones(3)][list(rows)]
     basis, _ = np.linalg.qr(unscale[:, None] * u[:, rank:])
     return basis
 
