@@ -43,3 +43,13 @@ def test_simulation_input_checks():
         MujocoSimulation(wbc.load_robot("deluca_mm"), 0.01)  # no MJCF shipped
     with pytest.raises(ValueError):
         MujocoSimulation(robot, 0.01, delay=2)
+
+
+def test_reach_converges_through_the_servos():
+    scenario = load_scenario(TASKS / "youbot_reach.toml")
+    simulation = MujocoSimulation(scenario.robot, scenario.dt, noise=1e-4, delay=1, seed=3)
+    result = run(scenario, simulation=simulation)
+    assert result.position_error[-1] < 1e-3  # documented bound: 1 mm
+    assert result.orientation_error[-1] < 2e-3
+    assert result.position_violation.max() < 1e-3  # servo lag may overshoot a limit slightly
+    assert result.velocity_violation.max() <= 1e-9
