@@ -218,3 +218,40 @@ def test_nonholonomic_commands_never_slip(data, solver, margin, reduced, cost, g
     assert abs(twist[1]) <= 1e-7
     assert abs(twist[0]) <= 0.5 + 1e-6 and abs(twist[2]) <= 1.0 + 1e-6
     assert np.all(np.abs(v[3:]) <= DELUCA.velocity_limit[3:] + 1e-6)
+
+
+class BoxBound(Constraint):
+    """Bounds ``lower <= v <= upper`` (hard or soft), for testing the bound merge."""
+
+    has_bounds = True
+
+    def __init__(self, lower, upper, hard):
+        super().__init__()
+        self.lower, self.upper, self.hard = np.asarray(lower, float), np.asarray(upper, float), hard
+
+    def compute(self, kin, dt, rows):
+        rows.lower[:], rows.upper[:] = self.lower, self.upper
+
+
+@pytest.mark.parametrize("n_hard, n_soft", [(1, 1), (2, 1), (1, 2), (2, 2), (2, 0), (0, 2)])
+def test_soft_bounds_are_clipped_into_the_hard_ones(youbot, n_hard, n_soft):
+    rng = np.random.default_rng(n_hard * 10 + n_soft)
+    hard = [BoxBound(-rng.uniform(0.5, 2, 8), rng.uniform(0.5, 2, 8), True) for _ in range(n_hard)]
+    soft = []
+    for _ in range(n_soft):
+        centre = rng.uniform(-4, 4, 8)  # often entirely outside the hard box
+        soft.append(BoxBound(centre - rng.uniform(0, 1, 8), centre + rng.uniform(0, 1, 8), False))
+    controller = wbc.Controller(youbot, [wbc.PostureTask(1.0)], hard + soft)
+    controller.step(HOME)
+    lb, ub = controller.qp.lb, controller.qp.ub
+    hard_lb = np.max([b.lower for b in hard], axis=0) if hard else np.full(8, -np.inf)
+    hard_ub = np.min([b.upper for b in hard], axis=0) if hard else np.full(8, np.inf)
+    soft_lb = np.max([b.lower for b in soft], axis=0) if soft else np.full(8, -np.inf)
+    soft_ub = np.min([b.upper for b in soft], axis=0) if soft else np.full(8, np.inf)
+    conflict = soft_lb > soft_ub  # soft bounds that exclude each other meet halfway
+    soft_lb[conflict] = soft_ub[conflict] = 0.5 * (soft_lb[conflict] + soft_ub[conflict])
+    if n_soft == 2:
+        assert conflict.any(), "the draw should exercise the soft-soft conflict"
+    np.testing.assert_array_equal(lb, np.minimum(np.maximum(soft_lb, hard_lb), hard_ub))
+    np.testing.assert_array_equal(ub, np.minimum(np.maximum(soft_ub, hard_lb), hard_ub))
+    assert np.all(lb <= ub)

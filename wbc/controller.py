@@ -130,7 +130,8 @@ class Controller:
         self._n_hard_bounds = sum(c.hard for c in bounded)
         self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
         self._upper = np.full((max(len(bounded), 1), nv), np.inf)
-        self._soft_bounds = np.zeros((2, nv))  # scratch: intersection of the soft bounds
+        self._hard_bounds = np.zeros((2, nv))  # scratch: intersection of several hard bounds
+        self._soft_bounds = np.zeros((2, nv))  # scratch: intersection of several soft bounds
         self._constraint_blocks = []
         row_labels: list[str] = []
         soft_rows: list[int] = []
@@ -225,19 +226,28 @@ class Controller:
         return v
 
     def _merge_bounds(self, qp: QP) -> None:
-        """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them."""
-        k = self._n_hard_bounds
-        if k == 0 or k == len(self._lower):
+        """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them (soft
+        bounds that exclude each other are first set to the midpoint of the conflict)."""
+        k, total = self._n_hard_bounds, len(self._lower)
+        if k == total:
             _intersect(self._lower, self._upper, qp.lb, qp.ub)
             return
-        soft_lb, soft_ub = self._soft_bounds
-        _intersect(self._lower[:k], self._upper[:k], qp.lb, qp.ub)  # hard
-        _intersect(self._lower[k:], self._upper[k:], soft_lb, soft_ub)
-        np.maximum(soft_lb, qp.lb, out=soft_lb)  # max(hard_lb, soft_lb) ...
-        np.minimum(soft_lb, qp.ub, out=soft_lb)  # ... clipped to <= hard_ub
-        np.minimum(soft_ub, qp.ub, out=soft_ub)  # min(hard_ub, soft_ub) ...
-        np.maximum(soft_ub, qp.lb, out=qp.ub)  # ... clipped to >= hard_lb
-        qp.lb[:] = soft_lb
+        if k == 0:
+            _intersect(self._lower, self._upper, qp.lb, qp.ub)
+            _meet_halfway(qp.lb, qp.ub)
+            return
+        hard_lb, hard_ub = self._hard_bounds if k > 1 else (self._lower[0], self._upper[0])
+        soft_lb, soft_ub = self._soft_bounds if total - k > 1 else (self._lower[k], self._upper[k])
+        if k > 1:
+            _intersect(self._lower[:k], self._upper[:k], hard_lb, hard_ub)
+        if total - k > 1:
+            _intersect(self._lower[k:], self._upper[k:], soft_lb, soft_ub)
+            _meet_halfway(soft_lb, soft_ub)
+        # clip(soft, hard_lb, hard_ub): lb = min(max(soft_lb, hard_lb), hard_ub), same for ub
+        np.maximum(soft_lb, hard_lb, out=qp.lb)
+        np.minimum(qp.lb, hard_ub, out=qp.lb)
+        np.maximum(soft_ub, hard_lb, out=qp.ub)
+        np.minimum(qp.ub, hard_ub, out=qp.ub)
 
     def _fallback(self, failed: QPSolution) -> QPSolution:
         """Elastic re-solve, then the zero command (see the class docstring)."""
@@ -342,6 +352,13 @@ def _intersect(lowers: np.ndarray, uppers: np.ndarray, lb: np.ndarray, ub: np.nd
     for lower, upper in zip(lowers[2:], uppers[2:]):
         np.maximum(lb, lower, out=lb)
         np.minimum(ub, upper, out=ub)
+
+
+def _meet_halfway(lower: np.ndarray, upper: np.ndarray) -> None:
+    """Where soft bounds exclude each other (lower > upper), set both to their midpoint."""
+    conflict = lower > upper
+    if conflict.any():
+        lower[conflict] = upper[conflict] = 0.5 * (lower[conflict] + upper[conflict])
 
 
 def _velocity_names(robot: Robot) -> list[str]:
