@@ -49,37 +49,30 @@ class JointPositionLimits(Constraint):
                     v_index.append(joint.idx_v)
         self._q_index = np.array(q_index, dtype=int)
         self._v_index = np.array(v_index, dtype=int)
-        self._lower = robot.lower[self._q_index].copy()
-        self._upper = robot.upper[self._q_index].copy()
-        # one contiguous block of q and v (the common case): slices instead of gathers
-        self._scratch = np.zeros(len(q_index))
-        self._lower_margin, self._upper_margin = np.zeros(len(q_index)), np.zeros(len(q_index))
+        # limits stacked (lower; upper), margins M = limits - q, M / dt and gain * M / dt
+        self._limits = np.stack([robot.lower[self._q_index], robot.upper[self._q_index]])
+        self._margins = np.zeros_like(self._limits)
+        self._scaled = np.zeros_like(self._limits)
         self._slices = None
         if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
     def write_static(self, rows: ConstraintRows) -> None:
         if self._slices is not None:
-            self._views = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
+            self._out = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
+        else:
+            self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        if self._slices is not None:
-            q = kin.q[self._slices[0]]
-            lower, upper = self._views
-        else:
-            q = kin.q[self._q_index]
-            lower, upper = self._lower_margin, self._upper_margin
-        scratch = self._scratch
-        # margins m = limit - q; inside: gain * m, outside: the full m (back on the limit in one tick)
-        np.subtract(self._upper, q, out=upper)
-        np.multiply(upper, self.gain, out=scratch)
-        np.minimum(scratch, upper, out=upper)
-        np.subtract(self._lower, q, out=lower)
-        np.multiply(lower, self.gain, out=scratch)
-        np.maximum(scratch, lower, out=lower)
-        inverse_dt = 1.0 / dt
-        upper *= inverse_dt
-        lower *= inverse_dt
+        q = kin.q[self._slices[0]] if self._slices is not None else kin.q[self._q_index]
+        margins, scaled = self._margins, self._scaled
+        np.subtract(self._limits, q, out=margins)
+        margins *= 1.0 / dt
+        np.multiply(margins, self.gain, out=scaled)
+        # inside (lower margin <= 0 <= upper margin): gain * margin; outside: the full margin
+        lower, upper = self._out
+        np.maximum(scaled[0], margins[0], out=lower)
+        np.minimum(scaled[1], margins[1], out=upper)
         if self._slices is None:
             rows.lower[self._v_index] = lower
             rows.upper[self._v_index] = upper
