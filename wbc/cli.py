@@ -1,5 +1,5 @@
 """Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--sim mujoco]``, ``wbc solvers``,
-``wbc singularities MODEL``."""
+``wbc singularities MODEL``, ``wbc bench SUITE``."""
 
 from __future__ import annotations
 
@@ -91,6 +91,35 @@ def _singularities(args: argparse.Namespace) -> int:
     return 0 if all_agree else 1
 
 
+BENCH_SUITES = ("solvers", "peers", "scaling", "dataset")
+
+
+def find_benchmarks() -> "Path | None":
+    """The source checkout holding ``benchmarks/`` (not part of the installed package):
+    the current directory or one of its parents, else the checkout of an editable install."""
+    from pathlib import Path
+
+    here = Path.cwd().resolve()
+    for candidate in (here, *here.parents, Path(__file__).resolve().parents[1]):
+        if (candidate / "benchmarks" / "__init__.py").is_file() and (candidate / "tasks").is_dir():
+            return candidate
+    return None
+
+
+def _bench(args: argparse.Namespace) -> int:
+    import importlib
+
+    root = find_benchmarks()
+    if root is None:
+        print("wbc: error: the benchmarks live in the source repository, not in the installed package; "
+              "run `wbc bench` from a checkout (or use an editable install: pip install -e .)", file=sys.stderr)
+        return 2
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    module = importlib.import_module(f"benchmarks.{args.suite}")
+    return module.main(args.options)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -116,6 +145,12 @@ def build_parser() -> argparse.ArgumentParser:
     sing_parser.add_argument("--on-set", type=int, default=200, help="configurations on (and near) each set")
     sing_parser.add_argument("--seed", type=int, default=0, help="random seed")
     sing_parser.set_defaults(handler=_singularities)
+    bench_parser = sub.add_parser("bench", help="run a benchmark suite of benchmarks/ (needs a source checkout)",
+                                  description="Runs python -m benchmarks.SUITE; options after SUITE go to it "
+                                              "(e.g. wbc bench solvers --ticks 50; wbc bench peers --help).")
+    bench_parser.add_argument("suite", choices=BENCH_SUITES)
+    bench_parser.add_argument("options", nargs=argparse.REMAINDER, help="options of the suite")
+    bench_parser.set_defaults(handler=_bench)
     return parser
 
 

@@ -1,0 +1,140 @@
+"""The benchmark harnesses in benchmarks/ work (correctness only: no timing assertions here)."""
+
+import json
+import shutil
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, TASKS
+
+if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks import dataset as ds  # noqa: E402
+from benchmarks import solvers as sb  # noqa: E402
+from benchmarks.common import scenario_files, shifted_geometric_mean  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory):
+    """Every scenario of tasks/, 0.3 s each, plus a broken scenario file."""
+    tasks = tmp_path_factory.mktemp("tasks")
+    for path in scenario_files(TASKS):
+        shutil.copy(path, tasks / path.name)
+    (tasks / "zz_broken.toml").write_text('[robot]\nname = "no_such_robot"\n')
+    out = tmp_path_factory.mktemp("dataset")
+    folder, index = ds.record_all(out, tasks, duration=0.3, show_progress=False)
+    return out, folder, index
+
+
+def test_dataset_records_every_scenario_and_reports_failures(small_dataset):
+    out, folder, index = small_dataset
+    names = {entry["scenario"] for entry in index["scenarios"]}
+    assert names == {path.stem for path in scenario_files(TASKS)} | {"zz_broken"}
+    broken = next(e for e in index["scenarios"] if e["scenario"] == "zz_broken")
+    assert broken["status"].startswith("error")
+    assert json.loads((folder / "index.json").read_text())["version"] == ds.VERSION
+    rows = (folder / "index.csv").read_text().splitlines()
+    assert rows[0].startswith("scenario,tick,time,robot,n,n_ineq,n_eq")
+    assert len(rows) == 1 + sum(e.get("ticks", 0) for e in index["scenarios"])
+
+
+def test_dataset_round_trip_and_reference(small_dataset):
+    out, _, index = small_dataset
+    _, scenarios = ds.load(out)
+    assert len(scenarios) == sum(e["status"] == "ok" for e in index["scenarios"])
+    import qpsolvers
+
+    for sc in scenarios:
+        assert sc.ticks == 30
+        assert np.max(sc.ref_residuals) < ds.REF_TOL
+        np.testing.assert_allclose(sc.x_controller, sc.x_ref, atol=1e-7)
+        solution = qpsolvers.solve_problem(sc.problem(sc.ticks - 1), solver="quadprog")
+        np.testing.assert_allclose(solution.x, sc.x_ref[-1], atol=1e-7)
+
+
+def test_dataset_command_exits_nonzero_on_a_failing_scenario(tmp_path):
+    tasks = tmp_path / "tasks"
+    tasks.mkdir()
+    shutil.copy(TASKS / "youbot_circle.toml", tasks)
+    (tasks / "broken.toml").write_text("not toml at all [")
+    assert ds.main(["--out", str(tmp_path / "out"), "--tasks", str(tasks), "--duration", "0.05",
+                    "--no-progress"]) == 1
+
+
+def test_shifted_geometric_mean():
+    assert shifted_geometric_mean([5.0, 5.0], 10) == pytest.approx(5.0)
+    assert shifted_geometric_mean([0.0, 30.0], 10) == pytest.approx(np.sqrt(10 * 40) - 10)
+    with pytest.raises(ValueError):
+        shifted_geometric_mean([-1.0])
+
+
+def test_solver_benchmark_rows_and_report(small_dataset, tmp_path):
+    out, _, index = small_dataset
+    _, scenarios = ds.load(out)
+    configs = sb.make_configs(["daqp", "quadprog"], ["default", "high"])
+    assert sb.Config("quadprog", "high", True) not in configs  # qpsolvers ignores initvals for quadprog
+    assert sb.Config("daqp", "high", True) in configs
+    rows = sb.benchmark(scenarios, configs, ticks=2, repeats=1, time_limit=None, show_progress=False)
+    assert len(rows) == 2 * len(scenarios) * len(configs)
+    assert all(r["found"] for r in rows)
+    high = [r for r in rows if r["settings"] == "high"]
+    assert all(r["ref_error"] < 1e-6 for r in high)
+    failed = dict(rows[0], success=False, runtime=1.0)
+    assert sb.summarize([failed])["sgm_us"] == pytest.approx(rows[0]["time_limit"] * 1e6)
+    assert "daqp (warm)" in sb.settings_table(rows, "high")
+
+
+def test_accuracy_settings_cover_the_required_solvers():
+    for name in sb.SOLVERS:
+        options = sb.accuracy_settings(name, 1e-9)
+        assert name == "quadprog" or options, name
+
+
+def test_synthetic_chains_match_between_urdf_and_mjcf(tmp_path):
+    mujoco = pytest.importorskip("mujoco")
+    import wbc
+    from benchmarks.scaling import chain_mjcf, chain_urdf, initial_configuration
+
+    for dof in (8, 21):
+        (tmp_path / "c.urdf").write_text(chain_urdf(dof))
+        robot = wbc.load_robot(tmp_path / "c.urdf")
+        assert robot.nv == dof and robot.base.is_mobile
+        model = mujoco.MjModel.from_xml_string(chain_mjcf(dof))
+        data = mujoco.MjData(model)
+        rng = np.random.default_rng(dof)
+        for q in [initial_configuration(dof)] + [rng.uniform(-1, 1, dof) for _ in range(3)]:
+            data.qpos[:] = q
+            mujoco.mj_kinematics(model, data)
+            np.testing.assert_allclose(data.site("ee").xpos, robot.frame_pose(q, "ee")[:3, 3], atol=1e-12)
+
+
+def test_peer_setups_solve_the_same_qp():
+    """Pink solves wbc's QP once wbc uses the peers' log6 error; the hand-rolled tick equals wbc's."""
+    pytest.importorskip("pink")
+    pytest.importorskip("mink")
+    from benchmarks import peers
+    from benchmarks.peer_setups import spec_from_scenario
+    from wbc.scenario import load_scenario
+
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    spec = spec_from_scenario(scenario)
+    setups = peers.make_setups(scenario, spec)
+    result = peers.shared_q_pass(scenario, setups, 60)
+    v = result["commands"]
+    assert np.abs(v[peers.HAND] - v[peers.WBC]).max() < 1e-9
+    assert np.abs(v["Pink"] - v[peers.LOG6]).max() < 1e-9
+    # mink differs by its SE3.jlog small-angle branch only (documented in benchmarks/README.md)
+    assert np.abs(v["mink"] - v[peers.LOG6]).max() < 1e-5
+    diagnosis = peers.diagnose(scenario, spec, result, True)
+    assert diagnosis["mink"]["max_tight_tol_exact_jlog"] < 1e-9
+
+
+def test_cli_bench_finds_the_checkout():
+    from wbc.cli import build_parser, find_benchmarks
+
+    assert find_benchmarks() == ROOT
+    args = build_parser().parse_args(["bench", "solvers", "--ticks", "3"])
+    assert args.suite == "solvers" and args.options == ["--ticks", "3"]
