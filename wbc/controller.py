@@ -107,20 +107,26 @@ class Controller:
         for constraint in self.constraints:
             constraint.bind(robot)
 
-        # task rows: ordinary tasks first, preview tasks (SteeringTask) last
-        ordered = [t for t in self.tasks if not t.uses_preview] + [t for t in self.tasks if t.uses_preview]
-        rows = sum(task.dim for task in ordered)
-        self._Js = np.zeros((rows, nv))
-        self._rs = np.zeros(rows)
+        # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
+        # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
+        # A^T [W J] = [H; r^T J] in a single product: H and -c, as stored in the QP buffer.
+        plain = [t for t in self.tasks if not t.uses_preview]
+        preview = [t for t in self.tasks if t.uses_preview]
+        n_plain = sum(t.dim for t in plain) + nv
+        self._stack = np.zeros((n_plain + sum(t.dim for t in preview), nv + 1))
+        self._stack[n_plain - nv:n_plain, :nv] = np.sqrt(self.damping) * np.eye(nv)
         self._task_blocks, self._preview_blocks = [], []
         start = 0
-        for task in ordered:
+        for task in plain + preview:
+            if task is (preview[0] if preview else None):
+                start = n_plain
             stop = start + task.dim
-            block = (task, self._Js[start:stop], self._rs[start:stop])
+            block = (task, self._stack[start:stop, :nv], self._stack[start:stop, nv])
             task.write_static(block[1])
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
-        self._plain_rows = sum(task.dim for task, _, _ in self._task_blocks)
+        self._plain, self._plain_jacobian = self._stack[:n_plain], self._stack[:n_plain, :nv]
+        self._preview_rows = self._stack[n_plain:]
 
         n_ineq = sum(c.n_inequalities for c in self.constraints)
         n_eq = sum(c.n_equalities for c in self.constraints)
@@ -159,7 +165,6 @@ class Controller:
         self._row_labels = row_labels
         self._soft_rows = np.array(soft_rows, dtype=int)  # indices among the inequality rows
         self._elastic = None  # DAQP workspace of the fallback, built on first use
-        self._damping_matrix = self.damping * np.eye(nv)
         self._preview = np.zeros(nv)
 
         self._nonholonomic = robot.base.is_nonholonomic
@@ -189,9 +194,7 @@ class Controller:
 
         for task, jacobian, target in self._task_blocks:
             task.compute(kin, dt, jacobian, target)
-        np.matmul(self._Js.T, self._Js, out=qp.H)
-        qp.H += self._damping_matrix
-        np.matmul(self._rs, self._Js, out=qp.c)
+        np.matmul(self._plain.T, self._plain_jacobian, out=qp.Hc)  # [H; r^T J]
         qp.c *= -1.0
         if self._preview_blocks:
             self._add_preview_tasks(kin, dt, qp)
@@ -296,9 +299,9 @@ class Controller:
         np.negative(self._preview, out=self._preview)
         for task, jacobian, target in self._preview_blocks:
             task.compute_preview(kin, dt, jacobian, target, self._preview)
-        rows = slice(self._plain_rows, None)
-        qp.H += self._Js[rows].T @ self._Js[rows]
-        qp.c -= self._Js[rows].T @ self._rs[rows]
+        rows = self._preview_rows
+        qp.H += rows[:, :-1].T @ rows[:, :-1]
+        qp.c -= rows[:, -1] @ rows[:, :-1]
 
     def _reduce(self, S: np.ndarray) -> None:
         """Rewrite the QP over v as a QP over u with v = S u."""

@@ -34,8 +34,9 @@ class QP:
         # one flat buffer behind every array, so a single call can screen it for NaN
         self.data = np.zeros(n * n + n + (p + e) * n + 2 * m)
         sizes = np.cumsum([0, n * n, n, (p + e) * n, m, m])
-        self.H = self.data[sizes[0]:sizes[1]].reshape(n, n)
-        self.c = self.data[sizes[1]:sizes[2]]
+        self.Hc = self.data[sizes[0]:sizes[2]].reshape(n + 1, n)  #: H with c as an extra row
+        self.H = self.Hc[:n]
+        self.c = self.Hc[n]
         self.C = self.data[sizes[2]:sizes[3]].reshape(p + e, n)
         self.upper = self.data[sizes[3]:sizes[4]]
         self.lower = self.data[sizes[4]:sizes[5]]
