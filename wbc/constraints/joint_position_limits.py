@@ -54,6 +54,7 @@ class JointPositionLimits(Constraint):
         self._margins = np.zeros_like(self._limits)
         self._scaled = np.zeros_like(self._limits)
         self._slices = None
+        self._q_view: np.ndarray | None = None
         if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
@@ -64,7 +65,12 @@ class JointPositionLimits(Constraint):
             self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        q = kin.q[self._slices[0]] if self._slices is not None else kin.q[self._q_index]
+        if self._slices is not None:
+            if self._q_view is None or self._q_view.base is not kin.q:
+                self._q_view = kin.q[self._slices[0]]  # kin.q is updated in place every tick
+            q = self._q_view
+        else:
+            q = kin.q[self._q_index]
         margins, scaled = self._margins, self._scaled
         np.subtract(self._limits, q, out=margins)
         margins *= 1.0 / dt
