@@ -35,6 +35,14 @@ def test_reach_converges_to_the_pose(reach_run):
     assert np.linalg.norm(result.q[-1][:2]) > 1.5, "the target is out of the arm's reach: the base must drive"
 
 
+@pytest.mark.parametrize("name", sorted(p.stem for p in TASKS.glob("*.toml")))
+def test_every_shipped_scenario_is_solved_without_fallback(name):
+    scenario = load_scenario(TASKS / f"{name}.toml")
+    result = run(scenario, duration=min(scenario.duration, 3.0))
+    assert result.fallback_ticks == 0
+    assert np.all(np.isfinite(result.v))
+
+
 def test_reach_never_violates_limits(reach_run):
     scenario, result = reach_run
     robot = scenario.robot

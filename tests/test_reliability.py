@@ -125,6 +125,21 @@ def test_iteration_budget_exhaustion_is_handled(youbot):
     assert np.all(np.isfinite(v)) and within_hard_limits(youbot, HOME, v)
 
 
+@pytest.mark.parametrize("constraints", [[], [wbc.JointPositionLimits()], [wbc.JointVelocityLimits()],
+                                         [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()]])
+def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
+    """Bounds only, rows, nothing: the warm-started workspace solves each tick (no fallback)."""
+    target = youbot.frame_pose(HOME, "ee")
+    target[:3, 3] += [0.05, 0.02, -0.03]
+    task = wbc.FrameTask("ee", 1.0, 0.5, gain=0.2)
+    task.set_target(target)
+    controller = wbc.Controller(youbot, [task], constraints)
+    q = HOME.copy()
+    for _ in range(20):
+        q = youbot.integrate(q, controller.step(q), controller.dt)
+        assert controller.last.status == "optimal" and controller.last.success
+
+
 def test_warm_start_returns_the_cold_solution(youbot):
     from wbc.closed_loop import run
     from wbc.scenario import load_scenario

@@ -46,7 +46,7 @@ def _simulation(args: argparse.Namespace, scenario):
 def format_summary(name: str, solver: str, s: dict) -> str:
     return "\n".join([
         f"scenario {name}  (solver {solver})",
-        f"  ticks                      {s['ticks']}",
+        f"  ticks                      {s['ticks']}  ({s['fallback_ticks']} answered by a fallback)",
         f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / {s['position_error_max_m'] * 1e3:.4f} mm",
         f"  orientation err  rms / max {s['orientation_error_rms_rad'] * 1e3:.4f} / "
         f"{s['orientation_error_max_rad'] * 1e3:.4f} mrad",

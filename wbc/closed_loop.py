@@ -28,6 +28,7 @@ class RunResult:
     position_violation: np.ndarray  #: (T+1,) max over joints of distance outside [lower, upper]
     velocity_violation: np.ndarray  #: (T,) max over coordinates of |v| beyond its limit
     velocity_ratio: np.ndarray  #: (T, nv) |v_i| / limit_i (base linear entries in the base frame)
+    fallback_ticks: int = 0  #: ticks whose command came from a fallback (last.success False)
     wheel_ratio: np.ndarray | None = None  #: (T, n_wheels) |u_i| / u_max, if the base has wheels
     lateral_slip: np.ndarray | None = None  #: (T,) |base-frame v_y| [m/s] of a nonholonomic base
 
@@ -41,6 +42,7 @@ class RunResult:
             extra["max_lateral_slip_m_s"] = float(self.lateral_slip.max())
         return extra | {
             "ticks": int(self.time.size),
+            "fallback_ticks": self.fallback_ticks,
             "position_error_rms_m": float(np.sqrt(np.mean(self.position_error ** 2))),
             "position_error_max_m": float(self.position_error.max()),
             "orientation_error_rms_rad": float(np.sqrt(np.mean(self.orientation_error ** 2))),
@@ -76,6 +78,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     solve_t, tick_t = np.zeros(ticks), np.zeros(ticks)
     qs[0] = q
     task, reference = scenario.reference_task, scenario.reference
+    fallbacks = 0
     iterator = range(ticks)
     if progress:
         from tqdm import tqdm
@@ -86,6 +89,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
             task.set_target(*reference(k * dt))
         v = controller.step(q if simulation is None else simulation.measure())
         last = controller.last
+        fallbacks += not last.success
         if task is not None:
             error = task.error if simulation is None else _true_error(robot, task, q, reference(k * dt)[0])
             pos_err[k] = np.linalg.norm(error[:3])
@@ -105,7 +109,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         q=qs, v=vs, position_error=pos_err, orientation_error=ori_err, solve_time=solve_t, tick_time=tick_t,
         position_violation=position_violation(robot, qs),
         velocity_violation=np.max(np.maximum(ratio - 1.0, 0.0) * robot.velocity_limit, axis=1),
-        velocity_ratio=ratio, wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
+        velocity_ratio=ratio, fallback_ticks=fallbacks, wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
         lateral_slip=lateral_slip(robot, qs[:-1], vs),
     )
 

@@ -178,11 +178,14 @@ class DaqpBackend(QPSolver):
         try:
             if self._model is None or self._shape != (qp.n, qp.n_ineq, qp.n_eq):
                 exitflag = self._setup(qp)
-            elif self.warm_start:
-                exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C, bupper=qp.upper, blower=qp.lower)
             else:
-                exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C, bupper=qp.upper, blower=qp.lower,
-                                              sense=self._sense)
+                # A=None when there are no rows: daqp 0.11's update indexes an empty A out of bounds
+                rows = qp.C if len(qp.C) else None
+                if self.warm_start:
+                    exitflag = self._model.update(H=qp.H, f=qp.c, A=rows, bupper=qp.upper, blower=qp.lower)
+                else:
+                    exitflag = self._model.update(H=qp.H, f=qp.c, A=rows, bupper=qp.upper, blower=qp.lower,
+                                                  sense=self._sense)
             if exitflag >= 0:
                 x, _, exitflag, _ = self._model.solve()
         except Exception as exc:
