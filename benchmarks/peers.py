@@ -36,16 +36,30 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+import wbc
+from wbc.scenario import load_scenario
+
 from .common import OUTPUT, TASKS, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
 from .peer_setups import (HandRolledSetup, Log6FrameTask, MinkSetup, PinkSetup, StackSpec, WbcSetup,
                           spec_from_scenario)
 
 WBC, LOG6, FULL, HAND = "wbc", "wbc (log6 task)", "wbc (scenario stack)", "hand-rolled pinocchio + daqp"
+BARRIER = "wbc (scenario stack + barrier)"
+
+
+def _with_barrier(scenario) -> wbc.Controller:
+    """The scenario's controller (own task objects) plus a manipulability barrier on its frame
+    task, with m_min small enough to stay inactive on these motions: its cost is what is measured."""
+    fresh = load_scenario(scenario.source)
+    barrier = wbc.ManipulabilityBarrier(fresh.reference_task.frame, min_value=1e-3, gain=0.3)
+    return wbc.Controller(fresh.robot, fresh.tasks, fresh.constraints + [barrier], solver="daqp",
+                          dt=fresh.dt, damping=fresh.damping)
 
 
 def make_setups(scenario, spec: StackSpec, peers: bool = True) -> list:
     setups = [WbcSetup(spec, WBC), WbcSetup(spec, LOG6, Log6FrameTask),
-              WbcSetup(spec, FULL, controller=scenario.make_controller("daqp")), HandRolledSetup(spec, HAND)]
+              WbcSetup(spec, FULL, controller=scenario.make_controller("daqp")),
+              WbcSetup(spec, BARRIER, controller=_with_barrier(scenario)), HandRolledSetup(spec, HAND)]
     if peers:
         setups += [PinkSetup(spec), MinkSetup(spec)]
     return setups
