@@ -184,8 +184,9 @@ class Controller:
     def step(self, q) -> np.ndarray:
         """Compute the joint velocity command ``v`` (shape (nv,)) for configuration ``q``.
 
-        Raises InvalidInputError for a malformed ``q`` and SolverError when the QP
-        backend fails (the returned command is never NaN).
+        Raises InvalidInputError for a malformed ``q``. When the QP cannot be solved the
+        command comes from the fallback chain of the class docstring (``last.status`` says
+        which), or SolverError is raised in strict mode. The command is never NaN.
         """
         start = time.perf_counter()
         q = self.robot.check_configuration(q)
