@@ -82,5 +82,6 @@ def branch_switches(robot: Robot, trajectory: JointTrajectory, joint: str) -> np
     motion moves from one wrist IK solution, (theta4, theta5, theta6), to the other,
     (theta4 + pi, -theta5, theta6 + pi), which is only possible through theta5 = 0."""
     sign = np.sign(np.sin(trajectory.q[:, joint_index(robot, joint)]))
-    changes = np.flatnonzero(sign[1:] * sign[:-1] < 0.0)
-    return trajectory.time[changes + 1]
+    signed = np.flatnonzero(sign)  # samples exactly on the set do not decide
+    changes = signed[1:][sign[signed[1:]] != sign[signed[:-1]]]
+    return trajectory.time[changes]

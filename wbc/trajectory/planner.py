@@ -201,7 +201,7 @@ def _reroute(robot, frame, timed, straight, threshold, margin, speed_fraction, l
             return None
         segments.append(segment)
         pieces.append(crossing)
-        detours.append(Detour(s_end, progress[last + 1], clock, span))
+        detours.append(Detour(float(s_end), float(progress[last + 1]), float(clock), float(span)))
         clock += span
         s_start, q_start = progress[last + 1], q_after
     return segments, _concatenate(pieces, straight.jumps), detours
