@@ -70,8 +70,8 @@ def test_the_move_is_the_papers_shift_with_the_tool_orientation_held(scenarios):
     for t in np.linspace(0.0, 6.0, 25):  # the naive reference holds it all the way, on the straight line
         pose, twist = scenarios["naive"].reference(t)
         np.testing.assert_allclose(pose[:3, :3], start[:3, :3], atol=1e-14)
-        np.testing.assert_allclose(pose[[0, 2], 3], T_A[[0, 2], 3], atol=1e-14)
-        np.testing.assert_allclose(twist[[0, 2, 3, 4, 5]], 0.0, atol=1e-12)
+        np.testing.assert_allclose(pose[[0, 2], 3], T_A[[0, 2], 3], atol=1e-9)
+        np.testing.assert_allclose(twist[[0, 2, 3, 4, 5]], 0.0, atol=1e-9)  # q0 gives T_a to 1e-10
 
 
 def test_the_straight_line_passes_the_wrist_singularity(plans, scenarios):
