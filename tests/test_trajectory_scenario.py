@@ -126,7 +126,7 @@ def test_planned_reference_is_continuous_and_consistent(plans, scenarios):
         assert np.abs(after - before).max() < 1e-9
         assert np.abs(twist_before).max() < 1e-6 and np.abs(twist_after).max() < 1e-6
     for t in np.linspace(0.1, reference.duration - 0.1, 40):  # twist = d(pose)/dt on every segment
-        (before, _), (now, twist), (after, _) = reference(t - h), reference(t), reference(t + h)
+        (before, _), (_, twist), (after, _) = reference(t - h), reference(t), reference(t + h)
         numeric = np.r_[(after[:3, 3] - before[:3, 3]) / (2 * h), pin.log3(after[:3, :3] @ before[:3, :3].T) / (2 * h)]
         np.testing.assert_allclose(numeric, twist, atol=1e-6)
     q = plans["planned"].joints.q

@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from ..errors import InvalidInputError
 from ..validation import as_pose, as_positive, as_vector
-from .quintic import Quintic, rest_to_rest_duration
+from .quintic import Quintic
 
 RADIUS_TOLERANCE = 1e-6  #: relative mismatch of |O P1| and |O P2| accepted for an arc
 
@@ -128,16 +128,6 @@ class TimedPath:
         self.path = path
         self.duration = as_positive(duration, "duration")
         self.timing = Quintic.rest_to_rest(0.0, 1.0, self.duration)
-
-    @classmethod
-    def with_speed(cls, path: Path, max_speed: float, max_angular_speed: float | None = None) -> "TimedPath":
-        """Slowest of: peak linear speed ``max_speed`` [m/s], peak angular speed [rad/s]."""
-        durations = [rest_to_rest_duration(path.length, max_speed)] if path.length > 0.0 else []
-        if max_angular_speed is not None and path.angle > 0.0:
-            durations.append(rest_to_rest_duration(path.angle, max_angular_speed))
-        if not durations:
-            raise InvalidInputError("the path turns but no max_angular_speed was given")
-        return cls(path, max(durations))
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pose (4x4), twist (6) and acceleration (6: linear; angular) at time ``t``."""

@@ -7,12 +7,8 @@ the samples follow the IK branch continuously through fast wrist swings. A step 
 still larger at the finest resolution is recorded as a *jump*: the seeded IK changed
 branch there (at an exact crossing of a singular set, for instance).
 
-At every sample the joint rates and accelerations follow from the twist and the
-acceleration of the reference (least squares where J is not square):
-
-    qdot = J^+ xi,    qddot = J^+ (alpha - Jdot qdot),
-
-Jdot qdot being Pinocchio's classical acceleration of the frame at zero joint acceleration.
+At every sample the joint rates follow from the twist xi of the reference:
+qdot = J^+ xi (least squares where J is not square).
 """
 
 from __future__ import annotations
@@ -20,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pinocchio as pin
 
 from ..errors import PlanningError
 from ..robot import Robot
@@ -56,27 +51,9 @@ class JointTrajectory:
         return float(self.speed_ratio(robot).max())
 
 
-class Differential:
-    """qdot, qddot of a frame reference at a configuration (module docstring)."""
-
-    def __init__(self, robot: Robot, frame: str) -> None:
-        self.robot, self.frame = robot, frame
-        self._frame_id = robot.frame_id(frame)
-        self._data = robot.model.createData()
-
-    def rates(self, q: np.ndarray, twist: np.ndarray) -> np.ndarray:
-        jacobian = self.robot.frame_jacobian(q, self.frame)
-        return np.linalg.lstsq(jacobian, twist, rcond=None)[0]
-
-    def state(self, q: np.ndarray, twist: np.ndarray, acceleration: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        jacobian = self.robot.frame_jacobian(q, self.frame)
-        qdot = np.linalg.lstsq(jacobian, twist, rcond=None)[0]
-        model, data = self.robot.model, self._data
-        pin.forwardKinematics(model, data, q, qdot, np.zeros(model.nv))
-        pin.updateFramePlacements(model, data)
-        drift = pin.getFrameClassicalAcceleration(model, data, self._frame_id, pin.LOCAL_WORLD_ALIGNED)
-        qddot = np.linalg.lstsq(jacobian, acceleration - np.r_[drift.linear, drift.angular], rcond=None)[0]
-        return qdot, qddot
+def joint_rates(robot: Robot, frame: str, q: np.ndarray, twist: np.ndarray) -> np.ndarray:
+    """qdot = J^+ twist (least squares where J is not square)."""
+    return np.linalg.lstsq(robot.frame_jacobian(q, frame), twist, rcond=None)[0]
 
 
 def follow(robot: Robot, frame: str, trajectory: TimedPath, q0, samples: int = SAMPLES,
@@ -85,7 +62,6 @@ def follow(robot: Robot, frame: str, trajectory: TimedPath, q0, samples: int = S
 
     Raises PlanningError where a sample cannot be reached.
     """
-    differential = Differential(robot, frame)
     start = solve_ik(robot, frame, trajectory(0.0)[0], q0)
     if not start.converged:
         raise PlanningError(f"IK from q0 does not reach the start pose (error {start.position_error:.2e} m, "
@@ -110,6 +86,6 @@ def follow(robot: Robot, frame: str, trajectory: TimedPath, q0, samples: int = S
         times.append(t)
         qs.append(result.q)
     q = np.array(qs)
-    qdot = np.array([differential.rates(qi, trajectory(t)[1]) for t, qi in zip(times, q)])
+    qdot = np.array([joint_rates(robot, frame, qi, trajectory(t)[1]) for t, qi in zip(times, q)])
     measure = np.array([singularity_measure(robot, qi, length_scale=length_scale) for qi in q])
     return JointTrajectory(np.array(times), q, qdot, measure, np.array(jumps))
