@@ -14,7 +14,7 @@ from .constraints import (Constraint, JointPositionLimits, JointVelocityLimits, 
                           MecanumWheelLimits, NonholonomicBase, WheelSpeedLimits)
 from .controller import Controller
 from .diagnostics import TickDiagnostics
-from .errors import (InvalidInputError, ModelError, ScenarioError, SolverError, UnknownFrameError,
+from .errors import (InvalidInputError, ModelError, PlanningError, ScenarioError, SolverError, UnknownFrameError,
                      UnknownSolverError, WbcError)
 from .manipulability import Manipulability, manipulability, manipulability_gradient
 from .qp import QP
@@ -31,7 +31,7 @@ __all__ = [
     "NonholonomicBase", "WheelSpeedLimits",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "QP",
-    "InvalidInputError", "ModelError", "ScenarioError", "SolverError", "UnknownFrameError",
+    "InvalidInputError", "ModelError", "PlanningError", "ScenarioError", "SolverError", "UnknownFrameError",
     "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",

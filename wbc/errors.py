@@ -29,3 +29,7 @@ class ScenarioError(WbcError, ValueError):
 
 class SolverError(WbcError, RuntimeError):
     """The QP solver failed or returned a non-finite solution."""
+
+
+class PlanningError(WbcError, RuntimeError):
+    """A trajectory could not be planned (IK failed, or no detour clears the singular region)."""

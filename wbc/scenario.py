@@ -10,7 +10,8 @@ Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
     [reference]   type = "circle" | "pose" | "line" for the first FrameTask, "point" for the
                   first PositionTask (or ``task = name``); the goal of "pose" and "line" is the
                   start pose with ``configuration`` (the frame's pose there), ``position`` and/or
-                  ``rpy`` applied in that order
+                  ``rpy`` applied in that order; "planned" (same goal keys) is the singular-region-
+                  aware plan of wbc.trajectory.scenario_spec
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from .errors import ScenarioError, WbcError
 from .references import Circle, ConstantPoint, ConstantPose, Line, rpy_matrix
 from .robot import Robot, load_robot
 from .tasks import FrameTask, PositionTask, PostureTask
+from .trajectory.scenario_spec import plan_from_spec
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -150,8 +152,11 @@ def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
                          ramp_time=spec.pop("ramp_time", 0.5))
     elif kind == "point":
         reference = ConstantPoint(spec.pop("position"))
+    elif kind == "planned":
+        goal = _goal_pose(spec, start, robot, task.frame)
+        reference = plan_from_spec(spec, robot, task.frame, q0, start, goal).reference
     else:
-        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, line, point")
+        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, line, point, planned")
     if spec:
         raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
     return task, reference
