@@ -94,7 +94,8 @@ def test_accuracy_settings_cover_the_required_solvers():
 
 
 def test_synthetic_chains_match_between_urdf_and_mjcf(tmp_path):
-    mujoco = pytest.importorskip("mujoco")
+    import mujoco  # part of the [test] extra: a missing install must fail, not skip
+
     import wbc
     from benchmarks.scaling import chain_mjcf, chain_urdf, initial_configuration
 
@@ -113,9 +114,7 @@ def test_synthetic_chains_match_between_urdf_and_mjcf(tmp_path):
 
 def test_peer_setups_solve_the_same_qp():
     """Pink solves wbc's QP once wbc uses the peers' log6 error; the hand-rolled tick equals wbc's."""
-    pytest.importorskip("pink")
-    pytest.importorskip("mink")
-    from benchmarks import peers
+    from benchmarks import peers  # Pink and mink are part of the [test] extra
     from benchmarks.peer_setups import spec_from_scenario
     from wbc.scenario import load_scenario
 
