@@ -29,6 +29,8 @@ class RunResult:
     velocity_violation: np.ndarray  #: (T,) max over coordinates of |v| beyond its limit
     velocity_ratio: np.ndarray  #: (T, nv) |v_i| / limit_i (base linear entries in the base frame)
     fallback_ticks: int = 0  #: ticks whose command came from a fallback (last.success False)
+    base_path: np.ndarray | None = None  #: (T+1, 2) base (x, y) [m] of a mobile base
+    tool_path: np.ndarray | None = None  #: (T+1, 3) world position [m] of the reference task's frame
     wheel_ratio: np.ndarray | None = None  #: (T, n_wheels) |u_i| / u_max, if the base has wheels
     lateral_slip: np.ndarray | None = None  #: (T,) |base-frame v_y| [m/s] of a nonholonomic base
 
@@ -109,7 +111,10 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         q=qs, v=vs, position_error=pos_err, orientation_error=ori_err, solve_time=solve_t, tick_time=tick_t,
         position_violation=position_violation(robot, qs),
         velocity_violation=np.max(np.maximum(ratio - 1.0, 0.0) * robot.velocity_limit, axis=1),
-        velocity_ratio=ratio, fallback_ticks=fallbacks, wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
+        velocity_ratio=ratio, fallback_ticks=fallbacks,
+        base_path=qs[:, list(robot.base.indices[:2])] if robot.base.is_mobile else None,
+        tool_path=None if task is None else np.array([robot.frame_pose(q, task.frame)[:3, 3] for q in qs]),
+        wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
         lateral_slip=lateral_slip(robot, qs[:-1], vs),
     )
 

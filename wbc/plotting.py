@@ -103,9 +103,12 @@ def plot_runs(results: Sequence[RunResult], path: str | Path, joint_names: list[
 
     ax = axes["base"]
     for k, result in enumerate(results):
-        label, color = (f"{result.scenario}: base (x, y)", colors[k % len(colors)]) if several else ("base (x, y)", None)
-        ax.plot(result.q[:, 0], result.q[:, 1], color=color, label=label)
-    ax.set(title="Base path (top view)", xlabel="x [m]", ylabel="y [m]")
+        prefix, color = (f"{result.scenario}: ", colors[k % len(colors)]) if several else ("", None)
+        if result.base_path is not None:
+            ax.plot(result.base_path[:, 0], result.base_path[:, 1], color=color, label=f"{prefix}base")
+        if result.tool_path is not None:
+            ax.plot(result.tool_path[:, 0], result.tool_path[:, 1], color=color, ls="--", label=f"{prefix}tool")
+    ax.set(title="Paths (top view, world x-y)", xlabel="x [m]", ylabel="y [m]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(fontsize=7)
     ax.grid(True, alpha=0.3)
