@@ -270,3 +270,27 @@ def test_soft_bounds_are_clipped_into_the_hard_ones(youbot, n_hard, n_soft):
     np.testing.assert_array_equal(lb, np.minimum(np.maximum(soft_lb, hard_lb), hard_ub))
     np.testing.assert_array_equal(ub, np.minimum(np.maximum(soft_ub, hard_lb), hard_ub))
     assert np.all(lb <= ub)
+
+
+def test_a_backend_that_cycles_is_cut_off_and_answered_by_the_fallback(youbot):
+    """A tick found by the property test above on which HiGHS's QP solver cycles for ever:
+    its iteration cap stops it, the elastic DAQP solve answers, and the command equals DAQP's."""
+    q = np.array([-2.1616357486936906, 0.4308210898981466, -1.1794598913291057, 0.5718367619844802,
+                  -0.15601152268813612, -0.7606059456138317, -0.8632010077691539, -2.923426497090502])
+    target = np.array([[-0.04275438859166751, 0.5942576693264637, -0.8031375253982543, -2.3536391850223866],
+                       [0.2933577315721957, 0.7759051490753315, 0.5584912183420638, 0.4547848806365546],
+                       [0.9550462311233775, -0.21172865201730814, -0.20750343209683397, 0.33711331498073094],
+                       [0.0, 0.0, 0.0, 1.0]])
+
+    def controller(solver):
+        task = wbc.FrameTask("ee", 0.10325106991678025, 1e-06, gain=0.25393289358151583)
+        task.set_target(target)
+        return wbc.Controller(youbot, [task, wbc.PostureTask(0.5542141958248036)],
+                              [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()],
+                              solver=solver)
+
+    reference = controller("daqp").step(q)
+    highs = controller("highs")
+    v = highs.step(q)
+    assert highs.last.status == "optimal" or highs.last.status.startswith("fallback: elastic")
+    np.testing.assert_allclose(v, reference, atol=1e-6)

@@ -25,16 +25,20 @@ from .qp import QP
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict] = {
+    # time_limit [s]: a safety cap per solve (a hung backend would hang the control loop);
+    # tighten it to your period with solver_options
     "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True, "max_iter": 200_000, "verbose": False,
-             "raise_error": False},
+             "raise_error": False, "time_limit": 0.1},
     "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
-    "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10},
+    "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
+                 "time_limit": 0.1},
     # without the duality-gap check PIQP stops on small residuals alone (seen 1e-4 off)
     "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12, "check_duality_gap": True,
              "eps_duality_gap_abs": 1e-12, "eps_duality_gap_rel": 1e-12},
-    # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks
+    # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks;
+    # its QP solver can cycle forever on degenerate ticks (tests/test_reliability.py): cap it
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
-              "qp_regularization_value": 0.0},
+              "qp_regularization_value": 0.0, "qp_iteration_limit": 10_000, "time_limit": 0.1},
     "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
     "ecos": {"abstol": 1e-10, "reltol": 1e-10, "feastol": 1e-10},
 }
