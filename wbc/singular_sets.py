@@ -64,15 +64,23 @@ class SingularSystem:
         return min(len(self.rows), len(self.columns))
 
 
-def _angle_in_limits(candidates, low: float, high: float, current: float) -> float | None:
-    """Of the angles ``candidates + 2 pi k`` inside [low, high], the one closest to ``current``."""
+def _set_angle(q: np.ndarray | None, index: int, candidates, low: np.ndarray,
+               high: np.ndarray) -> np.ndarray | None:
+    """A copy of ``q`` with ``q[index]`` set to the angle ``candidates + 2 pi k`` inside the
+    joint's limits closest to its current value; None if ``q`` is None or no candidate fits."""
+    if q is None:
+        return None
     best = None
     for angle in candidates:
         for k in range(-2, 3):
             value = angle + 2.0 * np.pi * k
-            if low <= value <= high and (best is None or abs(value - current) < abs(best - current)):
+            if low[index] <= value <= high[index] and (best is None or abs(value - q[index]) < abs(best - q[index])):
                 best = value
-    return best
+    if best is None:
+        return None
+    out = q.copy()
+    out[index] = best
+    return out
 
 
 def _geometry(robot: Robot, keys: tuple[str, ...]) -> dict[str, float]:
@@ -102,21 +110,13 @@ def _youbot(robot: Robot) -> tuple[SingularSystem, ...]:
         return np.array([np.sin(q[4] + q[5] + q[6])])
 
     def project_gripper_vertical(q):
-        theta4 = _angle_in_limits([-q[4] - q[5], np.pi - q[4] - q[5]], low[6], high[6], q[6])
-        if theta4 is None:
-            return None
-        out = q.copy()
-        out[6] = theta4
-        return out
+        return _set_angle(q, 6, [-q[4] - q[5], np.pi - q[4] - q[5]], low, high)
 
     def elbow(q):
         return np.array([np.sin(q[5])])
 
     def project_elbow(q):
-        theta3 = _angle_in_limits([0.0, np.pi], low[5], high[5], q[5])
-        out = q.copy()
-        out[5] = theta3
-        return out
+        return _set_angle(q, 5, [0.0, np.pi], low, high)
 
     def on_axis_1(q):
         t2, t23, t234 = q[4], q[4] + q[5], q[4] + q[5] + q[6]
@@ -128,16 +128,11 @@ def _youbot(robot: Robot) -> tuple[SingularSystem, ...]:
         if abs(s23) > 1.0:
             return None
         t23 = np.arcsin(s23)
-        theta3 = _angle_in_limits([t23 - q[4], np.pi - t23 - q[4]], low[5], high[5], q[5])
-        if theta3 is None:
+        out = _set_angle(q, 5, [t23 - q[4], np.pi - t23 - q[4]], low, high)
+        if out is None:
             return None
-        t23 = q[4] + theta3
-        theta4 = _angle_in_limits([-t23, np.pi - t23], low[6], high[6], q[6])
-        if theta4 is None:
-            return None
-        out = q.copy()
-        out[5], out[6] = theta3, theta4
-        return out
+        t23 = out[4] + out[5]
+        return _set_angle(out, 6, [-t23, np.pi - t23], low, high)
 
     whole_body = SingularSystem(
         robot.name, "whole_body",
@@ -172,9 +167,7 @@ def _scorbot(robot: Robot) -> tuple[SingularSystem, ...]:
         return np.array([np.sin(q[2])])
 
     def project_elbow(q):
-        out = q.copy()
-        out[2] = _angle_in_limits([0.0, np.pi], low[2], high[2], q[2])
-        return out
+        return _set_angle(q, 2, [0.0, np.pi], low, high)
 
     def tool_on_axis_1(q):
         q2, q3, q4 = q[1], q[1] + q[2], q[1] + q[2] + q[3]
@@ -186,16 +179,11 @@ def _scorbot(robot: Robot) -> tuple[SingularSystem, ...]:
         if abs(c3) > 1.0:
             return None
         q3 = np.arccos(c3)
-        theta3 = _angle_in_limits([q3 - q[1], -q3 - q[1]], low[2], high[2], q[2])
-        if theta3 is None:
+        out = _set_angle(q, 2, [q3 - q[1], -q3 - q[1]], low, high)
+        if out is None:
             return None
-        q3 = q[1] + theta3
-        theta4 = _angle_in_limits([np.pi / 2 - q3, -np.pi / 2 - q3], low[3], high[3], q[3])
-        if theta4 is None:
-            return None
-        out = q.copy()
-        out[2], out[3] = theta3, theta4
-        return out
+        q3 = out[1] + out[2]
+        return _set_angle(out, 3, [np.pi / 2 - q3, -np.pi / 2 - q3], low, high)
 
     return (SingularSystem(
         robot.name, "arm", "6 x 5 geometric Jacobian of the tool point (DH frame 5)", "ee", tuple(range(5)), length, (
@@ -220,21 +208,14 @@ def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
         return np.array([np.sin(q[4])])
 
     def project_wrist(q):
-        out = q.copy()
-        out[4] = _angle_in_limits([0.0, np.pi], low[4], high[4], q[4])
-        return out
+        return _set_angle(q, 4, [0.0, np.pi], low, high)
 
     def elbow(q):
         return np.array([(g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])) / forearm])
 
     def project_elbow(q):
         root = np.arctan2(-g["d4"], g["a3"])
-        theta3 = _angle_in_limits([root, root + np.pi], low[2], high[2], q[2])
-        if theta3 is None:
-            return None
-        out = q.copy()
-        out[2] = theta3
-        return out
+        return _set_angle(q, 2, [root, root + np.pi], low, high)
 
     def reach(q):
         return g["a2"] * np.cos(q[1]) + g["a3"] * np.cos(q[1] + q[2]) - g["d4"] * np.sin(q[1] + q[2])
@@ -247,12 +228,7 @@ def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
         big_a = g["a2"] + g["a3"] * np.cos(q[2]) - g["d4"] * np.sin(q[2])
         big_b = g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])
         beta = np.arctan2(big_b, big_a)
-        theta2 = _angle_in_limits([np.pi / 2 - beta, -np.pi / 2 - beta], low[1], high[1], q[1])
-        if theta2 is None:
-            return None
-        out = q.copy()
-        out[1] = theta2
-        return out
+        return _set_angle(q, 1, [np.pi / 2 - beta, -np.pi / 2 - beta], low, high)
 
     return (SingularSystem(
         robot.name, "arm", "6 x 6 geometric Jacobian of the flange (origin at the wrist centre)", "ee",
@@ -289,20 +265,10 @@ def _deluca_mm(robot: Robot) -> tuple[SingularSystem, ...]:
         big_a = g["l2"] + g["l3"] * np.cos(q[theta3])
         big_b = g["l3"] * np.sin(q[theta3])
         beta = np.arctan2(big_b, big_a)
-        value = _angle_in_limits([np.pi / 2 - beta, -np.pi / 2 - beta], low[theta2], high[theta2], q[theta2])
-        if value is None:
-            return None
-        out = q.copy()
-        out[theta2] = value
-        return out
+        return _set_angle(q, theta2, [np.pi / 2 - beta, -np.pi / 2 - beta], low, high)
 
     def project_stretched(q):
-        value = _angle_in_limits([0.0, np.pi], low[theta3], high[theta3], q[theta3])
-        if value is None:
-            return None
-        out = q.copy()
-        out[theta3] = value
-        return out
+        return _set_angle(q, theta3, [0.0, np.pi], low, high)
 
     def steer(q, offset):
         if q is None:
