@@ -15,6 +15,19 @@ from .errors import InvalidInputError
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
 
 
+def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
+    """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
+    if np.iscomplexobj(value):
+        raise InvalidInputError(f"{name} must be real, got complex values")
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
+    if array.shape != shape:
+        raise InvalidInputError(f"{name} must have shape {shape}, got {array.shape}")
+    return array
+
+
 def as_vector(value, size: int, name: str) -> np.ndarray:
     """Return ``value`` as a finite float64 vector of length ``size``.
 
@@ -25,14 +38,7 @@ def as_vector(value, size: int, name: str) -> np.ndarray:
     if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
         array = value
     else:
-        if np.iscomplexobj(value):
-            raise InvalidInputError(f"{name} must be real, got complex values")
-        try:
-            array = np.asarray(value, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
-        if array.shape != (size,):
-            raise InvalidInputError(f"{name} must have shape ({size},), got {array.shape}")
+        array = _real_array(value, (size,), name)
     if not math.isfinite(array.dot(array)) and not np.all(np.isfinite(array)):
         raise InvalidInputError(f"{name} contains NaN or inf: {array}")
     return array
@@ -70,14 +76,7 @@ def as_gain(value, name: str = "gain") -> float:
 
 def as_pose(value, name: str) -> np.ndarray:
     """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation."""
-    if np.iscomplexobj(value):
-        raise InvalidInputError(f"{name} must be real, got complex values")
-    try:
-        pose = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be a 4x4 numeric array") from exc
-    if pose.shape != (4, 4):
-        raise InvalidInputError(f"{name} must be a 4x4 homogeneous transform, got shape {pose.shape}")
+    pose = _real_array(value, (4, 4), name)
     if not np.all(np.isfinite(pose)):
         raise InvalidInputError(f"{name} contains NaN or inf")
     if np.max(np.abs(pose[3] - (0.0, 0.0, 0.0, 1.0))) > 1e-12:
