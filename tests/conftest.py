@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
+import wbc
+
 # CI replays the same examples every run (a red CI must be reproducible); locally
 # hypothesis explores new ones (that is how the HiGHS cycling case was found)
 settings.register_profile("ci", derandomize=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
-
-import wbc
 
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = ROOT / "tasks"

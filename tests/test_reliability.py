@@ -141,7 +141,6 @@ def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
 
 
 def test_warm_start_returns_the_cold_solution(youbot):
-    from wbc.closed_loop import run
     from wbc.scenario import load_scenario
     from conftest import TASKS
 

@@ -113,5 +113,13 @@ class MobileBase:
     def is_nonholonomic(self) -> bool:
         return self.kind.is_nonholonomic
 
+    def twist(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Base-frame twist ``(v_x, v_y, omega)`` of ``v`` at ``q``; rows of ``(T, n)`` arrays
+        give a ``(T, 3)`` array. Inputs are not validated (see :meth:`Robot.base_twist`)."""
+        x, y, heading = self.indices
+        cos, sin = np.cos(q[..., heading]), np.sin(q[..., heading])
+        return np.stack([cos * v[..., x] + sin * v[..., y], -sin * v[..., x] + cos * v[..., y], v[..., heading]],
+                        axis=-1)
+
 
 FIXED_BASE = MobileBase(BaseKind.FIXED, indices=(-1, -1, -1))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from .errors import WbcError
 
@@ -94,11 +95,9 @@ def _singularities(args: argparse.Namespace) -> int:
 BENCH_SUITES = ("solvers", "peers", "scaling", "dataset")
 
 
-def find_benchmarks() -> "Path | None":
+def find_benchmarks() -> Path | None:
     """The source checkout holding ``benchmarks/`` (not part of the installed package):
     the current directory or one of its parents, else the checkout of an editable install."""
-    from pathlib import Path
-
     here = Path.cwd().resolve()
     for candidate in (here, *here.parents, Path(__file__).resolve().parents[1]):
         if (candidate / "benchmarks" / "__init__.py").is_file() and (candidate / "tasks").is_dir():

@@ -127,26 +127,19 @@ def _true_error(robot, task, q: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(target[:3, :3] @ pose[:3, :3].T)])
 
 
-def base_twists(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
-    """(T, 3) base-frame twists (v_x, v_y, omega) of a mobile base."""
-    x, y, heading = robot.base.indices
-    cos, sin = np.cos(qs[:, heading]), np.sin(qs[:, heading])
-    return np.stack([cos * vs[:, x] + sin * vs[:, y], -sin * vs[:, x] + cos * vs[:, y], vs[:, heading]], axis=1)
-
-
 def wheel_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
     """(T, n_wheels) ``|u_i| / u_max`` of a wheeled base with a declared speed limit, else None."""
     wheels = robot.base.wheels
     if wheels is None or not np.isfinite(wheels.max_speed):
         return None
-    return np.abs(base_twists(robot, qs, vs) @ wheels.inverse_matrix().T) / wheels.max_speed
+    return np.abs(robot.base.twist(qs, vs) @ wheels.inverse_matrix().T) / wheels.max_speed
 
 
 def lateral_slip(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
     """(T,) sideways base speed [m/s] of a nonholonomic base, else None."""
     if not robot.base.is_nonholonomic:
         return None
-    return np.abs(base_twists(robot, qs, vs)[:, 1])
+    return np.abs(robot.base.twist(qs, vs)[:, 1])
 
 
 def position_violation(robot, qs: np.ndarray) -> np.ndarray:
@@ -162,7 +155,7 @@ def velocity_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
     speeds = np.abs(vs)
     if robot.base.is_mobile:
         x, y, _ = robot.base.indices
-        twists = base_twists(robot, qs, vs)
+        twists = robot.base.twist(qs, vs)
         speeds[:, x], speeds[:, y] = np.abs(twists[:, 0]), np.abs(twists[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(np.isfinite(robot.velocity_limit), speeds / robot.velocity_limit, 0.0)

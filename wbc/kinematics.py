@@ -48,21 +48,21 @@ class Kinematics:
         ``T[a, j, i] = d J[a, j] / d q_i`` (``q_i`` moved along the i-th tangent direction,
         i.e. ``pin.integrate(q, t e_i)``), so ``dJ/dt = sum_i T[:, :, i] v_i``.
         """
+        return _hessian_tensor(self._raw_frame_hessian(frame_id), _hessian_buffer_is_column_major())
+
+
+    def _raw_frame_hessian(self, frame_id: int) -> np.ndarray:
+        """Pinocchio's frame Hessian as its binding returns it (joint Hessians once per tick)."""
         if not self._hessians_current:
             pin.computeJointKinematicHessians(self.model, self.data)
             self._hessians_current = True
-        raw = pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
-        return _hessian_tensor(raw, _hessian_buffer_is_column_major())
-
+        return pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
 
     def contract_frame_hessian(self, frame_id: int, weights: np.ndarray, out: np.ndarray) -> np.ndarray:
         """``out[i] = sum_{a, j} weights[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``:
         the derivative of ``<weights, J>`` along each tangent direction. One matrix-vector
         product on Pinocchio's buffer in its own memory order (no strided einsum)."""
-        if not self._hessians_current:
-            pin.computeJointKinematicHessians(self.model, self.data)
-            self._hessians_current = True
-        raw = pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
+        raw = self._raw_frame_hessian(frame_id)
         nv = self.model.nv
         if raw.flags.c_contiguous and _hessian_buffer_is_column_major():
             # memory order is [i][j][a]: rows i, columns (j, a) -> weights transposed, flattened

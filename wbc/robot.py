@@ -156,10 +156,7 @@ class Robot:
         """Base-frame twist ``(v_x, v_y, omega)`` of the velocity ``v`` at ``q``."""
         if not self.base.is_mobile:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
-        q, v = self.check_configuration(q), self.check_velocity(v)
-        x, y, heading = self.base.indices
-        c, s = np.cos(q[heading]), np.sin(q[heading])
-        return np.array([c * v[x] + s * v[y], -s * v[x] + c * v[y], v[heading]])
+        return self.base.twist(self.check_configuration(q), self.check_velocity(v))
 
     def wheel_speeds(self, q, v) -> np.ndarray:
         """Wheel angular rates [rad/s] realising ``v`` (mecanum: 4, differential drive: 2).
