@@ -95,6 +95,7 @@ class WorldVelocityLimits(Constraint):
     """
 
     has_bounds = True
+    dynamic_bounds = False
 
     def bind(self, robot: Robot) -> None:
         self._limit = robot.velocity_limit.copy()

@@ -15,6 +15,7 @@ Two optional stages: tasks that need the holonomic preview (SteeringTask) get
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Sequence
 
@@ -96,6 +97,7 @@ class Controller:
                                    if solver == "daqp" and key in ("iter_limit", "time_limit")}
         self.kinematics = Kinematics(robot)
         self._tick = 0
+        self._q_shape = (robot.nq,)
         self.last: TickDiagnostics | None = None
         self._allocate()
 
@@ -110,10 +112,12 @@ class Controller:
         # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
         # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
         # A^T [W J] = [H; r^T J] in a single product: H and -c, as stored in the QP buffer.
+        # Stored transposed (C-contiguous A^T), the case BLAS multiplies fastest.
         plain = [t for t in self.tasks if not t.uses_preview]
         preview = [t for t in self.tasks if t.uses_preview]
         n_plain = sum(t.dim for t in plain) + nv
-        self._stack = np.zeros((n_plain + sum(t.dim for t in preview), nv + 1))
+        self._stack_t = np.zeros((nv + 1, n_plain + sum(t.dim for t in preview)))
+        self._stack = self._stack_t.T  # (rows, nv + 1) view: [W J | W r]
         self._stack[n_plain - nv:n_plain, :nv] = np.sqrt(self.damping) * np.eye(nv)
         self._task_blocks, self._preview_blocks = [], []
         start = 0
@@ -125,7 +129,7 @@ class Controller:
             task.write_static(block[1])
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
-        self._plain, self._plain_jacobian = self._stack[:n_plain], self._stack[:n_plain, :nv]
+        self._plain_t, self._plain_jacobian = self._stack_t[:, :n_plain], self._stack[:n_plain, :nv]
         self._preview_rows = self._stack[n_plain:]
 
         n_ineq = sum(c.n_inequalities for c in self.constraints)
@@ -134,10 +138,23 @@ class Controller:
         bounded = ([c for c in self.constraints if c.has_bounds and c.hard]
                    + [c for c in self.constraints if c.has_bounds and not c.hard])
         self._n_hard_bounds = sum(c.hard for c in bounded)
-        self._lower = np.full((max(len(bounded), 1), nv), -np.inf)
-        self._upper = np.full((max(len(bounded), 1), nv), np.inf)
-        self._hard_bounds = np.zeros((2, nv))  # scratch: intersection of several hard bounds
-        self._soft_bounds = np.zeros((2, nv))  # scratch: intersection of several soft bounds
+        # each bounded constraint k writes (upper; lower) = self._bounds[k], the row order of
+        # the QP buffer; hard constraints first, then soft ones
+        self._bounds = np.empty((max(len(bounded), 1), 2, nv))
+        self._bounds[:, 0], self._bounds[:, 1] = np.inf, -np.inf
+        self._upper, self._lower = self._bounds[:, 0], self._bounds[:, 1]
+        n_hard = self._n_hard_bounds
+        n_soft = len(self._bounds) - n_hard  # 1 with no bounded constraint: an all-inf row
+        # hard bounds: intersected once when no hard constraint rewrites its bounds per tick
+        self._hard_dynamic = any(c.dynamic_bounds for c in bounded[:n_hard])
+        self._hard = self._bounds[0] if n_hard == 1 else np.array([[np.inf] * nv, [-np.inf] * nv])
+        # clip box of both rows: [[lb; lb], [ub; ub]] of the hard intersection
+        self._hard_box = np.empty((2, 2, nv))
+        self._soft = self._bounds[n_hard] if n_soft == 1 else np.zeros((2, nv))  # scratch if several
+        # the merged (upper; lower) goes straight into the QP buffer when it is contiguous
+        # there (no rows), else through a scratch
+        bounds = self._qp_v.bounds
+        self._merged = bounds if bounds.flags.c_contiguous else np.zeros((2, nv))
         self._constraint_blocks = []
         row_labels: list[str] = []
         soft_rows: list[int] = []
@@ -145,8 +162,8 @@ class Controller:
         qp = self._qp_v
         for constraint in self.constraints:
             k = bounded.index(constraint) if constraint.has_bounds else None
-            lower = self._lower[k] if k is not None else np.full(nv, -np.inf)
-            upper = self._upper[k] if k is not None else np.full(nv, np.inf)
+            lower = self._bounds[k, 1] if k is not None else np.full(nv, -np.inf)
+            upper = self._bounds[k, 0] if k is not None else np.full(nv, np.inf)
             p, e = constraint.n_inequalities, constraint.n_equalities
             block = ConstraintRows(lower, upper, qp.G[i_ineq:i_ineq + p], qp.h[i_ineq:i_ineq + p],
                                    qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
@@ -156,6 +173,7 @@ class Controller:
                 soft_rows += range(i_ineq, i_ineq + p)
             constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
+        self._intersect_hard_bounds()
         for constraint in self.constraints:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
@@ -189,14 +207,16 @@ class Controller:
         which), or SolverError is raised in strict mode. The command is never NaN.
         """
         start = time.perf_counter()
-        q = self.robot.check_configuration(q)
+        if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
+                and math.isfinite(q.dot(q))):  # fast path of check_configuration
+            q = self.robot.check_configuration(q)
         kin, dt, qp = self.kinematics, self.dt, self._qp_v
         kin.update(q)
 
         for task, jacobian, target in self._task_blocks:
             task.compute(kin, dt, jacobian, target)
-        np.matmul(self._plain.T, self._plain_jacobian, out=qp.Hc)  # [H; r^T J]
-        qp.c *= -1.0
+        np.dot(self._plain_t, self._plain_jacobian, out=qp.Hc)  # [H; r^T J]
+        np.negative(qp.c, out=qp.c)
         if self._preview_blocks:
             self._add_preview_tasks(kin, dt, qp)
 
@@ -229,29 +249,35 @@ class Controller:
                                     solution.solve_time, time.perf_counter() - start, v, u)
         return v
 
+    def _intersect_hard_bounds(self) -> None:
+        k = self._n_hard_bounds
+        if k > 1:
+            _intersect(self._bounds[:k], self._hard)
+        self._hard_box[0] = self._hard[1]
+        self._hard_box[1] = self._hard[0]
+
     def _merge_bounds(self, qp: QP) -> None:
         """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them (soft
         bounds that exclude each other are first set to the midpoint of the conflict)."""
-        k, total = self._n_hard_bounds, len(self._lower)
+        k, total = self._n_hard_bounds, len(self._bounds)
+        if self._hard_dynamic:
+            self._intersect_hard_bounds()
+        merged = self._merged
         if k == total:
-            _intersect(self._lower, self._upper, qp.lb, qp.ub)
-            return
-        if k == 0:
-            _intersect(self._lower, self._upper, qp.lb, qp.ub)
-            _meet_halfway(qp.lb, qp.ub)
-            return
-        hard_lb, hard_ub = self._hard_bounds if k > 1 else (self._lower[0], self._upper[0])
-        soft_lb, soft_ub = self._soft_bounds if total - k > 1 else (self._lower[k], self._upper[k])
-        if k > 1:
-            _intersect(self._lower[:k], self._upper[:k], hard_lb, hard_ub)
-        if total - k > 1:
-            _intersect(self._lower[k:], self._upper[k:], soft_lb, soft_ub)
-            _meet_halfway(soft_lb, soft_ub)
-        # clip(soft, hard_lb, hard_ub): lb = min(max(soft_lb, hard_lb), hard_ub), same for ub
-        np.maximum(soft_lb, hard_lb, out=qp.lb)
-        np.minimum(qp.lb, hard_ub, out=qp.lb)
-        np.maximum(soft_ub, hard_lb, out=qp.ub)
-        np.minimum(qp.ub, hard_ub, out=qp.ub)
+            merged[...] = self._hard
+        else:
+            soft = self._soft
+            if total - k > 1:
+                _intersect(self._bounds[k:], soft)
+                _meet_halfway(soft)
+            if k == 0:
+                merged[...] = soft
+                _meet_halfway(merged)
+            else:  # clip(soft, hard_lb, hard_ub) = min(max(soft, hard_lb), hard_ub), both rows
+                np.maximum(soft, self._hard_box[0], out=merged)
+                np.minimum(merged, self._hard_box[1], out=merged)
+        if merged is not qp.bounds:
+            qp.ub[:], qp.lb[:] = merged
 
     def _fallback(self, failed: QPSolution) -> QPSolution:
         """Elastic re-solve, then the zero command (see the class docstring)."""
@@ -346,20 +372,21 @@ class Controller:
                 f"solver={self.solver.name!r}, dt={self.dt}, reduced={self.reduced})")
 
 
-def _intersect(lowers: np.ndarray, uppers: np.ndarray, lb: np.ndarray, ub: np.ndarray) -> None:
-    """``lb = max_k lowers[k]``, ``ub = min_k uppers[k]`` with as few numpy calls as possible."""
-    if len(lowers) == 1:
-        lb[:], ub[:] = lowers[0], uppers[0]
-        return
-    np.maximum(lowers[0], lowers[1], out=lb)
-    np.minimum(uppers[0], uppers[1], out=ub)
-    for lower, upper in zip(lowers[2:], uppers[2:]):
-        np.maximum(lb, lower, out=lb)
-        np.minimum(ub, upper, out=ub)
+_FLOAT64 = np.dtype(np.float64)
 
 
-def _meet_halfway(lower: np.ndarray, upper: np.ndarray) -> None:
-    """Where soft bounds exclude each other (lower > upper), set both to their midpoint."""
+def _intersect(bounds: np.ndarray, out: np.ndarray) -> None:
+    """``out = (min_k upper_k; max_k lower_k)`` of ``bounds`` (k, 2, nv) rows (upper; lower)."""
+    np.minimum(bounds[0, 0], bounds[1, 0], out=out[0])
+    np.maximum(bounds[0, 1], bounds[1, 1], out=out[1])
+    for upper, lower in bounds[2:]:
+        np.minimum(out[0], upper, out=out[0])
+        np.maximum(out[1], lower, out=out[1])
+
+
+def _meet_halfway(bounds: np.ndarray) -> None:
+    """Where soft bounds (upper; lower) exclude each other (lower > upper), set both to their midpoint."""
+    upper, lower = bounds
     conflict = lower > upper
     if conflict.any():
         lower[conflict] = upper[conflict] = 0.5 * (lower[conflict] + upper[conflict])

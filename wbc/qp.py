@@ -10,6 +10,7 @@ directly -- so ``G, h, A, b, lb, ub`` are views and no backend has to copy.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,12 +45,18 @@ class QP:
         self.lower.fill(-np.inf)
         self.upper[n + p :] = self.lower[n + p :] = 0.0  # equality rows: b = 0 until written
         self.lb, self.ub = self.lower[:n], self.upper[:n]
+        #: (ub; lb) as one (2, n) view: C-contiguous when there are no rows
+        self.bounds = self.data[sizes[3]:sizes[5]].reshape(2, m)[:, :n]
         self.G, self.h = self.C[:p], self.upper[n : n + p]
         self.A, self.b = self.C[p:], self.upper[n + p :]
 
     def has_nan(self) -> bool:
-        """True when any matrix, vector or bound holds a NaN (a bug upstream, never solved)."""
-        return bool(np.isnan(self.data).any())
+        """True when any matrix, vector or bound holds a NaN (a bug upstream, never solved).
+
+        One dot product: ``sum x_i^2`` is NaN iff some ``x_i`` is (infinite bounds and
+        overflow give +inf, never NaN, because every term is >= 0).
+        """
+        return math.isnan(self.data.dot(self.data))
 
     @property
     def has_bounds(self) -> bool:

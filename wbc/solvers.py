@@ -143,11 +143,15 @@ class QpsolversBackend(QPSolver):
 class DaqpBackend(QPSolver):
     """DAQP through a persistent ``daqp.Model`` workspace on the QP buffers.
 
-    The workspace is set up once; each tick only updates the data. With
-    ``warm_start=True`` (default) the solve starts from the previous tick's active set,
-    which in a control loop usually means zero or one active-set change. ``options``
-    are DAQP settings (``iter_limit``, ``time_limit`` [s], ``primal_tol``, ...) plus
-    ``warm_start``.
+    ``setup`` is run once per QP object: DAQP then holds pointers into that QP's own
+    buffers (they are C-contiguous float64, so its binding copies nothing), and each
+    tick only has to refresh DAQP's factorisation with ``update(H)``. Updating H
+    re-derives every other part of the workspace (``A R^-1``, ``R^-T f`` and the scaled
+    bounds) from those pointers, so the fresh ``c``, rows and bounds are picked up too.
+    With ``warm_start=True`` (default) the solve starts from the previous tick's active
+    set, which in a control loop usually means zero or one active-set change.
+    ``options`` are DAQP settings (``iter_limit``, ``time_limit`` [s], ``primal_tol``,
+    ...) plus ``warm_start``.
     """
 
     name = "daqp"
@@ -160,17 +164,17 @@ class DaqpBackend(QPSolver):
         self.warm_start = bool(settings.pop("warm_start", True))
         self.settings = settings
         self._model = None
-        self._shape: tuple[int, int, int] | None = None
+        self._data: np.ndarray | None = None  # buffer of the QP the workspace points into
         self._sense = np.zeros(0, dtype=np.int32)
 
     def _setup(self, qp: QP) -> int:
-        self._shape = (qp.n, qp.n_ineq, qp.n_eq)
         self._sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
         self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
         self._model = self._daqp.Model()
         if self.settings:
             self._model.settings = self.settings
         exitflag, _ = self._model.setup(qp.H, qp.c, qp.C, qp.upper, qp.lower, self._sense)
+        self._data = qp.data
         return exitflag
 
     def reset(self) -> None:
@@ -180,16 +184,12 @@ class DaqpBackend(QPSolver):
     def solve(self, qp: QP) -> QPSolution:
         start = time.perf_counter()
         try:
-            if self._model is None or self._shape != (qp.n, qp.n_ineq, qp.n_eq):
+            if self._model is None or self._data is not qp.data:
                 exitflag = self._setup(qp)
+            elif self.warm_start:
+                exitflag = self._model.update(qp.H)
             else:
-                # A=None when there are no rows: daqp 0.11's update indexes an empty A out of bounds
-                rows = qp.C if len(qp.C) else None
-                if self.warm_start:
-                    exitflag = self._model.update(H=qp.H, f=qp.c, A=rows, bupper=qp.upper, blower=qp.lower)
-                else:
-                    exitflag = self._model.update(H=qp.H, f=qp.c, A=rows, bupper=qp.upper, blower=qp.lower,
-                                                  sense=self._sense)
+                exitflag = self._model.update(qp.H, sense=self._sense)  # forget the active set
             if exitflag >= 0:
                 x, _, exitflag, _ = self._model.solve()
         except Exception as exc:

@@ -46,6 +46,9 @@ class Constraint(ABC):
     #: soft bounds are clipped into the hard ones every tick, and soft rows become elastic
     #: in the controller's fallback solve
     hard: bool = True
+    #: False when ``compute`` never changes the bounds (they are written once in
+    #: ``write_static``), so the controller can intersect them once instead of every tick
+    dynamic_bounds: bool = True
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or type(self).__name__

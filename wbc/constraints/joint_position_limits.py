@@ -49,13 +49,20 @@ class JointPositionLimits(Constraint):
                     v_index.append(joint.idx_v)
         self._q_index = np.array(q_index, dtype=int)
         self._v_index = np.array(v_index, dtype=int)
-        # limits stacked (lower; upper), margins M = limits - q, M / dt and gain * M / dt
-        self._limits = np.stack([robot.lower[self._q_index], robot.upper[self._q_index]])
-        self._margins = np.zeros_like(self._limits)
-        self._scaled = np.zeros_like(self._limits)
+        k = len(q_index)
+        # rows (lower, upper, lower, upper): margins M = limits - q, first divided by dt,
+        # then by dt / gain; every array is (4, k) and C-contiguous, so each step is one
+        # cheap same-shape numpy call
+        lower, upper = robot.lower[self._q_index], robot.upper[self._q_index]
+        self._limits = np.stack([lower, upper, lower, upper])
+        self._q_rows = np.zeros((4, k))
+        self._margins = np.zeros((4, k))
+        self._scales = np.zeros((4, k))
+        self._rows = tuple(self._margins)  # full margin / dt (lower, upper), gain * margin / dt
+        self._dt: float | None = None
         self._slices = None
         self._q_view: np.ndarray | None = None
-        if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
+        if k and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
     def write_static(self, rows: ConstraintRows) -> None:
@@ -65,20 +72,23 @@ class JointPositionLimits(Constraint):
             self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        if dt != self._dt:
+            self._dt = dt
+            self._scales[:2], self._scales[2:] = 1.0 / dt, self.gain / dt
         if self._slices is not None:
             if self._q_view is None or self._q_view.base is not kin.q:
                 self._q_view = kin.q[self._slices[0]]  # kin.q is updated in place every tick
-            q = self._q_view
+            self._q_rows[...] = self._q_view
         else:
-            q = kin.q[self._q_index]
-        margins, scaled = self._margins, self._scaled
-        np.subtract(self._limits, q, out=margins)
-        margins *= 1.0 / dt
-        np.multiply(margins, self.gain, out=scaled)
+            self._q_rows[...] = kin.q[self._q_index]
+        margins = self._margins
+        np.subtract(self._limits, self._q_rows, out=margins)
+        np.multiply(margins, self._scales, out=margins)
         # inside (lower margin <= 0 <= upper margin): gain * margin; outside: the full margin
+        full_lower, full_upper, damped_lower, damped_upper = self._rows
         lower, upper = self._out
-        np.maximum(scaled[0], margins[0], out=lower)
-        np.minimum(scaled[1], margins[1], out=upper)
+        np.maximum(damped_lower, full_lower, out=lower)
+        np.minimum(damped_upper, full_upper, out=upper)
         if self._slices is None:
             rows.lower[self._v_index] = lower
             rows.upper[self._v_index] = upper

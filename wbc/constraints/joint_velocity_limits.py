@@ -19,6 +19,7 @@ class JointVelocityLimits(Constraint):
     """
 
     has_bounds = True
+    dynamic_bounds = False
 
     def bind(self, robot: Robot) -> None:
         limit = robot.velocity_limit.copy()
