@@ -155,6 +155,7 @@ class Controller:
         # there (no rows), else through a scratch
         bounds = self._qp_v.bounds
         self._merged = bounds if bounds.flags.c_contiguous else np.zeros((2, nv))
+        self._merged_rows = tuple(self._merged)
         self._constraint_blocks = []
         row_labels: list[str] = []
         soft_rows: list[int] = []
@@ -277,7 +278,9 @@ class Controller:
                 np.maximum(soft, self._hard_box[0], out=merged)
                 np.minimum(merged, self._hard_box[1], out=merged)
         if merged is not qp.bounds:
-            qp.ub[:], qp.lb[:] = merged
+            upper, lower = self._merged_rows
+            qp.ub[:] = upper
+            qp.lb[:] = lower
 
     def _fallback(self, failed: QPSolution) -> QPSolution:
         """Elastic re-solve, then the zero command (see the class docstring)."""

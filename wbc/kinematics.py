@@ -28,6 +28,7 @@ class Kinematics:
         self.data = robot.model.createData()
         self.q = np.zeros(robot.nq)
         self._hessians_current = False
+        self._column_major = _hessian_buffer_is_column_major()
 
     def update(self, q: np.ndarray) -> None:
         """Recompute for configuration ``q`` (already validated)."""
@@ -48,7 +49,7 @@ class Kinematics:
         ``T[a, j, i] = d J[a, j] / d q_i`` (``q_i`` moved along the i-th tangent direction,
         i.e. ``pin.integrate(q, t e_i)``), so ``dJ/dt = sum_i T[:, :, i] v_i``.
         """
-        return _hessian_tensor(self._raw_frame_hessian(frame_id), _hessian_buffer_is_column_major())
+        return _hessian_tensor(self._raw_frame_hessian(frame_id), self._column_major)
 
 
     def _raw_frame_hessian(self, frame_id: int) -> np.ndarray:
@@ -58,17 +59,17 @@ class Kinematics:
             self._hessians_current = True
         return pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
 
-    def contract_frame_hessian(self, frame_id: int, weights: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out[i] = sum_{a, j} weights[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``:
-        the derivative of ``<weights, J>`` along each tangent direction. One matrix-vector
-        product on Pinocchio's buffer in its own memory order (no strided einsum)."""
+    def contract_frame_hessian(self, frame_id: int, weights_t: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out[i] = sum_{a, j} W[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``, given
+        ``weights_t = W^T`` (nv x 6, C-contiguous): the derivative of ``<W, J>`` along each
+        tangent direction. One matrix-vector product on Pinocchio's buffer in its own memory
+        order ([i][j][a] in pin 4.1, which is exactly W^T flattened): no copy, no einsum."""
         raw = self._raw_frame_hessian(frame_id)
         nv = self.model.nv
-        if raw.flags.c_contiguous and _hessian_buffer_is_column_major():
-            # memory order is [i][j][a]: rows i, columns (j, a) -> weights transposed, flattened
-            return np.matmul(raw.reshape(nv, 6 * nv), weights.T.ravel(), out=out)
-        tensor = _hessian_tensor(raw, _hessian_buffer_is_column_major())
-        return np.einsum("aj,aji->i", weights, tensor, out=out)
+        if self._column_major and raw.flags.c_contiguous:
+            return np.dot(raw.reshape(nv, 6 * nv), weights_t.reshape(-1), out=out)
+        tensor = _hessian_tensor(raw, self._column_major)
+        return np.einsum("ja,aji->i", weights_t, tensor, out=out)
 
 
 def _hessian_tensor(raw: np.ndarray, column_major: bool) -> np.ndarray:

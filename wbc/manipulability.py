@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.linalg.lapack import dgesvd, dpotrf, dpotrs
+from scipy.linalg.lapack import dgesvd, dposv
 
 from .errors import InvalidInputError
 from .kinematics import Kinematics
@@ -67,8 +67,11 @@ class Manipulability:
         self.frame_id = robot.frame_id(frame)
         self.value = 0.0
         self.gradient = np.zeros(robot.nv)
-        self._weights = np.zeros((6, robot.nv))  # G on the selected rows, zero elsewhere
-        self._weighted = self._weights[self._rows]
+        # G^T (nv x 6): G on the selected rows, zero elsewhere, stored transposed because
+        # that is the memory order Kinematics.contract_frame_hessian contracts without a copy
+        self._weights_t = np.zeros((robot.nv, 6))
+        self._weighted_t = self._weights_t[:, self._rows]
+        self._wide = (self._rows.stop - self._rows.start) <= robot.nv
 
     def compute(self, kin: Kinematics) -> float:
         """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``.
@@ -77,26 +80,28 @@ class Manipulability:
         from one small Gram matrix (``det`` and ``solve``); near a singularity, where
         that loses accuracy, the SVD form.
         """
-        jacobian = kin.frame_jacobian(self.frame_id)[self._rows]
-        k, n = jacobian.shape
-        wide = k <= n
-        gram = jacobian @ jacobian.T if wide else jacobian.T @ jacobian
+        jacobian = kin.frame_jacobian(self.frame_id)[self._rows]  # C-contiguous rows
+        wide = self._wide
+        gram = jacobian.dot(jacobian.T) if wide else jacobian.T.dot(jacobian)
         size = len(gram)
-        factor, info = dpotrf(gram, lower=1, clean=0)  # Cholesky: det(gram) = prod(diag L)^2
-        diagonal = factor.ravel()[:: size + 1].tolist()
-        determinant = math.prod(diagonal) ** 2 if info == 0 else 0.0
-        if determinant > _GRAM_CONDITION * (sum(gram.ravel()[:: size + 1].tolist()) / size) ** size:
+        # Cholesky gram = L L^T and the solve of the closed form below, in one LAPACK call;
+        # det(gram) = prod(diag L)^2
+        factor, solution, info = dposv(gram, jacobian if wide else jacobian.T, lower=1)
+        determinant = math.prod(factor.ravel(order="K")[:: size + 1].tolist()) ** 2 if info == 0 else 0.0
+        flat = jacobian.ravel()
+        mean_eigenvalue = flat.dot(flat) / size  # trace(gram) = |J|_F^2
+        if determinant > _GRAM_CONDITION * mean_eigenvalue**size:
             self.value = math.sqrt(determinant)
             # G = m (J J^T)^-1 J  (wide)  or  m J (J^T J)^-1 = m ((J^T J)^-1 J^T)^T  (tall)
-            solution, _ = dpotrs(factor, jacobian if wide else jacobian.T, lower=1)
-            np.multiply(solution if wide else solution.T, self.value, out=self._weighted)
+            np.multiply(solution.T if wide else solution, self.value, out=self._weighted_t)
         else:
             u, s, vt, info = dgesvd(jacobian, full_matrices=0)  # LAPACK directly: ~2x numpy's wrapper
             if info != 0:
                 u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
-            np.matmul(u * _products_of_the_others(s), vt, out=self._weighted)
-            self.value = float(np.prod(s))
-        kin.contract_frame_hessian(self.frame_id, self._weights, self.gradient)
+            values = s.tolist()
+            np.matmul(vt.T, (u * _products_of_the_others(values)).T, out=self._weighted_t)
+            self.value = math.prod(values)
+        kin.contract_frame_hessian(self.frame_id, self._weights_t, self.gradient)
         return self.value
 
     def __repr__(self) -> str:
@@ -118,11 +123,9 @@ def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> n
     return evaluator.gradient
 
 
-def _products_of_the_others(s: np.ndarray) -> np.ndarray:
+def _products_of_the_others(s: list[float]) -> np.ndarray:
     """``c_l = prod_{p != l} s_p`` without dividing (exact when some ``s_p`` are zero)."""
-    before = np.cumprod(np.concatenate(([1.0], s[:-1])))
-    after = np.cumprod(np.concatenate(([1.0], s[:0:-1])))[::-1]
-    return before * after
+    return np.array([math.prod(s[:l]) * math.prod(s[l + 1:]) for l in range(len(s))])
 
 
 __all__ = ["Manipulability", "manipulability", "manipulability_gradient", "row_selection", "ROWS"]

@@ -58,7 +58,7 @@ class JointPositionLimits(Constraint):
         self._q_rows = np.zeros((4, k))
         self._margins = np.zeros((4, k))
         self._scales = np.zeros((4, k))
-        self._rows = tuple(self._margins)  # full margin / dt (lower, upper), gain * margin / dt
+        self._margin_rows = tuple(self._margins)  # full margin / dt (lower, upper), gain * margin / dt
         self._dt: float | None = None
         self._slices = None
         self._q_view: np.ndarray | None = None
@@ -66,12 +66,18 @@ class JointPositionLimits(Constraint):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
     def write_static(self, rows: ConstraintRows) -> None:
+        self._attach(rows)
+
+    def _attach(self, rows: ConstraintRows) -> None:
+        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
         if self._slices is not None:
             self._out = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
         else:
             self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        if rows is not self._rows:
+            self._attach(rows)
         if dt != self._dt:
             self._dt = dt
             self._scales[:2], self._scales[2:] = 1.0 / dt, self.gain / dt
@@ -85,7 +91,7 @@ class JointPositionLimits(Constraint):
         np.subtract(self._limits, self._q_rows, out=margins)
         np.multiply(margins, self._scales, out=margins)
         # inside (lower margin <= 0 <= upper margin): gain * margin; outside: the full margin
-        full_lower, full_upper, damped_lower, damped_upper = self._rows
+        full_lower, full_upper, damped_lower, damped_upper = self._margin_rows
         lower, upper = self._out
         np.maximum(damped_lower, full_lower, out=lower)
         np.minimum(damped_upper, full_upper, out=upper)

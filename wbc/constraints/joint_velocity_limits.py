@@ -7,6 +7,7 @@ import numpy as np
 from ..kinematics import Kinematics
 from ..robot import Robot
 from .constraint import Constraint, ConstraintRows
+from .heading_rows import HeadingRows
 
 
 class JointVelocityLimits(Constraint):
@@ -36,16 +37,21 @@ class JointVelocityLimits(Constraint):
         np.negative(self._limit, out=rows.lower)
         rows.upper[...] = self._limit
         rows.h.fill(self._linear_limit if self._base_rows else 0.0)
+        self._attach(rows)
+
+    def _attach(self, rows: ConstraintRows) -> None:
+        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
+        if self._base_rows:
+            # rows +-(c xdot + s ydot), +-(-s xdot + c ydot): the (cos; sin) parts of (x, y)
+            cos_part = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+            sin_part = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
+            self._heading_rows = HeadingRows(cos_part, sin_part, rows.G, self._x, self._y)
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         if self._base_rows:
-            yaw = kin.q[self._yaw]
-            cos, sin = np.cos(yaw), np.sin(yaw)
-            G = rows.G
-            G[0, self._x], G[0, self._y] = cos, sin
-            G[1, self._x], G[1, self._y] = -cos, -sin
-            G[2, self._x], G[2, self._y] = -sin, cos
-            G[3, self._x], G[3, self._y] = sin, -cos
+            if rows is not self._rows:
+                self._attach(rows)
+            self._heading_rows.write(kin.q[self._yaw])
 
     def row_labels(self) -> list[str]:
         return ["base v_x upper", "base v_x lower", "base v_y upper", "base v_y lower"][: self.n_inequalities]

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
@@ -62,8 +64,7 @@ class ManipulabilityBarrier(Constraint):
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         manipulability = self._manipulability
         self.value = manipulability.compute(kin)
-        rows.G[0] = manipulability.gradient
-        rows.G[0] *= -1.0
+        np.negative(manipulability.gradient, out=rows.G[0])
         rows.h[0] = self.gain * (self.value - self.min_value) / dt
 
     def row_labels(self) -> list[str]:

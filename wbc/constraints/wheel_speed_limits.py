@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..base import BaseKind
@@ -12,6 +10,7 @@ from ..kinematics import Kinematics
 from ..robot import Robot
 from ..validation import as_positive
 from .constraint import Constraint, ConstraintRows
+from .heading_rows import HeadingRows
 
 
 class WheelSpeedLimits(Constraint):
@@ -45,32 +44,27 @@ class WheelSpeedLimits(Constraint):
         self._x, self._y, self._heading = base.indices
         self.n_wheels = self._H0.shape[0]
         self.n_inequalities = 2 * self.n_wheels
-        self._H0_xy = np.ascontiguousarray(self._H0[:, :2])
-        self._rotation = np.eye(2)
-        self._xy = slice(self._x, self._x + 2) if self._y == self._x + 1 else None
-        self._scratch = np.zeros((self.n_wheels, 2))
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.h.fill(self.max_speed)
         n, G = self.n_wheels, rows.G
         G[:n, self._heading] = self._H0[:, 2]
         G[n:, self._heading] = -self._H0[:, 2]
-        self._views = (G[:n, self._xy] if self._xy is not None else self._scratch,
-                       G[:n, self._x], G[:n, self._y], G[n:, self._x], G[n:, self._y])
+        self._attach(rows)
+
+    def _attach(self, rows: ConstraintRows) -> None:
+        # du/d(xdot, ydot) = H0_xy R(heading)^T with R^T = [[c, s], [-s, c]]:
+        # c H0_xy + s H0_xy [[0, 1], [-1, 0]], for the forward rows and negated for the backward ones
+        forward = self._H0[:, :2]
+        turned = forward @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
+        self._heading_rows = HeadingRows(np.vstack([forward, -forward]), np.vstack([turned, -turned]),
+                                         rows.G, self._x, self._y)
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        angle = kin.q[self._heading]
-        c, s = math.cos(angle), math.sin(angle)
-        rotation = self._rotation  # d(v_x, v_y) / d(xdot, ydot) transposed: [[c, s], [-s, c]]
-        rotation[0, 0] = rotation[1, 1] = c
-        rotation[0, 1], rotation[1, 0] = s, -s
-        block, forward_x, forward_y, backward_x, backward_y = self._views
-        np.matmul(self._H0_xy, rotation, out=block)  # [du/dxdot, du/dydot]
-        if self._xy is None:
-            forward_x[:], forward_y[:] = block[:, 0], block[:, 1]
-        # np.multiply, not np.negative: numpy 2.4's negative miscomputes strided views of one array
-        np.multiply(forward_x, -1.0, out=backward_x)
-        np.multiply(forward_y, -1.0, out=backward_y)
+        if rows is not self._rows:
+            self._attach(rows)
+        self._heading_rows.write(kin.q[self._heading])
 
     def row_labels(self) -> list[str]:
         return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]
