@@ -21,6 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from . import kernels
 from .constraints.constraint import Constraint, ConstraintRows
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError, SolverError
@@ -111,8 +112,9 @@ class Controller:
 
         # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
         # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
-        # A^T [W J] = [H; r^T J] in a single product: H and -c, as stored in the QP buffer.
-        # Stored transposed (C-contiguous A^T), the case BLAS multiplies fastest.
+        # A^T [W J] = [H; r^T J]: H and -c in one pass (kernels.normal_equations), written
+        # straight into the QP buffer. Stored transposed (C-contiguous A^T), so that every
+        # column of A the kernel sums over is contiguous.
         plain = [t for t in self.tasks if not t.uses_preview]
         preview = [t for t in self.tasks if t.uses_preview]
         n_plain = sum(t.dim for t in plain) + nv
@@ -129,7 +131,7 @@ class Controller:
             task.write_static(block[1])
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
-        self._plain_t, self._plain_jacobian = self._stack_t[:, :n_plain], self._stack[:n_plain, :nv]
+        self._n_plain = n_plain
         self._preview_rows = self._stack[n_plain:]
 
         n_ineq = sum(c.n_inequalities for c in self.constraints)
@@ -148,14 +150,8 @@ class Controller:
         # hard bounds: intersected once when no hard constraint rewrites its bounds per tick
         self._hard_dynamic = any(c.dynamic_bounds for c in bounded[:n_hard])
         self._hard = self._bounds[0] if n_hard == 1 else np.array([[np.inf] * nv, [-np.inf] * nv])
-        # clip box of both rows: [[lb; lb], [ub; ub]] of the hard intersection
-        self._hard_box = np.empty((2, 2, nv))
         self._soft = self._bounds[n_hard] if n_soft == 1 else np.zeros((2, nv))  # scratch if several
-        # the merged (upper; lower) goes straight into the QP buffer when it is contiguous
-        # there (no rows), else through a scratch
-        bounds = self._qp_v.bounds
-        self._merged = bounds if bounds.flags.c_contiguous else np.zeros((2, nv))
-        self._merged_rows = tuple(self._merged)
+        self._hard_bound_rows, self._soft_bound_rows = tuple(self._hard), tuple(self._soft)
         self._constraint_blocks = []
         row_labels: list[str] = []
         soft_rows: list[int] = []
@@ -216,8 +212,7 @@ class Controller:
 
         for task, jacobian, target in self._task_blocks:
             task.compute(kin, dt, jacobian, target)
-        np.dot(self._plain_t, self._plain_jacobian, out=qp.Hc)  # [H; r^T J]
-        np.negative(qp.c, out=qp.c)
+        kernels.normal_equations(self._stack_t, self._n_plain, qp.Hc)
         if self._preview_blocks:
             self._add_preview_tasks(kin, dt, qp)
 
@@ -251,11 +246,8 @@ class Controller:
         return v
 
     def _intersect_hard_bounds(self) -> None:
-        k = self._n_hard_bounds
-        if k > 1:
-            _intersect(self._bounds[:k], self._hard)
-        self._hard_box[0] = self._hard[1]
-        self._hard_box[1] = self._hard[0]
+        if self._n_hard_bounds > 1:
+            _intersect(self._bounds[: self._n_hard_bounds], self._hard)
 
     def _merge_bounds(self, qp: QP) -> None:
         """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them (soft
@@ -263,24 +255,19 @@ class Controller:
         k, total = self._n_hard_bounds, len(self._bounds)
         if self._hard_dynamic:
             self._intersect_hard_bounds()
-        merged = self._merged
         if k == total:
-            merged[...] = self._hard
-        else:
-            soft = self._soft
-            if total - k > 1:
-                _intersect(self._bounds[k:], soft)
-                _meet_halfway(soft)
-            if k == 0:
-                merged[...] = soft
-                _meet_halfway(merged)
-            else:  # clip(soft, hard_lb, hard_ub) = min(max(soft, hard_lb), hard_ub), both rows
-                np.maximum(soft, self._hard_box[0], out=merged)
-                np.minimum(merged, self._hard_box[1], out=merged)
-        if merged is not qp.bounds:
-            upper, lower = self._merged_rows
-            qp.ub[:] = upper
-            qp.lb[:] = lower
+            qp.bounds[...] = self._hard
+            return
+        if total - k > 1:
+            _intersect(self._bounds[k:], self._soft)
+            _meet_halfway(self._soft)
+        if k == 0:
+            qp.bounds[...] = self._soft
+            _meet_halfway(qp.bounds)
+            return
+        soft_upper, soft_lower = self._soft_bound_rows
+        hard_upper, hard_lower = self._hard_bound_rows
+        kernels.clip_bounds(soft_upper, soft_lower, hard_upper, hard_lower, qp.ub, qp.lb)
 
     def _fallback(self, failed: QPSolution) -> QPSolution:
         """Elastic re-solve, then the zero command (see the class docstring)."""

@@ -29,12 +29,23 @@ class Kinematics:
         self.q = np.zeros(robot.nq)
         self._hessians_current = False
         self._column_major = _hessian_buffer_is_column_major()
+        if not _binding_returns_live_views():
+            raise ModelError(f"pinocchio {pin.__version__}: data.J / data.oMi are not returned as live "
+                             "views of the model data, which the compiled tasks read")
+        #: every joint's Jacobian columns (6 x nv): spatial velocity at the world origin,
+        #: world axes (Pinocchio's data.J); a live view, refreshed by :meth:`update`
+        self.joint_jacobians = self.data.J
 
     def update(self, q: np.ndarray) -> None:
         """Recompute for configuration ``q`` (already validated)."""
         self.q[:] = q
         pin.computeJointJacobians(self.model, self.data, self.q)
         self._hessians_current = False
+
+    def joint_placement(self, joint_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """World rotation (3 x 3) and translation (3) of a joint: live views, refreshed by :meth:`update`."""
+        placement = self.data.oMi[joint_id]
+        return placement.rotation, placement.translation
 
     def frame_placement(self, frame_id: int) -> pin.SE3:
         """World placement of a frame (an SE3 owned by this object's data)."""
@@ -70,6 +81,24 @@ class Kinematics:
             return np.dot(raw.reshape(nv, 6 * nv), weights_t.reshape(-1), out=out)
         tensor = _hessian_tensor(raw, self._column_major)
         return np.einsum("ja,aji->i", weights_t, tensor, out=out)
+
+
+@functools.cache
+def _binding_returns_live_views() -> bool:
+    """Whether ``data.J`` and ``data.oMi[i].rotation / .translation`` are views that follow
+    later kinematics updates (eigenpy returns references to Eigen members; checked once per
+    process on a two-joint probe rather than assumed)."""
+    model = pin.Model()
+    first = model.addJoint(0, pin.JointModelRZ(), pin.SE3.Identity(), "a")
+    model.addJoint(first, pin.JointModelRY(), pin.SE3(np.eye(3), np.array([0.3, 0.0, 0.0])), "b")
+    data = model.createData()
+    pin.computeJointJacobians(model, data, np.zeros(2))
+    jacobians, rotation, translation = data.J, data.oMi[2].rotation, data.oMi[2].translation
+    pin.computeJointJacobians(model, data, np.array([0.4, -0.7]))
+    fresh = model.createData()
+    pin.computeJointJacobians(model, fresh, np.array([0.4, -0.7]))
+    return bool(np.array_equal(jacobians, fresh.J) and np.array_equal(rotation, fresh.oMi[2].rotation)
+                and np.array_equal(translation, fresh.oMi[2].translation))
 
 
 def _hessian_tensor(raw: np.ndarray, column_major: bool) -> np.ndarray:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..validation import as_gain
@@ -49,20 +50,12 @@ class JointPositionLimits(Constraint):
                     v_index.append(joint.idx_v)
         self._q_index = np.array(q_index, dtype=int)
         self._v_index = np.array(v_index, dtype=int)
-        k = len(q_index)
-        # rows (lower, upper, lower, upper): margins M = limits - q, first divided by dt,
-        # then by dt / gain; every array is (4, k) and C-contiguous, so each step is one
-        # cheap same-shape numpy call
-        lower, upper = robot.lower[self._q_index], robot.upper[self._q_index]
-        self._limits = np.stack([lower, upper, lower, upper])
-        self._q_rows = np.zeros((4, k))
-        self._margins = np.zeros((4, k))
-        self._scales = np.zeros((4, k))
-        self._margin_rows = tuple(self._margins)  # full margin / dt (lower, upper), gain * margin / dt
-        self._dt: float | None = None
+        self._lower_limit = robot.lower[self._q_index].copy()
+        self._upper_limit = robot.upper[self._q_index].copy()
+        self._q = np.zeros(len(q_index))  # gathered q when the joints are not one block
         self._slices = None
         self._q_view: np.ndarray | None = None
-        if k and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
+        if len(q_index) and np.all(np.diff(self._q_index) == 1) and np.all(np.diff(self._v_index) == 1):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
     def write_static(self, rows: ConstraintRows) -> None:
@@ -78,23 +71,14 @@ class JointPositionLimits(Constraint):
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         if rows is not self._rows:
             self._attach(rows)
-        if dt != self._dt:
-            self._dt = dt
-            self._scales[:2], self._scales[2:] = 1.0 / dt, self.gain / dt
         if self._slices is not None:
             if self._q_view is None or self._q_view.base is not kin.q:
                 self._q_view = kin.q[self._slices[0]]  # kin.q is updated in place every tick
-            self._q_rows[...] = self._q_view
+            q = self._q_view
         else:
-            self._q_rows[...] = kin.q[self._q_index]
-        margins = self._margins
-        np.subtract(self._limits, self._q_rows, out=margins)
-        np.multiply(margins, self._scales, out=margins)
-        # inside (lower margin <= 0 <= upper margin): gain * margin; outside: the full margin
-        full_lower, full_upper, damped_lower, damped_upper = self._margin_rows
+            q = np.take(kin.q, self._q_index, out=self._q)
         lower, upper = self._out
-        np.maximum(damped_lower, full_lower, out=lower)
-        np.minimum(damped_upper, full_upper, out=upper)
+        kernels.position_limit_bounds(q, self._lower_limit, self._upper_limit, self.gain, dt, lower, upper)
         if self._slices is None:
             rows.lower[self._v_index] = lower
             rows.upper[self._v_index] = upper

@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
 
+from .. import kernels
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..errors import InvalidInputError
 from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
-from .task import Task, _norm, _saturate
+from .task import Task, _norm
 
 
 class FrameTask(Task):
@@ -51,14 +51,19 @@ class FrameTask(Task):
         self.max_speed = np.inf if max_speed is None else as_positive(max_speed, "max_speed")
         self.max_angular_speed = (np.inf if max_angular_speed is None
                                   else as_positive(max_angular_speed, "max_angular_speed"))
-        self._weights = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
-        self._saturating = bool(np.isfinite(self.max_speed) or np.isfinite(self.max_angular_speed))
-        self._dt, self._gain_weights = None, self._weights
-        self._target_rotation = np.eye(3)
-        self._target_position = np.zeros(3)
+        # everything the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*)
+        self._parameters = np.zeros(kernels.FRAME_PARAMETERS)
+        self._target_rotation = self._parameters[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
+        self._target_position = self._parameters[kernels.FRAME_TARGET_POSITION]
+        self._weights = self._parameters[kernels.FRAME_WEIGHTS]
+        self._weighted_feedforward = self._parameters[kernels.FRAME_WEIGHTED_FEEDFORWARD]
+        self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
+        self._target_rotation[...] = np.eye(3)
+        self._parameters[kernels.FRAME_MAX_SPEED] = self.max_speed
+        self._parameters[kernels.FRAME_MAX_ANGULAR_SPEED] = self.max_angular_speed
+        self._dt: float | None = None
         self._feedforward = np.zeros(6)
-        self._weighted_feedforward = np.zeros(6)
-        self._has_feedforward = False
+        self._kin: Kinematics | None = None
         self._has_target = False
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
@@ -77,7 +82,6 @@ class FrameTask(Task):
         else:
             self._feedforward[...] = as_vector(twist, 6, "target twist")
         np.multiply(self._feedforward, self._weights, out=self._weighted_feedforward)
-        self._has_feedforward = twist is not None
         self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
@@ -92,30 +96,31 @@ class FrameTask(Task):
 
     def bind(self, robot: Robot) -> None:
         self._frame_id = robot.frame_id(self.frame)
-        # W repeated over the columns: a same-shape product skips numpy's broadcasting setup
-        self._weight_matrix = np.repeat(self._weights[:, None], robot.nv, axis=1)
         self._keys = (f"{self.name}.position", f"{self.name}.orientation")
+        model = robot.model
+        frame = model.frames[self._frame_id]
+        self._joint_id = frame.parentJoint
+        self._parameters[kernels.FRAME_LOCAL_ROTATION] = frame.placement.rotation.ravel()
+        self._parameters[kernels.FRAME_LOCAL_TRANSLATION] = frame.placement.translation
+        # 1 on the velocity coordinates of the joints between the root and the frame
+        self._support = np.zeros(robot.nv)
+        for joint_id in model.supports[self._joint_id][1:]:
+            joint = model.joints[joint_id]
+            self._support[joint.idx_v:joint.idx_v + joint.nv] = 1.0
+        self._kin = None
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
         if dt != self._dt:
-            self._dt, self._gain_weights = dt, self._weights * (self.gain / dt)
-        placement = kin.frame_placement(self._frame_id)
-        np.subtract(self._target_position, placement.translation, out=self._position_error)
-        # ndarray.dot: a third of the cost of @ on 3x3 operands
-        self._orientation_error[:] = pin.log3(self._target_rotation.dot(placement.rotation.T))
-        error = self.error
-        np.multiply(kin.frame_jacobian(self._frame_id), self._weight_matrix, out=jacobian)
-        if self._saturating:
-            np.multiply(error, self.gain / dt, out=target)
-            _saturate(target[:3], self.max_speed)
-            _saturate(target[3:], self.max_angular_speed)
-            target *= self._weights
-        else:
-            np.multiply(error, self._gain_weights, out=target)
-        if self._has_feedforward:
-            target += self._weighted_feedforward
+            self._dt = dt
+            self._parameters[kernels.FRAME_GAIN] = self.gain / dt
+        if kin is not self._kin:  # live views of this Kinematics' joint data (one task, several controllers)
+            self._kin = kin
+            self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
+        joint_jacobians, joint_rotation, joint_translation = self._views
+        kernels.frame_task_rows(joint_jacobians, joint_rotation, joint_translation, self._support,
+                                self._parameters, self.error, jacobian, target)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self._keys[0]] = _norm(self._position_error)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from .. import kernels
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..errors import InvalidInputError
@@ -64,6 +65,7 @@ class PostureTask(Task):
         simple = all(j.nq == 1 and j.nv == 1 for j in joints) and self.dim > 0
         contiguous = simple and np.all(np.diff(q_index) == 1) and np.all(np.diff(self.indices) == 1)
         self._q_slice = slice(int(q_index[0]), int(q_index[-1]) + 1) if contiguous else None
+        self._q_view: np.ndarray | None = None
         self._apply_target(robot.neutral() if self._target_spec is None else self._target_spec)
 
     def _apply_target(self, q) -> None:
@@ -84,10 +86,12 @@ class PostureTask(Task):
         if dt != self._dt:
             self._dt, self._gain_weights = dt, self._weights * (self.gain / dt)
         if self._q_slice is not None:
-            np.subtract(self._target_selected, kin.q[self._q_slice], out=self.error)
+            if self._q_view is None or self._q_view.base is not kin.q:
+                self._q_view = kin.q[self._q_slice]  # kin.q is updated in place every tick
+            kernels.posture_rows(self._q_view, self._target_selected, self._gain_weights, self.error, target)
         else:
             np.take(pin.difference(self._model, kin.q, self.target), self.indices, out=self.error)
-        np.multiply(self.error, self._gain_weights, out=target)
+            np.multiply(self.error, self._gain_weights, out=target)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = _norm(self.error)

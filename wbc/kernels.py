@@ -1,0 +1,186 @@
+"""Compiled (numba) kernels of the control tick.
+
+In CPython every numpy call on a small array costs 0.25-1 us, whatever it computes; the
+QP of one youBot tick needs ~40 of them. The kernels below do the arithmetic of the
+hottest tasks and constraints, and of the QP assembly, in one native call each (~0.2 us
+to enter). Pinocchio still computes the kinematics: the kernels read its joint
+placements and joint Jacobians in place (see :class:`wbc.kinematics.Kinematics`).
+
+They are compiled on first use and cached on disk (``cache=True``), so only the first
+process after an install pays the compilation (a few seconds).
+
+Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
+rotation matrices row-major 3x3.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# -------------------------------------------------------------------- SO(3)
+
+
+@njit(cache=True, nogil=True)
+def log3(R: np.ndarray, out: np.ndarray) -> None:
+    """``out = log(R)``: the rotation vector (axis * angle, angle in [0, pi]) of the rotation
+    ``R`` given row-major as 9 numbers.
+
+    ``angle = atan2(|w|, (tr R - 1) / 2)`` with ``w = vee(R - R^T) / 2 = sin(angle) axis`` is
+    accurate over the whole range. The axis is ``w / sin(angle)`` up to 90 deg; beyond, where
+    ``w`` loses relative accuracy (it vanishes at 180 deg), it comes from the symmetric part
+    ``(R + R^T) / 2 - cos(angle) I = (1 - cos(angle)) axis axis^T`` (its column with the
+    largest diagonal), signed like ``w``.
+    """
+    wx = 0.5 * (R[7] - R[5])
+    wy = 0.5 * (R[2] - R[6])
+    wz = 0.5 * (R[3] - R[1])
+    cosine = 0.5 * (R[0] + R[4] + R[8] - 1.0)
+    sine = math.sqrt(wx * wx + wy * wy + wz * wz)
+    angle = math.atan2(sine, cosine)
+    if cosine >= 0.0:
+        # angle / sin(angle) -> 1 + angle^2 / 6 as the angle vanishes (no 0 / 0)
+        scale = angle / sine if sine > 1e-8 else 1.0 + angle * angle / 6.0
+        out[0], out[1], out[2] = scale * wx, scale * wy, scale * wz
+        return
+    i = 0
+    if R[4] > R[4 * i]:
+        i = 1
+    if R[8] > R[4 * i]:
+        i = 2
+    ax = 0.5 * (R[3 * i] + R[i]) - (cosine if i == 0 else 0.0)
+    ay = 0.5 * (R[3 * i + 1] + R[3 + i]) - (cosine if i == 1 else 0.0)
+    az = 0.5 * (R[3 * i + 2] + R[6 + i]) - (cosine if i == 2 else 0.0)
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    if ax * wx + ay * wy + az * wz < 0.0:
+        norm = -norm
+    scale = angle / norm
+    out[0], out[1], out[2] = scale * ax, scale * ay, scale * az
+
+
+# ------------------------------------------------------------------- tasks
+
+#: layout of the FrameTask parameter vector (one float64 vector per task)
+FRAME_LOCAL_ROTATION = slice(0, 9)  # frame placement in its parent joint: rotation (row-major)
+FRAME_LOCAL_TRANSLATION = slice(9, 12)  # ... and translation [m]
+FRAME_TARGET_ROTATION = slice(12, 21)  # target orientation R* (row-major)
+FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
+FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
+FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
+FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain / dt [1/s], [m/s], [rad/s]
+FRAME_SCRATCH = slice(39, 48)  # R* R^T, written by the kernel
+FRAME_PARAMETERS = 48
+
+
+@njit(cache=True, nogil=True)
+def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                    support: np.ndarray, parameters: np.ndarray, error: np.ndarray, jacobian: np.ndarray,
+                    target: np.ndarray) -> None:
+    """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
+
+    Frame placement ``R = R_i R_f``, ``p = R_i p_f + p_i`` (``R_i, p_i``: parent joint;
+    ``R_f, p_f``: frame in the joint). ``joint_jacobians`` (6 x nv) holds every joint's
+    columns as spatial velocities at the world origin (Pinocchio's ``data.J``); at the frame
+    origin, world-aligned, a column is ``(v + w x p; w)``, kept where ``support`` is 1 (the
+    joints between the root and the frame). Writes ``error = (p* - p, log3(R* R^T))``,
+    ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (parameter layout:
+    the ``FRAME_*`` slices of this module).
+    """
+    Rf, pf, Rt, pt = parameters[0:9], parameters[9:12], parameters[12:21], parameters[21:24]
+    weights, feedforward = parameters[24:30], parameters[30:36]
+    gain, max_speed, max_angular_speed = parameters[36], parameters[37], parameters[38]
+    relative = parameters[39:48]
+    Ri = joint_rotation
+    # frame position p = R_i p_f + p_i and the position error
+    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
+    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
+    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
+    error[0], error[1], error[2] = pt[0] - px, pt[1] - py, pt[2] - pz
+    # orientation error log3(R* R^T) with R = R_i R_f: (R* R^T)_ab = sum_c R*_ac R_bc
+    for b in range(3):
+        r0 = Ri[b, 0] * Rf[0] + Ri[b, 1] * Rf[3] + Ri[b, 2] * Rf[6]  # row b of R
+        r1 = Ri[b, 0] * Rf[1] + Ri[b, 1] * Rf[4] + Ri[b, 2] * Rf[7]
+        r2 = Ri[b, 0] * Rf[2] + Ri[b, 1] * Rf[5] + Ri[b, 2] * Rf[8]
+        for a in range(3):
+            relative[3 * a + b] = Rt[3 * a] * r0 + Rt[3 * a + 1] * r1 + Rt[3 * a + 2] * r2
+    log3(relative, error[3:])
+    # weighted world-aligned frame Jacobian
+    for k in range(joint_jacobians.shape[1]):
+        if support[k] == 0.0:
+            for a in range(6):
+                jacobian[a, k] = 0.0
+            continue
+        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
+        jacobian[0, k] = weights[0] * (joint_jacobians[0, k] + wy * pz - wz * py)
+        jacobian[1, k] = weights[1] * (joint_jacobians[1, k] + wz * px - wx * pz)
+        jacobian[2, k] = weights[2] * (joint_jacobians[2, k] + wx * py - wy * px)
+        jacobian[3, k] = weights[3] * wx
+        jacobian[4, k] = weights[4] * wy
+        jacobian[5, k] = weights[5] * wz
+    # feedback velocity gain/dt * e, each part bounded in norm (direction kept), then weighted
+    for part in (0, 3):
+        limit = max_speed if part == 0 else max_angular_speed
+        norm = math.sqrt(error[part] ** 2 + error[part + 1] ** 2 + error[part + 2] ** 2) * gain
+        scale = gain if norm <= limit else limit / norm * gain
+        for a in range(part, part + 3):
+            target[a] = weights[a] * (scale * error[a]) + feedforward[a]
+
+
+@njit(cache=True, nogil=True)
+def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray, error: np.ndarray,
+                 target: np.ndarray) -> None:
+    """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``."""
+    for i in range(len(q)):
+        error[i] = reference[i] - q[i]
+        target[i] = gain_weights[i] * error[i]
+
+
+# ------------------------------------------------------------- constraints
+
+
+@njit(cache=True, nogil=True)
+def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
+                          dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
+    """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
+    fraction ``gain`` of the margin per tick, outside the full margin (land on the limit)."""
+    for i in range(len(q)):
+        low = (lower_limit[i] - q[i]) / dt
+        high = (upper_limit[i] - q[i]) / dt
+        lower[i] = max(gain * low, low)
+        upper[i] = min(gain * high, high)
+
+
+# --------------------------------------------------------------- assembly
+
+
+@njit(cache=True, nogil=True)
+def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
+    """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
+
+    ``stack_t`` is ``A^T`` ((nv + 1) x rows), of which the first ``columns`` rows of ``A``
+    are used: ``H = (WJ)^T WJ`` (symmetric: computed once per pair) and
+    ``c = -(WJ)^T W r``.
+    """
+    nv = Hc.shape[1]
+    for i in range(nv):
+        for j in range(i, nv):
+            total = 0.0
+            for r in range(columns):
+                total += stack_t[i, r] * stack_t[j, r]
+            Hc[i, j] = total
+            Hc[j, i] = total
+        total = 0.0
+        for r in range(columns):
+            total += stack_t[nv, r] * stack_t[i, r]
+        Hc[nv, i] = -total
+
+
+@njit(cache=True, nogil=True)
+def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.ndarray, hard_lower: np.ndarray,
+                upper: np.ndarray, lower: np.ndarray) -> None:
+    """Soft bounds clipped into the hard ones: ``clip(soft, hard_lower, hard_upper)``, both sides."""
+    for i in range(len(upper)):
+        upper[i] = min(max(soft_upper[i], hard_lower[i]), hard_upper[i])
+        lower[i] = min(max(soft_lower[i], hard_lower[i]), hard_upper[i])
