@@ -184,3 +184,148 @@ def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.n
     for i in range(len(upper)):
         upper[i] = min(max(soft_upper[i], hard_lower[i]), hard_upper[i])
         lower[i] = min(max(soft_lower[i], hard_lower[i]), hard_upper[i])
+
+
+# ---------------------------------------------------------- manipulability
+
+#: closed form accepted while det(gram) > GRAM_CONDITION * (mean eigenvalue)^size
+GRAM_CONDITION = 1e-8
+
+
+@njit(cache=True, nogil=True)
+def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                   local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
+    """World-aligned Jacobian (6 x nv) at the origin of a frame placed at ``local`` (rotation
+    row-major, then translation) in its parent joint, as in :func:`frame_task_rows` but
+    unweighted; the frame origin (world) goes to ``origin``."""
+    Ri, pf = joint_rotation, local[9:12]
+    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
+    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
+    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
+    origin[0], origin[1], origin[2] = px, py, pz
+    for k in range(joint_jacobians.shape[1]):
+        if support[k] == 0.0:
+            for a in range(6):
+                jacobian[a, k] = 0.0
+            continue
+        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
+        jacobian[0, k] = joint_jacobians[0, k] + wy * pz - wz * py
+        jacobian[1, k] = joint_jacobians[1, k] + wz * px - wx * pz
+        jacobian[2, k] = joint_jacobians[2, k] + wx * py - wy * px
+        jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
+
+
+@njit(cache=True, nogil=True)
+def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, origin: np.ndarray,
+                            support: np.ndarray, ancestor: np.ndarray, first_row: int, last_row: int,
+                            gradient: np.ndarray) -> float:
+    """Yoshikawa's ``m`` of rows ``first_row:last_row`` of the frame Jacobian ``jacobian``
+    (from :func:`frame_jacobian`) and ``grad m`` into ``gradient``; returns ``m``.
+
+    ``dm/dq_i = <G, dJ/dq_i>`` with ``G = m (J J^T)^-1 J`` (wide) / ``m J (J^T J)^-1`` (tall)
+    while the Gram matrix is well conditioned (Cholesky), else ``G = U diag(c) V^T`` from the
+    SVD, ``c_l`` the product of the other singular values (see :mod:`wbc.manipulability`).
+
+    Row selections are ``0:6``, ``0:3`` or ``3:6``. ``dJ/dq_i`` for a chain of 1-DOF joints, from the joint columns ``S_k = (v_k; w_k)``
+    (spatial, world origin): moving ``q_i`` moves the subtree of joint i rigidly, so
+    ``dS_k/dq_i = (w_i x v_k + v_i x w_k; w_i x w_k)`` when i is a strict ancestor of k
+    (``ancestor[i, k] = 1``), else 0, and the frame origin moves by ``dp_i = v_i + w_i x p``
+    (the linear part of column i of ``jacobian``). The world-aligned column
+    ``J_k = (v_k + w_k x p; w_k)`` then changes by ``(dv_k + dw_k x p + w_k x dp_i; dw_k)``.
+    """
+    nv = jacobian.shape[1]
+    rows = last_row - first_row
+    selected = np.ascontiguousarray(jacobian[first_row:last_row])
+    wide = rows <= nv
+    size = rows if wide else nv
+    gram = selected @ selected.T if wide else selected.T @ selected
+    trace = 0.0
+    for a in range(size):
+        trace += gram[a, a]
+    # Cholesky gram = L L^T (in place, lower triangle); det(gram) = prod(L_aa)^2
+    factor = gram.copy()
+    determinant = 1.0
+    positive = True
+    for j in range(size):
+        pivot = factor[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if pivot <= 0.0:
+            positive = False
+            break
+        factor[j, j] = math.sqrt(pivot)
+        determinant *= pivot
+        for a in range(j + 1, size):
+            total = factor[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total / factor[j, j]
+    weights = np.zeros((rows, nv))  # G
+    if positive and determinant > GRAM_CONDITION * (trace / size) ** size:
+        value = math.sqrt(determinant)
+        # solve gram X = B by forward / back substitution; wide: B = J, G = m X;
+        # tall: B = J^T, G = m X^T
+        columns = nv if wide else rows
+        y = np.empty(size)
+        for col in range(columns):
+            for a in range(size):
+                total = selected[a, col] if wide else selected[col, a]
+                for p in range(a):
+                    total -= factor[a, p] * y[p]
+                y[a] = total / factor[a, a]
+            for a in range(size - 1, -1, -1):
+                total = y[a]
+                for p in range(a + 1, size):
+                    total -= factor[p, a] * y[p]
+                y[a] = total / factor[a, a]
+            for a in range(size):
+                if wide:
+                    weights[a, col] = value * y[a]
+                else:
+                    weights[col, a] = value * y[a]
+    else:
+        u, s, vt = np.linalg.svd(selected, full_matrices=False)
+        value = 1.0
+        for a in range(len(s)):
+            value *= s[a]
+        for l in range(len(s)):
+            others = 1.0
+            for p in range(len(s)):
+                if p != l:
+                    others *= s[p]
+            for a in range(rows):
+                for k in range(nv):
+                    weights[a, k] += others * u[a, l] * vt[l, k]
+    # contraction with dJ/dq_i
+    px, py, pz = origin[0], origin[1], origin[2]
+    linear, angular = first_row == 0, last_row == 6
+    offset = 3 - first_row  # row of G holding the first angular row
+    for i in range(nv):
+        gradient[i] = 0.0
+        if support[i] == 0.0:
+            continue
+        vi0, vi1, vi2 = joint_jacobians[0, i], joint_jacobians[1, i], joint_jacobians[2, i]
+        wi0, wi1, wi2 = joint_jacobians[3, i], joint_jacobians[4, i], joint_jacobians[5, i]
+        dp0, dp1, dp2 = jacobian[0, i], jacobian[1, i], jacobian[2, i]
+        total = 0.0
+        for k in range(nv):
+            if support[k] == 0.0:
+                continue
+            vk0, vk1, vk2 = joint_jacobians[0, k], joint_jacobians[1, k], joint_jacobians[2, k]
+            wk0, wk1, wk2 = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
+            if ancestor[i, k] != 0.0:
+                dw0, dw1, dw2 = wi1 * wk2 - wi2 * wk1, wi2 * wk0 - wi0 * wk2, wi0 * wk1 - wi1 * wk0
+                dv0 = wi1 * vk2 - wi2 * vk1 + vi1 * wk2 - vi2 * wk1
+                dv1 = wi2 * vk0 - wi0 * vk2 + vi2 * wk0 - vi0 * wk2
+                dv2 = wi0 * vk1 - wi1 * vk0 + vi0 * wk1 - vi1 * wk0
+            else:
+                dw0 = dw1 = dw2 = dv0 = dv1 = dv2 = 0.0
+            if linear:
+                d0 = dv0 + dw1 * pz - dw2 * py + wk1 * dp2 - wk2 * dp1
+                d1 = dv1 + dw2 * px - dw0 * pz + wk2 * dp0 - wk0 * dp2
+                d2 = dv2 + dw0 * py - dw1 * px + wk0 * dp1 - wk1 * dp0
+                total += weights[0, k] * d0 + weights[1, k] * d1 + weights[2, k] * d2
+            if angular:
+                total += weights[offset, k] * dw0 + weights[offset + 1, k] * dw1 + weights[offset + 2, k] * dw2
+        gradient[i] = total
+    return value

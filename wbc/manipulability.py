@@ -34,11 +34,11 @@ import math
 import numpy as np
 from scipy.linalg.lapack import dgesvd, dposv
 
+from . import kernels
 from .errors import InvalidInputError
 from .kinematics import Kinematics
 from .robot import Robot
 
-_GRAM_CONDITION = 1e-8  # det(gram) above this times (mean eigenvalue)^size: closed form is accurate
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
@@ -58,6 +58,11 @@ class Manipulability:
     :meth:`compute` reads an already updated :class:`~wbc.kinematics.Kinematics`
     (the controller's, on the hot path) and leaves the results in :attr:`value`
     and :attr:`gradient` (size nv, overwritten in place).
+
+    When every joint between the root and the frame has one DOF (all shipped models), the
+    whole evaluation is one compiled call (:func:`wbc.kernels.manipulability_gradient`,
+    ``dJ/dq`` from the joint Jacobians); otherwise the derivative comes from Pinocchio's
+    kinematic Hessian.
     """
 
     def __init__(self, robot: Robot, frame: str, rows: str = "all") -> None:
@@ -72,6 +77,22 @@ class Manipulability:
         self._weights_t = np.zeros((robot.nv, 6))
         self._weighted_t = self._weights_t[:, self._rows]
         self._wide = (self._rows.stop - self._rows.start) <= robot.nv
+        model = robot.model
+        frame_data = model.frames[self.frame_id]
+        self._joint_id = frame_data.parentJoint
+        chain = list(model.supports[self._joint_id])[1:]
+        self._compiled = all(model.joints[j].nv == 1 for j in chain)
+        self._local = np.concatenate([frame_data.placement.rotation.ravel(), frame_data.placement.translation])
+        self._support = np.zeros(robot.nv)
+        self._ancestor = np.zeros((robot.nv, robot.nv))  # 1 where joint of i is a strict ancestor of k's
+        for position, joint_id in enumerate(chain):
+            k = model.joints[joint_id].idx_v
+            self._support[k] = 1.0
+            for ancestor_id in chain[:position]:
+                self._ancestor[model.joints[ancestor_id].idx_v, k] = 1.0
+        self._jacobian = np.zeros((6, robot.nv))
+        self._origin = np.zeros(3)
+        self._kin: Kinematics | None = None
 
     def compute(self, kin: Kinematics) -> float:
         """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``.
@@ -80,6 +101,17 @@ class Manipulability:
         from one small Gram matrix (``det`` and ``solve``); near a singularity, where
         that loses accuracy, the SVD form.
         """
+        if self._compiled:
+            if kin is not self._kin:  # live views of this Kinematics' joint data
+                self._kin = kin
+                self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
+            joint_jacobians, rotation, translation = self._views
+            kernels.frame_jacobian(joint_jacobians, rotation, translation, self._local, self._support,
+                                   self._jacobian, self._origin)
+            self.value = kernels.manipulability_gradient(
+                joint_jacobians, self._jacobian, self._origin, self._support, self._ancestor,
+                self._rows.start, self._rows.stop, self.gradient)
+            return self.value
         jacobian = kin.frame_jacobian(self.frame_id)[self._rows]  # C-contiguous rows
         wide = self._wide
         gram = jacobian.dot(jacobian.T) if wide else jacobian.T.dot(jacobian)
@@ -90,7 +122,7 @@ class Manipulability:
         determinant = math.prod(factor.ravel(order="K")[:: size + 1].tolist()) ** 2 if info == 0 else 0.0
         flat = jacobian.ravel()
         mean_eigenvalue = flat.dot(flat) / size  # trace(gram) = |J|_F^2
-        if determinant > _GRAM_CONDITION * mean_eigenvalue**size:
+        if determinant > kernels.GRAM_CONDITION * mean_eigenvalue**size:
             self.value = math.sqrt(determinant)
             # G = m (J J^T)^-1 J  (wide)  or  m J (J^T J)^-1 = m ((J^T J)^-1 J^T)^T  (tall)
             np.multiply(solution.T if wide else solution, self.value, out=self._weighted_t)
