@@ -26,6 +26,7 @@ from .constraints.constraint import Constraint, ConstraintRows
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
+from .program import TickProgram
 from .qp import QP
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
@@ -127,7 +128,7 @@ class Controller:
             if task is (preview[0] if preview else None):
                 start = n_plain
             stop = start + task.dim
-            block = (task, self._stack[start:stop, :nv], self._stack[start:stop, nv])
+            block = (task, self._stack[start:stop, :nv], self._stack[start:stop, nv], start)
             task.write_static(block[1])
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
@@ -181,6 +182,7 @@ class Controller:
         self._soft_rows = np.array(soft_rows, dtype=int)  # indices among the inequality rows
         self._elastic = None  # DAQP workspace of the fallback, built on first use
         self._preview = np.zeros(nv)
+        self._build_program(n_soft)
 
         self._nonholonomic = robot.base.is_nonholonomic
         self._S = robot.input_map(robot.neutral())
@@ -194,6 +196,32 @@ class Controller:
             self._coupled_v = np.setdiff1d(np.arange(nv), unit_rows)  # base x, y: no bounds allowed
         else:
             self.qp = qp
+
+    def _build_program(self, n_soft: int) -> None:
+        """The compiled part of the tick (wbc.program): tasks and constraints that have ops,
+        the normal equations, and -- in the usual case of one soft bound constraint clipped
+        into fixed hard bounds, no preview task -- the bound merge and the NaN screen. What has
+        no op runs in Python before the program (nothing it writes depends on the program)."""
+        kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
+        program = TickProgram()
+        self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
+                              if not task.add_ops(program, kin, self._stack_t, start)]
+        stack = program.array(self._stack_t)
+        program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, self._stack_t.shape[1], self._n_plain,
+                    program.array(qp.Hc))
+        self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
+                                    if not constraint.add_ops(program, kin, block)]
+        self._merge_in_program = self._n_hard_bounds >= 1 and n_soft == 1 and not self._hard_dynamic
+        if self._merge_in_program:
+            (soft_upper, soft_lower), (hard_upper, hard_lower) = self._soft_bound_rows, self._hard_bound_rows
+            program.add(kernels.OP_CLIP_BOUNDS, program.array(soft_upper), program.array(soft_lower),
+                        program.array(hard_upper), program.array(hard_lower), program.array(qp.ub),
+                        program.array(qp.lb), nv)
+        self._nan_in_program = self._merge_in_program and not self._preview_blocks
+        if self._nan_in_program:
+            program.add(kernels.OP_HAS_NAN, program.array(qp.data), qp.data.size)
+        self._program = program
+        self._unready = list(self.tasks)  # checked every tick until each one is ready
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
@@ -209,24 +237,28 @@ class Controller:
             q = self.robot.check_configuration(q)
         kin, dt, qp = self.kinematics, self.dt, self._qp_v
         kin.update(q)
+        if self._unready:
+            self._check_ready()
 
-        for task, jacobian, target in self._task_blocks:
+        for task, jacobian, target in self._python_tasks:
             task.compute(kin, dt, jacobian, target)
-        kernels.normal_equations(self._stack_t, self._n_plain, qp.Hc)
-        if self._preview_blocks:
-            self._add_preview_tasks(kin, dt, qp)
-
-        for constraint, block in self._constraint_blocks:
+        for constraint, block in self._python_constraints:
             constraint.compute(kin, dt, block)
-        self._merge_bounds(qp)
         if qp.n_eq:
             qp.sync_equalities()
+        has_nan = self._program.run(dt)  # compiled tasks and constraints, normal equations, ...
+        if self._preview_blocks:
+            self._add_preview_tasks(kin, dt, qp)
+        if not self._merge_in_program:
+            self._merge_bounds(qp)
+        if not self._nan_in_program:
+            has_nan = qp.has_nan()
 
         if self._nonholonomic:
             S = self.robot.input_map(q, out=self._S)
             if self.reduced:
                 self._reduce(S)
-        if qp.has_nan():
+        if has_nan:
             solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
         else:
             solution = self.solver.solve(self.qp)
@@ -244,6 +276,11 @@ class Controller:
         self.last = TickDiagnostics(self, self._tick, solution.status, solution.status == "optimal",
                                     solution.solve_time, time.perf_counter() - start, v, u)
         return v
+
+    def _check_ready(self) -> None:
+        for task in self._unready:
+            task.check_ready()
+        self._unready = []
 
     def _intersect_hard_bounds(self) -> None:
         if self._n_hard_bounds > 1:
@@ -314,7 +351,7 @@ class Controller:
         """Holonomic relaxation of the plain tasks, then the rows of the preview tasks."""
         self._preview[:] = np.linalg.solve(qp.H, qp.c)
         np.negative(self._preview, out=self._preview)
-        for task, jacobian, target in self._preview_blocks:
+        for task, jacobian, target, _ in self._preview_blocks:
             task.compute_preview(kin, dt, jacobian, target, self._preview)
         rows = self._preview_rows
         qp.H += rows[:, :-1].T @ rows[:, :-1]

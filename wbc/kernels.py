@@ -18,7 +18,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 # -------------------------------------------------------------------- SO(3)
 
@@ -69,14 +70,14 @@ FRAME_TARGET_ROTATION = slice(12, 21)  # target orientation R* (row-major)
 FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
 FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
 FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
-FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain / dt [1/s], [m/s], [rad/s]
+FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain in (0, 1], [m/s], [rad/s]
 FRAME_SCRATCH = slice(39, 48)  # R* R^T, written by the kernel
 FRAME_PARAMETERS = 48
 
 
 @njit(cache=True, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
-                    support: np.ndarray, parameters: np.ndarray, error: np.ndarray, jacobian: np.ndarray,
+                    support: np.ndarray, parameters: np.ndarray, dt: float, error: np.ndarray, jacobian: np.ndarray,
                     target: np.ndarray) -> None:
     """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
 
@@ -90,7 +91,7 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
     """
     Rf, pf, Rt, pt = parameters[0:9], parameters[9:12], parameters[12:21], parameters[21:24]
     weights, feedforward = parameters[24:30], parameters[30:36]
-    gain, max_speed, max_angular_speed = parameters[36], parameters[37], parameters[38]
+    gain, max_speed, max_angular_speed = parameters[36] / dt, parameters[37], parameters[38]
     relative = parameters[39:48]
     Ri = joint_rotation
     # frame position p = R_i p_f + p_i and the position error
@@ -129,12 +130,13 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
 
 
 @njit(cache=True, nogil=True)
-def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray, error: np.ndarray,
+def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray, dt: float, error: np.ndarray,
                  target: np.ndarray) -> None:
-    """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``."""
+    """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
+    (``gain_weights = W gain``)."""
     for i in range(len(q)):
         error[i] = reference[i] - q[i]
-        target[i] = gain_weights[i] * error[i]
+        target[i] = gain_weights[i] / dt * error[i]
 
 
 # ------------------------------------------------------------- constraints
@@ -329,3 +331,92 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
                 total += weights[offset, k] * dw0 + weights[offset + 1, k] * dw1 + weights[offset + 2, k] * dw2
         gradient[i] = total
     return value
+
+
+@njit(cache=True, nogil=True)
+def has_nan(data: np.ndarray) -> bool:
+    """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
+    for value in data:
+        if value != value:
+            return True
+    return False
+
+
+# ------------------------------------------------------------- tick program
+#
+# One compiled call runs every compiled part of a tick. Its operands are registered once
+# (wbc.program.TickProgram) as C-contiguous float64 arrays and handed over by address:
+# entering a numba function costs ~0.1 us per array argument, a dozen arrays would cost
+# more than the arithmetic. Each program row is [opcode, operands...] (array indices and
+# sizes); the layouts are those of the kernels above.
+
+OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN = range(1, 7)
+
+
+@intrinsic
+def _as_pointer(typingctx, address):
+    """The float64 pointer at integer ``address`` (registered arrays only: see TickProgram)."""
+    signature = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return signature, codegen
+
+
+@njit(inline="always")
+def _vector(addresses: np.ndarray, index: int, size: int) -> np.ndarray:
+    return carray(_as_pointer(addresses[index]), (size,))
+
+
+@njit(inline="always")
+def _matrix(addresses: np.ndarray, index: int, rows: int, columns: int) -> np.ndarray:
+    return carray(_as_pointer(addresses[index]), (rows, columns))
+
+
+@njit(cache=True, nogil=True)
+def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
+    """Run the rows of ``program`` in order; returns True when a HAS_NAN row found a NaN.
+
+    Rows (array operands by index into ``addresses``):
+
+    * FRAME_TASK: J^T (nv x 6), R^T (3 x 3), p (3), support (nv), parameters, error (6),
+      stack A^T ((nv + 1) x rows), first row, nv, rows
+    * POSTURE: q (dim), reference (dim), W gain (dim), error (dim), stack, first row, dim, nv, rows
+    * POSITION_LIMITS: q (k), lower limit, upper limit, gain (1), lower out, upper out, k
+    * NORMAL_EQUATIONS: stack, nv, rows, rows used, Hc ((nv + 1) x nv)
+    * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
+    * HAS_NAN: data, size
+    """
+    found_nan = False
+    for r in range(program.shape[0]):
+        op = program[r]
+        code = op[0]
+        if code == OP_FRAME_TASK:
+            nv, rows, start = op[9], op[10], op[8]
+            stack_t = _matrix(addresses, op[7], nv + 1, rows)
+            frame_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                            _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
+                            _vector(addresses, op[5], FRAME_PARAMETERS), dt, _vector(addresses, op[6], 6),
+                            stack_t[:nv, start:start + 6].T, stack_t[nv, start:start + 6])
+        elif code == OP_POSTURE:
+            start, dim, nv, rows = op[6], op[7], op[8], op[9]
+            stack_t = _matrix(addresses, op[5], nv + 1, rows)
+            posture_rows(_vector(addresses, op[1], dim), _vector(addresses, op[2], dim),
+                         _vector(addresses, op[3], dim), dt, _vector(addresses, op[4], dim),
+                         stack_t[nv, start:start + dim])
+        elif code == OP_POSITION_LIMITS:
+            k = op[7]
+            position_limit_bounds(_vector(addresses, op[1], k), _vector(addresses, op[2], k),
+                                  _vector(addresses, op[3], k), _vector(addresses, op[4], 1)[0], dt,
+                                  _vector(addresses, op[5], k), _vector(addresses, op[6], k))
+        elif code == OP_NORMAL_EQUATIONS:
+            nv, rows = op[2], op[3]
+            normal_equations(_matrix(addresses, op[1], nv + 1, rows), op[4], _matrix(addresses, op[5], nv + 1, nv))
+        elif code == OP_CLIP_BOUNDS:
+            n = op[7]
+            clip_bounds(_vector(addresses, op[1], n), _vector(addresses, op[2], n), _vector(addresses, op[3], n),
+                        _vector(addresses, op[4], n), _vector(addresses, op[5], n), _vector(addresses, op[6], n))
+        elif code == OP_HAS_NAN:
+            found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
+    return found_nan

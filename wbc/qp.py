@@ -10,10 +10,11 @@ directly -- so ``G, h, A, b, lb, ub`` are views and no backend has to copy.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
+
+from . import kernels
 
 
 @dataclass
@@ -51,12 +52,8 @@ class QP:
         self.A, self.b = self.C[p:], self.upper[n + p :]
 
     def has_nan(self) -> bool:
-        """True when any matrix, vector or bound holds a NaN (a bug upstream, never solved).
-
-        One dot product: ``sum x_i^2`` is NaN iff some ``x_i`` is (infinite bounds and
-        overflow give +inf, never NaN, because every term is >= 0).
-        """
-        return math.isnan(self.data.dot(self.data))
+        """True when any matrix, vector or bound holds a NaN (a bug upstream, never solved)."""
+        return kernels.has_nan(self.data)
 
     @property
     def has_bounds(self) -> bool:

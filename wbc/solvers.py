@@ -196,10 +196,10 @@ class DaqpBackend(QPSolver):
             self._model = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
-        if exitflag < 1 or not _finite(x):
-            self._model = None  # never warm start from a failed solve
-            return QPSolution(None, False, _DAQP_EXITFLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)
-        return QPSolution(x, True, "optimal", elapsed)
+        if exitflag >= 1 and math.isfinite(x.dot(x)):  # NaN, inf or overflow: never returned
+            return QPSolution(x, True, "optimal", elapsed)
+        self._model = None  # never warm start from a failed solve
+        return QPSolution(None, False, _DAQP_EXITFLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)
 
 
 _DAQP_EXITFLAGS = {

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 
 
@@ -62,6 +63,12 @@ class Constraint(ABC):
     @abstractmethod
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         """Write this tick's bounds / rows."""
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        """Register this constraint's per-tick work as compiled ops and return True, or return
+        False to be computed by :meth:`compute` every tick (the default). The ops must
+        compute exactly what :meth:`compute` would."""
+        return False
 
     def row_labels(self) -> list[str]:
         """Human-readable names of the inequality rows, then of the equality rows."""

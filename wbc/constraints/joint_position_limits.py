@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import kernels
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain
 from .constraint import Constraint, ConstraintRows
@@ -38,8 +39,12 @@ class JointPositionLimits(Constraint):
     def __init__(self, gain: float = 0.5, name: str | None = None) -> None:
         super().__init__(name)
         self.gain = as_gain(gain)
+        self._gain = np.array([self.gain])  # operand of the compiled op
 
     def bind(self, robot: Robot) -> None:
+        if robot is getattr(self, "_robot", None):
+            return  # a second controller on the same robot: the buffers (compiled into both) stay
+        self._robot = robot
         model = robot.model
         q_index, v_index = [], []
         for joint in model.joints[1:]:
@@ -67,6 +72,17 @@ class JointPositionLimits(Constraint):
             self._out = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
         else:
             self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if type(self).compute is not JointPositionLimits.compute:
+            return False  # a subclass with rows of its own
+        if self._slices is None:
+            return False
+        q_slice, v_slice = self._slices
+        program.add(kernels.OP_POSITION_LIMITS, program.array(kin.q[q_slice]), program.array(self._lower_limit),
+                    program.array(self._upper_limit), program.array(self._gain), program.array(rows.lower[v_slice]),
+                    program.array(rows.upper[v_slice]), len(self._q_index))
+        return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         if rows is not self._rows:

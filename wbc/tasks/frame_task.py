@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import kernels
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from ..errors import InvalidInputError
 from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
@@ -59,9 +60,9 @@ class FrameTask(Task):
         self._weighted_feedforward = self._parameters[kernels.FRAME_WEIGHTED_FEEDFORWARD]
         self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
         self._target_rotation[...] = np.eye(3)
+        self._parameters[kernels.FRAME_GAIN] = self.gain
         self._parameters[kernels.FRAME_MAX_SPEED] = self.max_speed
         self._parameters[kernels.FRAME_MAX_ANGULAR_SPEED] = self.max_angular_speed
-        self._dt: float | None = None
         self._feedforward = np.zeros(6)
         self._kin: Kinematics | None = None
         self._has_target = False
@@ -95,6 +96,9 @@ class FrameTask(Task):
         return pose
 
     def bind(self, robot: Robot) -> None:
+        if robot is getattr(self, "_robot", None):
+            return  # a second controller on the same robot: the buffers (compiled into both) stay
+        self._robot = robot
         self._frame_id = robot.frame_id(self.frame)
         self._keys = (f"{self.name}.position", f"{self.name}.orientation")
         model = robot.model
@@ -109,18 +113,29 @@ class FrameTask(Task):
             self._support[joint.idx_v:joint.idx_v + joint.nv] = 1.0
         self._kin = None
 
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+    def check_ready(self) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
-        if dt != self._dt:
-            self._dt = dt
-            self._parameters[kernels.FRAME_GAIN] = self.gain / dt
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
+        if type(self).compute is not FrameTask.compute:
+            return False  # a subclass with rows of its own
+        rotation, translation = kin.joint_placement(self._joint_id)
+        nv = stack_t.shape[0] - 1
+        # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views
+        program.add(kernels.OP_FRAME_TASK, program.array(kin.joint_jacobians.T), program.array(rotation.T),
+                    program.array(translation), program.array(self._support), program.array(self._parameters),
+                    program.array(self.error), program.array(stack_t), start, nv, stack_t.shape[1])
+        return True
+
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        self.check_ready()
         if kin is not self._kin:  # live views of this Kinematics' joint data (one task, several controllers)
             self._kin = kin
             self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
         joint_jacobians, joint_rotation, joint_translation = self._views
         kernels.frame_task_rows(joint_jacobians, joint_rotation, joint_translation, self._support,
-                                self._parameters, self.error, jacobian, target)
+                                self._parameters, dt, self.error, jacobian, target)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self._keys[0]] = _norm(self._position_error)

@@ -7,6 +7,7 @@ import pinocchio as pin
 
 from .. import kernels
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from ..errors import InvalidInputError
 from ..validation import as_gain, as_weights
@@ -40,6 +41,8 @@ class PostureTask(Task):
         self.target: np.ndarray | None = None  #: reference configuration, set when bound
 
     def bind(self, robot: Robot) -> None:
+        if robot is self._robot:
+            return  # a second controller on the same robot: the buffers (compiled into both) stay
         model = robot.model
         base = set(robot.base.indices) if robot.base.is_mobile else set()
         if self._joint_spec is None:
@@ -59,19 +62,33 @@ class PostureTask(Task):
         self._weighted_selection = np.zeros((self.dim, robot.nv))
         self._weighted_selection[np.arange(self.dim), self.indices] = self._weights
         self.error = np.zeros(self.dim)
-        self._dt, self._gain_weights = None, self._weights
+        self._gain_weights = self._weights * self.gain  # W gain; the rows use W gain / dt
         # vector-space shortcut: 1-DOF joints (nq = nv) forming one contiguous block of q and v
         q_index = np.array([j.idx_q for j in joints], dtype=int)
         simple = all(j.nq == 1 and j.nv == 1 for j in joints) and self.dim > 0
         contiguous = simple and np.all(np.diff(q_index) == 1) and np.all(np.diff(self.indices) == 1)
         self._q_slice = slice(int(q_index[0]), int(q_index[-1]) + 1) if contiguous else None
         self._q_view: np.ndarray | None = None
+        self.target = np.zeros(robot.nq)
+        self._target_selected = np.zeros(self.dim)
         self._apply_target(robot.neutral() if self._target_spec is None else self._target_spec)
 
     def _apply_target(self, q) -> None:
-        self.target = self._robot.check_configuration(q).copy()
+        # in place: compiled programs hold these buffers
+        self.target[:] = self._robot.check_configuration(q)
         if self._q_slice is not None:
-            self._target_selected = self.target[self._q_slice].copy()
+            self._target_selected[:] = self.target[self._q_slice]
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
+        if type(self).compute is not PostureTask.compute:
+            return False  # a subclass with rows of its own
+        if self._q_slice is None:
+            return False  # pin.difference over general joints: computed in Python
+        nv = stack_t.shape[0] - 1
+        program.add(kernels.OP_POSTURE, program.array(kin.q[self._q_slice]), program.array(self._target_selected),
+                    program.array(self._gain_weights), program.array(self.error), program.array(stack_t),
+                    start, self.dim, nv, stack_t.shape[1])
+        return True
 
     def set_target(self, q) -> None:
         """New reference configuration (size nq)."""
@@ -83,15 +100,14 @@ class PostureTask(Task):
         jacobian[...] = self._weighted_selection
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        if dt != self._dt:
-            self._dt, self._gain_weights = dt, self._weights * (self.gain / dt)
         if self._q_slice is not None:
             if self._q_view is None or self._q_view.base is not kin.q:
                 self._q_view = kin.q[self._q_slice]  # kin.q is updated in place every tick
-            kernels.posture_rows(self._q_view, self._target_selected, self._gain_weights, self.error, target)
+            kernels.posture_rows(self._q_view, self._target_selected, self._gain_weights, dt, self.error, target)
         else:
             np.take(pin.difference(self._model, kin.q, self.target), self.indices, out=self.error)
             np.multiply(self.error, self._gain_weights, out=target)
+            target *= 1.0 / dt
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = _norm(self.error)

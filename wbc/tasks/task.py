@@ -20,6 +20,7 @@ from abc import ABC, abstractmethod
 import numpy as np
 
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 
 
@@ -47,6 +48,19 @@ class Task(ABC):
     @abstractmethod
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         """Write ``W J`` into ``jacobian`` (dim x nv) and ``W r`` into ``target`` (dim)."""
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
+        """Register this task's rows as compiled ops and return True, or return False to be
+        computed by :meth:`compute` every tick (the default).
+
+        The rows are ``start:start + dim`` of the controller's stack ``A = stack_t^T``
+        (``stack_t``: (nv + 1) x rows, C-contiguous; column nv of A holds ``W r``). The ops
+        must compute exactly what :meth:`compute` would.
+        """
+        return False
+
+    def check_ready(self) -> None:
+        """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
 
     @abstractmethod
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:

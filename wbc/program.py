@@ -1,0 +1,55 @@
+"""The compiled part of a control tick: a list of kernel calls run by one native call.
+
+Tasks and constraints that have a kernel (:mod:`wbc.kernels`) register their rows here
+once, when the controller is built (``Task.add_ops`` / ``Constraint.add_ops``); the
+controller appends the assembly (normal equations, bound clip, NaN screen). Each tick
+then costs one call of :func:`wbc.kernels.run_program` for all of it.
+
+Operands are passed by address, so every registered array must outlive the program and
+never be reallocated: :class:`TickProgram` keeps a reference to each, and only accepts
+C-contiguous float64 arrays (views included: they keep their base alive).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+
+_WIDTH = 11  # opcode + the longest operand list
+
+
+class TickProgram:
+    """Rows ``[opcode, operands...]`` over registered arrays (see :func:`wbc.kernels.run_program`)."""
+
+    def __init__(self) -> None:
+        self._arrays: list[np.ndarray] = []
+        self._rows: list[list[int]] = []
+        self._program = np.zeros((0, _WIDTH), dtype=np.int64)
+        self._addresses = np.zeros(0, dtype=np.int64)
+
+    def array(self, array: np.ndarray) -> int:
+        """Register ``array`` (C-contiguous float64, any shape) and return its operand index."""
+        if not isinstance(array, np.ndarray) or array.dtype != np.float64 or not array.flags.c_contiguous:
+            raise TypeError("program operands must be C-contiguous float64 arrays")
+        for index, known in enumerate(self._arrays):
+            if known is array:
+                return index
+        self._arrays.append(array)
+        return len(self._arrays) - 1
+
+    def add(self, opcode: int, *operands: int) -> None:
+        """Append one row; operands are array indices from :meth:`array` and sizes."""
+        row = [opcode, *(int(value) for value in operands)]
+        if len(row) > _WIDTH:
+            raise ValueError(f"a program row holds at most {_WIDTH - 1} operands")
+        self._rows.append(row + [0] * (_WIDTH - len(row)))
+        self._program = np.array(self._rows, dtype=np.int64)
+        self._addresses = np.array([a.ctypes.data for a in self._arrays], dtype=np.int64)
+
+    def __len__(self) -> int:
+        return len(self._rows)
+
+    def run(self, dt: float) -> bool:
+        """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
+        return kernels.run_program(self._program, self._addresses, dt)
