@@ -154,6 +154,16 @@ def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: n
         upper[i] = min(gain * high, high)
 
 
+@njit(cache=True, nogil=True)
+def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray,
+                 x: int, y: int) -> None:
+    """Base-frame rows: columns ``x, y`` of ``G`` = ``cos(q[heading]) A + sin(q[heading]) B``."""
+    c, s = math.cos(q[heading]), math.sin(q[heading])
+    for r in range(G.shape[0]):
+        G[r, x] = c * cos_part[r, 0] + s * sin_part[r, 0]
+        G[r, y] = c * cos_part[r, 1] + s * sin_part[r, 1]
+
+
 # --------------------------------------------------------------- assembly
 
 
@@ -286,18 +296,7 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
                 else:
                     weights[col, a] = value * y[a]
     else:
-        u, s, vt = np.linalg.svd(selected, full_matrices=False)
-        value = 1.0
-        for a in range(len(s)):
-            value *= s[a]
-        for l in range(len(s)):
-            others = 1.0
-            for p in range(len(s)):
-                if p != l:
-                    others *= s[p]
-            for a in range(rows):
-                for k in range(nv):
-                    weights[a, k] += others * u[a, l] * vt[l, k]
+        value = _svd_weights(selected, gram, wide, weights)
     # contraction with dJ/dq_i
     px, py, pz = origin[0], origin[1], origin[2]
     linear, angular = first_row == 0, last_row == 6
@@ -334,6 +333,125 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
 
 
 @njit(cache=True, nogil=True)
+def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
+    """Cyclic Jacobi on the symmetric ``A`` (overwritten, ends diagonal): eigenvectors into the
+    columns of ``V``. Accurate to ~eps / (eigenvalue gap) in the vectors, like LAPACK, and
+    much cheaper for the 3 x 3 to 6 x 6 Gram matrices met here."""
+    n = A.shape[0]
+    for a in range(n):
+        for b in range(n):
+            V[a, b] = 1.0 if a == b else 0.0
+    scale = 0.0
+    for a in range(n):
+        scale += A[a, a] * A[a, a]
+    for _ in range(30):
+        off = 0.0
+        for p in range(n):
+            for r in range(p + 1, n):
+                off += A[p, r] * A[p, r]
+        if off <= 1e-34 * scale:
+            return
+        for p in range(n - 1):
+            for r in range(p + 1, n):
+                apr = A[p, r]
+                if apr == 0.0:
+                    continue
+                theta = (A[r, r] - A[p, p]) / (2.0 * apr)
+                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):
+                    akp, akr = A[k, p], A[k, r]
+                    A[k, p], A[k, r] = c * akp - s * akr, s * akp + c * akr
+                for k in range(n):
+                    apk, ark = A[p, k], A[r, k]
+                    A[p, k], A[r, k] = c * apk - s * ark, s * apk + c * ark
+                for k in range(n):
+                    vkp, vkr = V[k, p], V[k, r]
+                    V[k, p], V[k, r] = c * vkp - s * vkr, s * vkp + c * vkr
+
+
+@njit(cache=True, nogil=True)
+def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np.ndarray) -> float:
+    """``G = sum_l c_l u_l v_l^T`` (``c_l``: product of the other singular values) near a
+    singularity; returns ``m``. The singular vectors on the Gram side come from its
+    eigenvectors; the singular values and the other side from ``J^T u_l`` (wide) or
+    ``J v_l`` (tall), whose norms carry ``s_l`` to ~eps |J| absolute accuracy (the Gram's
+    eigenvalues only to eps |J|^2). Where some ``s_l`` is below 1e-11 |J| that normalisation
+    loses its accuracy: LAPACK's SVD then."""
+    rows, nv = selected.shape
+    size = gram.shape[0]
+    A = gram.copy()
+    vectors = np.empty((size, size))
+    _jacobi_eigenvectors(A, vectors)
+    other = nv if wide else rows
+    projected = np.zeros((other, size))  # column l: J^T u_l (wide) or J v_l (tall)
+    for l in range(size):
+        for k in range(other):
+            total = 0.0
+            for a in range(size):
+                total += (selected[a, k] if wide else selected[k, a]) * vectors[a, l]
+            projected[k, l] = total
+    singular = np.empty(size)
+    largest = 0.0
+    for l in range(size):
+        norm = 0.0
+        for k in range(other):
+            norm += projected[k, l] * projected[k, l]
+        singular[l] = math.sqrt(norm)
+        largest = max(largest, singular[l])
+    smallest = singular.min()
+    if smallest <= 1e-11 * largest:
+        u, s, vt = np.linalg.svd(selected, full_matrices=False)
+        value = 1.0
+        for l in range(len(s)):
+            value *= s[l]
+        for l in range(len(s)):
+            others = 1.0
+            for p in range(len(s)):
+                if p != l:
+                    others *= s[p]
+            for a in range(rows):
+                for k in range(nv):
+                    weights[a, k] += others * u[a, l] * vt[l, k]
+        return value
+    value = 1.0
+    for l in range(size):
+        value *= singular[l]
+    for l in range(size):
+        others = 1.0
+        for p in range(size):
+            if p != l:
+                others *= singular[p]
+        factor = others / singular[l]  # c_l / s_l: the projection has norm s_l
+        for a in range(rows):
+            for k in range(nv):
+                if wide:
+                    weights[a, k] += factor * vectors[a, l] * projected[k, l]
+                else:
+                    weights[a, k] += factor * projected[a, l] * vectors[k, l]
+    return value
+
+
+@njit(cache=True, nogil=True)
+def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
+                origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, state: np.ndarray,
+                first_row: int, last_row: int, dt: float) -> None:
+    """Row of :class:`~wbc.ManipulabilityBarrier`: ``-grad m . v <= gain (m - m_min) / dt``;
+    ``state = (m out, gain, m_min)``."""
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, local, support, jacobian, origin)
+    value = manipulability_gradient(joint_jacobians, jacobian, origin, support, ancestor, first_row, last_row,
+                                    gradient)
+    state[0] = value
+    for i in range(len(gradient)):
+        G[i] = -gradient[i]
+    h[0] = state[1] * (value - state[2]) / dt
+
+
+@njit(cache=True, nogil=True)
 def has_nan(data: np.ndarray) -> bool:
     """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
     for value in data:
@@ -350,7 +468,8 @@ def has_nan(data: np.ndarray) -> bool:
 # more than the arithmetic. Each program row is [opcode, operands...] (array indices and
 # sizes); the layouts are those of the kernels above.
 
-OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN = range(1, 7)
+(OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
+ OP_MANIPULABILITY_BARRIER) = range(1, 9)
 
 
 @intrinsic
@@ -387,6 +506,10 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * NORMAL_EQUATIONS: stack, nv, rows, rows used, Hc ((nv + 1) x nv)
     * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
     * HAS_NAN: data, size
+    * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
+    * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
+      Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
+      state (value out, gain, min value), first row, last row, nv
     """
     found_nan = False
     for r in range(program.shape[0]):
@@ -419,4 +542,15 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
                         _vector(addresses, op[4], n), _vector(addresses, op[5], n), _vector(addresses, op[6], n))
         elif code == OP_HAS_NAN:
             found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
+        elif code == OP_HEADING_ROWS:
+            rows, nq, nv = op[6], op[7], op[8]
+            heading_rows(_matrix(addresses, op[1], rows, 2), _matrix(addresses, op[2], rows, 2),
+                         _vector(addresses, op[3], nq), op[4], _matrix(addresses, op[5], rows, nv), op[9], op[10])
+        elif code == OP_MANIPULABILITY_BARRIER:
+            nv = op[15]
+            barrier_row(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                        _vector(addresses, op[3], 3), _vector(addresses, op[4], 12), _vector(addresses, op[5], nv),
+                        _matrix(addresses, op[6], nv, nv), _matrix(addresses, op[7], 6, nv),
+                        _vector(addresses, op[8], 3), _vector(addresses, op[9], nv), _vector(addresses, op[10], nv),
+                        _vector(addresses, op[11], 1), _vector(addresses, op[12], 3), op[13], op[14], dt)
     return found_nan

@@ -37,6 +37,7 @@ from scipy.linalg.lapack import dgesvd, dposv
 from . import kernels
 from .errors import InvalidInputError
 from .kinematics import Kinematics
+from .program import TickProgram
 from .robot import Robot
 
 
@@ -93,6 +94,18 @@ class Manipulability:
         self._jacobian = np.zeros((6, robot.nv))
         self._origin = np.zeros(3)
         self._kin: Kinematics | None = None
+
+    @property
+    def compiled(self) -> bool:
+        """True when :meth:`compute` is one compiled call (all joints up to the frame have 1 DOF)."""
+        return self._compiled
+
+    def operands(self, program: TickProgram, kin: Kinematics) -> list[int]:
+        """Program operands of :func:`wbc.kernels.barrier_row` up to the gradient (compiled only)."""
+        rotation, translation = kin.joint_placement(self._joint_id)
+        arrays = (kin.joint_jacobians.T, rotation.T, translation, self._local, self._support, self._ancestor,
+                  self._jacobian, self._origin, self.gradient)
+        return [program.array(array) for array in arrays]
 
     def compute(self, kin: Kinematics) -> float:
         """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``.

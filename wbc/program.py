@@ -16,7 +16,7 @@ import numpy as np
 
 from . import kernels
 
-_WIDTH = 11  # opcode + the longest operand list
+_WIDTH = 16  # opcode + the longest operand list
 
 
 class TickProgram:

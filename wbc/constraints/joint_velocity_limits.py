@@ -6,6 +6,7 @@ import numpy as np
 
 from ..kinematics import Kinematics
 from ..robot import Robot
+from ..program import TickProgram
 from .constraint import Constraint, ConstraintRows
 from .heading_rows import HeadingRows
 
@@ -32,26 +33,27 @@ class JointVelocityLimits(Constraint):
             self._linear_limit = base.max_linear_speed
         self.n_inequalities = 4 if self._base_rows else 0
         self._limit = limit
+        if self._base_rows:
+            # rows +-(c xdot + s ydot), +-(-s xdot + c ydot): the (cos; sin) parts of (x, y)
+            cos_part = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+            sin_part = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
+            self._heading_rows = HeadingRows(cos_part, sin_part, self._yaw, self._x, self._y)
 
     def write_static(self, rows: ConstraintRows) -> None:
         np.negative(self._limit, out=rows.lower)
         rows.upper[...] = self._limit
         rows.h.fill(self._linear_limit if self._base_rows else 0.0)
-        self._attach(rows)
 
-    def _attach(self, rows: ConstraintRows) -> None:
-        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if type(self).compute is not JointVelocityLimits.compute:
+            return False  # a subclass with rows of its own
         if self._base_rows:
-            # rows +-(c xdot + s ydot), +-(-s xdot + c ydot): the (cos; sin) parts of (x, y)
-            cos_part = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-            sin_part = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
-            self._heading_rows = HeadingRows(cos_part, sin_part, rows.G, self._x, self._y)
+            self._heading_rows.add_op(program, kin, rows.G)
+        return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         if self._base_rows:
-            if rows is not self._rows:
-                self._attach(rows)
-            self._heading_rows.write(kin.q[self._yaw])
+            self._heading_rows.write(kin.q, rows.G)
 
     def row_labels(self) -> list[str]:
         return ["base v_x upper", "base v_x lower", "base v_y upper", "base v_y lower"][: self.n_inequalities]

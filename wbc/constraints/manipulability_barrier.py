@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
+from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
 from .constraint import Constraint, ConstraintRows
@@ -56,14 +58,28 @@ class ManipulabilityBarrier(Constraint):
         row_selection(rows)
         self.rows = rows
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self.value = float("nan")  #: m at the last tick
+        self._state = np.array([np.nan, self.gain, self.min_value])  # (m at the last tick, gain, m_min)
+
+    @property
+    def value(self) -> float:
+        """``m`` at the last tick (NaN before the first)."""
+        return float(self._state[0])
 
     def bind(self, robot: Robot) -> None:
         self._manipulability = Manipulability(robot, self.frame, self.rows)
 
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if type(self).compute is not ManipulabilityBarrier.compute or not self._manipulability.compiled:
+            return False
+        selected = row_selection(self.rows)
+        program.add(kernels.OP_MANIPULABILITY_BARRIER, *self._manipulability.operands(program, kin),
+                    program.array(rows.G[0]), program.array(rows.h[0:1]), program.array(self._state),
+                    selected.start, selected.stop, kin.model.nv)
+        return True
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         manipulability = self._manipulability
-        self.value = manipulability.compute(kin)
+        self._state[0] = manipulability.compute(kin)
         np.negative(manipulability.gradient, out=rows.G[0])
         rows.h[0] = self.gain * (self.value - self.min_value) / dt
 

@@ -9,6 +9,7 @@ from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..validation import as_positive
+from ..program import TickProgram
 from .constraint import Constraint, ConstraintRows
 from .heading_rows import HeadingRows
 
@@ -44,27 +45,27 @@ class WheelSpeedLimits(Constraint):
         self._x, self._y, self._heading = base.indices
         self.n_wheels = self._H0.shape[0]
         self.n_inequalities = 2 * self.n_wheels
+        # du/d(xdot, ydot) = H0_xy R(heading)^T with R^T = [[c, s], [-s, c]]:
+        # c H0_xy + s H0_xy [[0, 1], [-1, 0]], for the forward rows and negated for the backward ones
+        forward = self._H0[:, :2]
+        turned = forward @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+        self._heading_rows = HeadingRows(np.vstack([forward, -forward]), np.vstack([turned, -turned]),
+                                         self._heading, self._x, self._y)
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.h.fill(self.max_speed)
         n, G = self.n_wheels, rows.G
         G[:n, self._heading] = self._H0[:, 2]
         G[n:, self._heading] = -self._H0[:, 2]
-        self._attach(rows)
 
-    def _attach(self, rows: ConstraintRows) -> None:
-        # du/d(xdot, ydot) = H0_xy R(heading)^T with R^T = [[c, s], [-s, c]]:
-        # c H0_xy + s H0_xy [[0, 1], [-1, 0]], for the forward rows and negated for the backward ones
-        forward = self._H0[:, :2]
-        turned = forward @ np.array([[0.0, 1.0], [-1.0, 0.0]])
-        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
-        self._heading_rows = HeadingRows(np.vstack([forward, -forward]), np.vstack([turned, -turned]),
-                                         rows.G, self._x, self._y)
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if type(self).compute is not WheelSpeedLimits.compute:
+            return False  # a subclass with rows of its own
+        self._heading_rows.add_op(program, kin, rows.G)
+        return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        if rows is not self._rows:
-            self._attach(rows)
-        self._heading_rows.write(kin.q[self._heading])
+        self._heading_rows.write(kin.q, rows.G)
 
     def row_labels(self) -> list[str]:
         return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]
