@@ -379,8 +379,8 @@ def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np
     singularity; returns ``m``. The singular vectors on the Gram side come from its
     eigenvectors; the singular values and the other side from ``J^T u_l`` (wide) or
     ``J v_l`` (tall), whose norms carry ``s_l`` to ~eps |J| absolute accuracy (the Gram's
-    eigenvalues only to eps |J|^2). Where some ``s_l`` is below 1e-11 |J| that normalisation
-    loses its accuracy: LAPACK's SVD then."""
+    eigenvalues only to eps |J|^2), relatively ~eps |J| / s_l. Where some ``s_l`` is below 1e-7 |J|
+    (relative error above ~1e-9): LAPACK's SVD then."""
     rows, nv = selected.shape
     size = gram.shape[0]
     A = gram.copy()
@@ -403,7 +403,7 @@ def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np
         singular[l] = math.sqrt(norm)
         largest = max(largest, singular[l])
     smallest = singular.min()
-    if smallest <= 1e-11 * largest:
+    if smallest <= 1e-7 * largest:
         u, s, vt = np.linalg.svd(selected, full_matrices=False)
         value = 1.0
         for l in range(len(s)):
@@ -455,7 +455,7 @@ def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_t
 def has_nan(data: np.ndarray) -> bool:
     """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
     for value in data:
-        if value != value:
+        if math.isnan(value):
             return True
     return False
 

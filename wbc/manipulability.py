@@ -40,7 +40,6 @@ from .kinematics import Kinematics
 from .program import TickProgram
 from .robot import Robot
 
-
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
 

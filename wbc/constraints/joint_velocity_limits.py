@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import Kinematics
-from ..robot import Robot
 from ..program import TickProgram
+from ..robot import Robot
 from .constraint import Constraint, ConstraintRows
 from .heading_rows import HeadingRows
 

@@ -7,9 +7,9 @@ import numpy as np
 from ..base import BaseKind
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_positive
-from ..program import TickProgram
 from .constraint import Constraint, ConstraintRows
 from .heading_rows import HeadingRows
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from .. import kernels
+from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
-from ..errors import InvalidInputError
 from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
 from .task import Task, _norm
 

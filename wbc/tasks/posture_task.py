@@ -6,10 +6,10 @@ import numpy as np
 import pinocchio as pin
 
 from .. import kernels
+from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
-from ..errors import InvalidInputError
 from ..validation import as_gain, as_weights
 from .task import Task, _norm
 

@@ -1,0 +1,170 @@
+"""The compiled kernels and the tick program compute what Pinocchio and the plain formulas compute."""
+
+import importlib
+import sys
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import TASKS
+
+import wbc
+from wbc import kernels
+from wbc.constraints.constraint import Constraint
+from wbc.kinematics import Kinematics
+from wbc.program import TickProgram
+from wbc.scenario import load_scenario
+from wbc.tasks.task import Task
+
+importlib.import_module("wbc.manipulability")
+manipulability_module = sys.modules["wbc.manipulability"]  # wbc.manipulability is the function
+
+MODELS = [("youbot", "ee"), ("deluca_mm", "wrist_center"), ("scorbot_er4pc", "ee"), ("puma560", "wrist_center")]
+
+
+def rotation_vectors(rng, count):
+    """Angles spread over [0, pi], with clusters next to 0 and next to pi."""
+    axes = rng.standard_normal((count, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = np.concatenate([rng.uniform(0, np.pi, count - 2 * (count // 3)),
+                             10.0 ** rng.uniform(-12, -2, count // 3),
+                             np.pi - 10.0 ** rng.uniform(-12, -2, count // 3)])
+    return axes * angles[:, None]
+
+
+def test_log3_inverts_exp3_over_the_whole_angle_range(rng):
+    out = np.zeros(3)
+    for w in rotation_vectors(rng, 3000):
+        R = pin.exp3(w)
+        kernels.log3(R.ravel(), out)
+        np.testing.assert_allclose(pin.exp3(out), R, rtol=0, atol=2e-15)
+        assert np.linalg.norm(out) <= np.pi + 1e-15
+        if np.linalg.norm(w) < 3.0:  # unique vector, well conditioned (1 / sin(angle)): Pinocchio's
+            np.testing.assert_allclose(out, pin.log3(R), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("name, frame", MODELS)
+def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
+    robot = wbc.load_robot(name)
+    task = wbc.FrameTask(frame, [1.0, 2.0, 3.0], [0.5, 0.25, 4.0], gain=0.3, max_speed=0.2, max_angular_speed=0.5)
+    task.bind(robot)
+    kin = Kinematics(robot)
+    W = np.sqrt([1.0, 2.0, 3.0, 0.5, 0.25, 4.0])
+    dt = 0.01
+    for _ in range(20):
+        q = robot.random_configuration(rng)
+        data = robot.model.createData()
+        pin.computeJointJacobians(robot.model, data, q)
+        frame_id = robot.frame_id(frame)
+        placement = pin.updateFramePlacement(robot.model, data, frame_id)
+        # orientation errors up to 2.5 rad (log3 near pi is tested above)
+        w = rng.standard_normal(3)
+        w *= rng.uniform(0, 2.5) / np.linalg.norm(w)
+        target = pin.SE3(pin.exp3(w) @ placement.rotation, rng.uniform(-1, 1, 3))
+        twist = rng.standard_normal(6)
+        task.set_target(target.homogeneous, twist)
+        kin.update(q)
+        jacobian, rows = np.zeros((6, robot.nv)), np.zeros(6)
+        task.compute(kin, dt, jacobian, rows)
+
+        J = pin.getFrameJacobian(robot.model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+        error = np.concatenate([target.translation - placement.translation,
+                                pin.log3(target.rotation @ placement.rotation.T)])
+        feedback = 0.3 / dt * error
+        for part, limit in ((slice(0, 3), 0.2), (slice(3, 6), 0.5)):
+            norm = np.linalg.norm(feedback[part])
+            if norm > limit:
+                feedback[part] *= limit / norm
+        np.testing.assert_allclose(task.error, error, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jacobian, W[:, None] * J, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rows, W * (feedback + twist), rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("name, frame", MODELS)
+@pytest.mark.parametrize("rows", ["all", "position", "orientation"])
+def test_compiled_manipulability_is_the_kinematic_hessian_form(name, frame, rows, rng):
+    """dJ/dq from motion cross products (compiled) vs Pinocchio's kinematic Hessian, on random
+    configurations and, for the youBot, next to its gripper-vertical singular set."""
+    robot = wbc.load_robot(name)
+    compiled = manipulability_module.Manipulability(robot, frame, rows)
+    reference = manipulability_module.Manipulability(robot, frame, rows)
+    assert compiled.compiled
+    reference._compiled = False
+    kin = Kinematics(robot)
+    for k in range(40):
+        q = robot.random_configuration(rng)
+        if name == "youbot" and k % 2:
+            q[6] = -(q[4] + q[5]) + 10.0 ** rng.uniform(-8, -2)  # s_min from ~1e-8 to ~1e-2
+        kin.update(q)
+        value = compiled.compute(kin)
+        expected = reference.compute(kin)
+        scale = max(np.abs(reference.gradient).max(), 1e-9)
+        assert value == pytest.approx(expected, rel=1e-9, abs=1e-15)
+        np.testing.assert_allclose(compiled.gradient, reference.gradient, rtol=0, atol=1e-8 * scale + 1e-14)
+
+
+def _python_only(monkeypatch):
+    """Every task and constraint computed by its Python compute (no compiled ops)."""
+    classes = {Task, Constraint}
+    while True:
+        more = {sub for cls in classes for sub in cls.__subclasses__()} - classes
+        if not more:
+            break
+        classes |= more
+    for cls in classes:
+        if "add_ops" in vars(cls):
+            monkeypatch.setattr(cls, "add_ops", lambda self, *args: False)
+
+
+@pytest.mark.parametrize("path", sorted(TASKS.glob("*.toml")), ids=lambda p: p.stem)
+def test_the_program_computes_what_the_python_path_computes(path: Path, monkeypatch):
+    """Same scenario, same ticks: the compiled program (operands by address, rows at offsets)
+    and the per-item Python path give the same QP and the same command."""
+    compiled = load_scenario(path)
+    controller = compiled.make_controller("daqp")
+    compiled_items = (len(controller._task_blocks) - len(controller._python_tasks)
+                      + len(controller._constraint_blocks) - len(controller._python_constraints))
+    assert compiled_items > 0, "the shipped stacks have compiled ops"
+    with monkeypatch.context() as patch:
+        _python_only(patch)
+        plain = load_scenario(path)
+        reference = plain.make_controller("daqp")
+    assert len(reference._python_tasks) == len(reference._task_blocks)
+    assert len(reference._python_constraints) == len(reference._constraint_blocks)
+    q = compiled.q0.copy()
+    for k in range(0, compiled.ticks, max(1, compiled.ticks // 25)):
+        for scenario in (compiled, plain):
+            scenario.reference_task.set_target(*scenario.reference(k * scenario.dt))
+        v = controller.step(q)
+        v_reference = reference.step(q)
+        np.testing.assert_allclose(controller._qp_v.data, reference._qp_v.data, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(v, v_reference, rtol=0, atol=1e-9)
+        q = compiled.robot.integrate(q, v, compiled.dt)
+
+
+def test_a_subclass_with_its_own_compute_is_not_compiled(youbot):
+    class Halved(wbc.FrameTask):
+        def compute(self, kin, dt, jacobian, target):
+            super().compute(kin, dt, jacobian, target)
+            target *= 0.5
+
+    task, halved = wbc.FrameTask("ee"), Halved("ee")
+    for t in (task, halved):
+        t.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+    q = youbot.neutral()
+    q[4] = 0.4
+    full = wbc.Controller(youbot, [task]).step(q)
+    half = wbc.Controller(youbot, [halved]).step(q)
+    assert np.abs(full).max() > 1e-3
+    np.testing.assert_allclose(half, 0.5 * full, rtol=1e-6, atol=1e-9)
+
+
+def test_program_operands_must_be_contiguous_float64():
+    program = TickProgram()
+    with pytest.raises(TypeError):
+        program.array(np.zeros((3, 4))[:, 1])
+    with pytest.raises(TypeError):
+        program.array(np.zeros(3, dtype=np.float32))
+    base = np.zeros(5)
+    assert program.array(base) == program.array(base) == 0  # registered once
