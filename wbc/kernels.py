@@ -6,8 +6,10 @@ hottest tasks and constraints, and of the QP assembly, in one native call each (
 to enter). Pinocchio still computes the kinematics: the kernels read its joint
 placements and joint Jacobians in place (see :class:`wbc.kinematics.Kinematics`).
 
-They are compiled on first use and cached on disk (``cache=True``), so only the first
-process after an install pays the compilation (a few seconds).
+Each kernel has one explicit signature (float64 arrays of any memory layout), so all are
+compiled when this module is imported -- never inside a control tick -- and cached on disk
+(``cache=True``): only the first import after an install pays the compilation (~10 s);
+later imports load the machine code (~0.3 s).
 
 Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
 rotation matrices row-major 3x3.
@@ -24,7 +26,7 @@ from numba.extending import intrinsic
 # -------------------------------------------------------------------- SO(3)
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:], float64[:])", cache=True, nogil=True)
 def log3(R: np.ndarray, out: np.ndarray) -> None:
     """``out = log(R)``: the rotation vector (axis * angle, angle in [0, pi]) of the rotation
     ``R`` given row-major as 9 numbers.
@@ -75,7 +77,7 @@ FRAME_SCRATCH = slice(39, 48)  # R* R^T, written by the kernel
 FRAME_PARAMETERS = 48
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64, float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                     support: np.ndarray, parameters: np.ndarray, dt: float, error: np.ndarray, jacobian: np.ndarray,
                     target: np.ndarray) -> None:
@@ -129,7 +131,7 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
             target[a] = weights[a] * (scale * error[a]) + feedforward[a]
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True, nogil=True)
 def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray, dt: float, error: np.ndarray,
                  target: np.ndarray) -> None:
     """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
@@ -142,7 +144,7 @@ def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray,
 # ------------------------------------------------------------- constraints
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=True, nogil=True)
 def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
                           dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
     """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
@@ -154,7 +156,7 @@ def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: n
         upper[i] = min(gain * high, high)
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=True, nogil=True)
 def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray,
                  x: int, y: int) -> None:
     """Base-frame rows: columns ``x, y`` of ``G`` = ``cos(q[heading]) A + sin(q[heading]) B``."""
@@ -167,7 +169,7 @@ def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, head
 # --------------------------------------------------------------- assembly
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], int64, float64[:, :])", cache=True, nogil=True)
 def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
     """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
 
@@ -189,7 +191,7 @@ def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
         Hc[nv, i] = -total
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:], float64[:], float64[:], float64[:], float64[:], float64[:])", cache=True, nogil=True)
 def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.ndarray, hard_lower: np.ndarray,
                 upper: np.ndarray, lower: np.ndarray) -> None:
     """Soft bounds clipped into the hard ones: ``clip(soft, hard_lower, hard_upper)``, both sides."""
@@ -204,7 +206,7 @@ def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.n
 GRAM_CONDITION = 1e-8
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
 def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                    local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
     """World-aligned Jacobian (6 x nv) at the origin of a frame placed at ``local`` (rotation
@@ -227,7 +229,110 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
         jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
 
 
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :])", cache=True, nogil=True)
+def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
+    """Cyclic Jacobi on the symmetric ``A`` (overwritten, ends diagonal): eigenvectors into the
+    columns of ``V``. Accurate to ~eps / (eigenvalue gap) in the vectors, like LAPACK, and
+    much cheaper for the 3 x 3 to 6 x 6 Gram matrices met here."""
+    n = A.shape[0]
+    for a in range(n):
+        for b in range(n):
+            V[a, b] = 1.0 if a == b else 0.0
+    scale = 0.0
+    for a in range(n):
+        scale += A[a, a] * A[a, a]
+    for _ in range(30):
+        off = 0.0
+        for p in range(n):
+            for r in range(p + 1, n):
+                off += A[p, r] * A[p, r]
+        if off <= 1e-34 * scale:
+            return
+        for p in range(n - 1):
+            for r in range(p + 1, n):
+                apr = A[p, r]
+                if apr == 0.0:
+                    continue
+                theta = (A[r, r] - A[p, p]) / (2.0 * apr)
+                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                if theta < 0.0:
+                    t = -t
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):
+                    akp, akr = A[k, p], A[k, r]
+                    A[k, p], A[k, r] = c * akp - s * akr, s * akp + c * akr
+                for k in range(n):
+                    apk, ark = A[p, k], A[r, k]
+                    A[p, k], A[r, k] = c * apk - s * ark, s * apk + c * ark
+                for k in range(n):
+                    vkp, vkr = V[k, p], V[k, r]
+                    V[k, p], V[k, r] = c * vkp - s * vkr, s * vkp + c * vkr
+
+
+@njit("float64(float64[:, :], float64[:, :], boolean, float64[:, :])", cache=True, nogil=True)
+def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np.ndarray) -> float:
+    """``G = sum_l c_l u_l v_l^T`` (``c_l``: product of the other singular values) near a
+    singularity; returns ``m``. The singular vectors on the Gram side come from its
+    eigenvectors; the singular values and the other side from ``J^T u_l`` (wide) or
+    ``J v_l`` (tall), whose norms carry ``s_l`` to ~eps |J| absolute accuracy (the Gram's
+    eigenvalues only to eps |J|^2), relatively ~eps |J| / s_l. Where some ``s_l`` is below 1e-7 |J|
+    (relative error above ~1e-9): LAPACK's SVD then."""
+    rows, nv = selected.shape
+    size = gram.shape[0]
+    A = gram.copy()
+    vectors = np.empty((size, size))
+    _jacobi_eigenvectors(A, vectors)
+    other = nv if wide else rows
+    projected = np.zeros((other, size))  # column l: J^T u_l (wide) or J v_l (tall)
+    for l in range(size):
+        for k in range(other):
+            total = 0.0
+            for a in range(size):
+                total += (selected[a, k] if wide else selected[k, a]) * vectors[a, l]
+            projected[k, l] = total
+    singular = np.empty(size)
+    largest = 0.0
+    for l in range(size):
+        norm = 0.0
+        for k in range(other):
+            norm += projected[k, l] * projected[k, l]
+        singular[l] = math.sqrt(norm)
+        largest = max(largest, singular[l])
+    smallest = singular.min()
+    if smallest <= 1e-7 * largest:
+        u, s, vt = np.linalg.svd(selected, full_matrices=False)
+        value = 1.0
+        for l in range(len(s)):
+            value *= s[l]
+        for l in range(len(s)):
+            others = 1.0
+            for p in range(len(s)):
+                if p != l:
+                    others *= s[p]
+            for a in range(rows):
+                for k in range(nv):
+                    weights[a, k] += others * u[a, l] * vt[l, k]
+        return value
+    value = 1.0
+    for l in range(size):
+        value *= singular[l]
+    for l in range(size):
+        others = 1.0
+        for p in range(size):
+            if p != l:
+                others *= singular[p]
+        factor = others / singular[l]  # c_l / s_l: the projection has norm s_l
+        for a in range(rows):
+            for k in range(nv):
+                if wide:
+                    weights[a, k] += factor * vectors[a, l] * projected[k, l]
+                else:
+                    weights[a, k] += factor * projected[a, l] * vectors[k, l]
+    return value
+
+
+@njit("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])", cache=True, nogil=True)
 def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, origin: np.ndarray,
                             support: np.ndarray, ancestor: np.ndarray, first_row: int, last_row: int,
                             gradient: np.ndarray) -> float:
@@ -332,110 +437,7 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
     return value
 
 
-@njit(cache=True, nogil=True)
-def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
-    """Cyclic Jacobi on the symmetric ``A`` (overwritten, ends diagonal): eigenvectors into the
-    columns of ``V``. Accurate to ~eps / (eigenvalue gap) in the vectors, like LAPACK, and
-    much cheaper for the 3 x 3 to 6 x 6 Gram matrices met here."""
-    n = A.shape[0]
-    for a in range(n):
-        for b in range(n):
-            V[a, b] = 1.0 if a == b else 0.0
-    scale = 0.0
-    for a in range(n):
-        scale += A[a, a] * A[a, a]
-    for _ in range(30):
-        off = 0.0
-        for p in range(n):
-            for r in range(p + 1, n):
-                off += A[p, r] * A[p, r]
-        if off <= 1e-34 * scale:
-            return
-        for p in range(n - 1):
-            for r in range(p + 1, n):
-                apr = A[p, r]
-                if apr == 0.0:
-                    continue
-                theta = (A[r, r] - A[p, p]) / (2.0 * apr)
-                t = 1.0 / (abs(theta) + math.sqrt(theta * theta + 1.0))
-                if theta < 0.0:
-                    t = -t
-                c = 1.0 / math.sqrt(t * t + 1.0)
-                s = t * c
-                for k in range(n):
-                    akp, akr = A[k, p], A[k, r]
-                    A[k, p], A[k, r] = c * akp - s * akr, s * akp + c * akr
-                for k in range(n):
-                    apk, ark = A[p, k], A[r, k]
-                    A[p, k], A[r, k] = c * apk - s * ark, s * apk + c * ark
-                for k in range(n):
-                    vkp, vkr = V[k, p], V[k, r]
-                    V[k, p], V[k, r] = c * vkp - s * vkr, s * vkp + c * vkr
-
-
-@njit(cache=True, nogil=True)
-def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np.ndarray) -> float:
-    """``G = sum_l c_l u_l v_l^T`` (``c_l``: product of the other singular values) near a
-    singularity; returns ``m``. The singular vectors on the Gram side come from its
-    eigenvectors; the singular values and the other side from ``J^T u_l`` (wide) or
-    ``J v_l`` (tall), whose norms carry ``s_l`` to ~eps |J| absolute accuracy (the Gram's
-    eigenvalues only to eps |J|^2), relatively ~eps |J| / s_l. Where some ``s_l`` is below 1e-7 |J|
-    (relative error above ~1e-9): LAPACK's SVD then."""
-    rows, nv = selected.shape
-    size = gram.shape[0]
-    A = gram.copy()
-    vectors = np.empty((size, size))
-    _jacobi_eigenvectors(A, vectors)
-    other = nv if wide else rows
-    projected = np.zeros((other, size))  # column l: J^T u_l (wide) or J v_l (tall)
-    for l in range(size):
-        for k in range(other):
-            total = 0.0
-            for a in range(size):
-                total += (selected[a, k] if wide else selected[k, a]) * vectors[a, l]
-            projected[k, l] = total
-    singular = np.empty(size)
-    largest = 0.0
-    for l in range(size):
-        norm = 0.0
-        for k in range(other):
-            norm += projected[k, l] * projected[k, l]
-        singular[l] = math.sqrt(norm)
-        largest = max(largest, singular[l])
-    smallest = singular.min()
-    if smallest <= 1e-7 * largest:
-        u, s, vt = np.linalg.svd(selected, full_matrices=False)
-        value = 1.0
-        for l in range(len(s)):
-            value *= s[l]
-        for l in range(len(s)):
-            others = 1.0
-            for p in range(len(s)):
-                if p != l:
-                    others *= s[p]
-            for a in range(rows):
-                for k in range(nv):
-                    weights[a, k] += others * u[a, l] * vt[l, k]
-        return value
-    value = 1.0
-    for l in range(size):
-        value *= singular[l]
-    for l in range(size):
-        others = 1.0
-        for p in range(size):
-            if p != l:
-                others *= singular[p]
-        factor = others / singular[l]  # c_l / s_l: the projection has norm s_l
-        for a in range(rows):
-            for k in range(nv):
-                if wide:
-                    weights[a, k] += factor * vectors[a, l] * projected[k, l]
-                else:
-                    weights[a, k] += factor * projected[a, l] * vectors[k, l]
-    return value
-
-
-@njit(cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)", cache=True, nogil=True)
 def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                 local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
                 origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, state: np.ndarray,
@@ -451,7 +453,7 @@ def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_t
     h[0] = state[1] * (value - state[2]) / dt
 
 
-@njit(cache=True, nogil=True)
+@njit("boolean(float64[:])", cache=True, nogil=True)
 def has_nan(data: np.ndarray) -> bool:
     """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
     for value in data:
@@ -493,7 +495,7 @@ def _matrix(addresses: np.ndarray, index: int, rows: int, columns: int) -> np.nd
     return carray(_as_pointer(addresses[index]), (rows, columns))
 
 
-@njit(cache=True, nogil=True)
+@njit("boolean(int64[:, :], int64[:], float64)", cache=True, nogil=True)
 def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     """Run the rows of ``program`` in order; returns True when a HAS_NAN row found a NaN.
 
