@@ -104,6 +104,9 @@ class WorldVelocityLimits(Constraint):
         np.negative(self._limit, out=rows.lower)
         rows.upper[...] = self._limit
 
+    def add_ops(self, program, kin: Kinematics, rows: ConstraintRows) -> bool:
+        return True  # nothing to do per tick: the bounds are static
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         pass
 

@@ -8,6 +8,12 @@ The whole hot path is :meth:`Controller.step`. Every buffer is allocated once in
     lb = max_k lower_k,  ub = min_k upper_k   (bounds of all constraints)
     G v <= h,  A v = b                         (rows of all constraints)
 
+A tick: Pinocchio updates the kinematics; tasks and constraints without a compiled op
+compute in Python; then one native call (:class:`wbc.program.TickProgram`) runs the
+compiled ones (FrameTask, PostureTask, position and speed limits, wheel rows, the
+manipulability barrier), the normal equations, the bound merge and the NaN screen; DAQP
+solves on the QP buffers in place.
+
 Two optional stages: tasks that need the holonomic preview (SteeringTask) get
 ``v_h = -H^-1 c`` of the other tasks before their rows are added; with
 ``reduced=True`` the QP is rewritten over the real inputs ``u`` (``v = S(q) u``).

@@ -174,21 +174,32 @@ def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
     """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
 
     ``stack_t`` is ``A^T`` ((nv + 1) x rows), of which the first ``columns`` rows of ``A``
-    are used: ``H = (WJ)^T WJ`` (symmetric: computed once per pair) and
-    ``c = -(WJ)^T W r``.
+    are used: ``H = sum_rows (WJ)_r^T (WJ)_r``, ``c = -sum_rows (WJ)_r^T (W r)_r``, one rank-1
+    update per row over its non-zero entries only -- posture and damping rows have one,
+    so the cost grows with the dense rows (nv^2 each), not with nv^2 times every row.
     """
     nv = Hc.shape[1]
-    for i in range(nv):
-        for j in range(i, nv):
-            total = 0.0
-            for r in range(columns):
-                total += stack_t[i, r] * stack_t[j, r]
-            Hc[i, j] = total
-            Hc[j, i] = total
-        total = 0.0
-        for r in range(columns):
-            total += stack_t[nv, r] * stack_t[i, r]
-        Hc[nv, i] = -total
+    for i in range(nv + 1):
+        for j in range(nv):
+            Hc[i, j] = 0.0
+    nonzero = np.empty(nv, dtype=np.int64)
+    for r in range(columns):
+        count = 0
+        for i in range(nv):
+            if stack_t[i, r] != 0.0:
+                nonzero[count] = i
+                count += 1
+        target = stack_t[nv, r]
+        for a in range(count):
+            i = nonzero[a]
+            value = stack_t[i, r]
+            for b in range(a, count):
+                j = nonzero[b]
+                Hc[i, j] += value * stack_t[j, r]
+            Hc[nv, i] -= target * value
+    for i in range(nv):  # mirror the upper triangle
+        for j in range(i):
+            Hc[i, j] = Hc[j, i]
 
 
 @njit("void(float64[:], float64[:], float64[:], float64[:], float64[:], float64[:])", cache=True, nogil=True)
