@@ -168,3 +168,34 @@ def test_program_operands_must_be_contiguous_float64():
         program.array(np.zeros(3, dtype=np.float32))
     base = np.zeros(5)
     assert program.array(base) == program.array(base) == 0  # registered once
+
+
+def test_pose_check_agrees_with_the_plain_checks(rng):
+    """The compiled fast path of as_pose accepts exactly what the numpy checks accept."""
+    from wbc.errors import InvalidInputError
+    from wbc.validation import ROTATION_TOLERANCE
+
+    def plain_ok(pose):
+        if not np.all(np.isfinite(pose)) or np.max(np.abs(pose[3] - [0, 0, 0, 1])) > 1e-12:
+            return False
+        R = pose[:3, :3]
+        return (np.max(np.abs(R.T @ R - np.eye(3))) <= ROTATION_TOLERANCE
+                and abs(np.linalg.det(R) - 1.0) <= ROTATION_TOLERANCE)
+
+    for k in range(2000):
+        pose = np.eye(4)
+        pose[:3, :3] = pin.exp3(rng.standard_normal(3))
+        pose[:3, 3] = rng.standard_normal(3)
+        kind = k % 5
+        if kind == 1:
+            pose[:3, :3] += rng.standard_normal((3, 3)) * 10.0 ** rng.uniform(-8, -4)  # near the tolerance
+        elif kind == 2:
+            pose[rng.integers(4), rng.integers(4)] = rng.choice([np.nan, np.inf, -np.inf])
+        elif kind == 3:
+            pose[3, rng.integers(4)] += 10.0 ** rng.uniform(-14, -10)
+        elif kind == 4:
+            pose[:3, 0] *= -1.0  # a reflection
+        assert (kernels.pose_defect(pose, ROTATION_TOLERANCE) == kernels.POSE_OK) == plain_ok(pose)
+        if not plain_ok(pose):
+            with pytest.raises(InvalidInputError):
+                wbc.validation.as_pose(pose, "pose")

@@ -63,6 +63,37 @@ def log3(R: np.ndarray, out: np.ndarray) -> None:
     out[0], out[1], out[2] = scale * ax, scale * ay, scale * az
 
 
+# ------------------------------------------------------------- validation
+
+#: results of :func:`pose_defect`
+POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION = range(4)
+
+
+@njit("int64(float64[:, :], float64)", cache=True, nogil=True)
+def pose_defect(pose: np.ndarray, tolerance: float) -> int:
+    """What is wrong with the 4x4 homogeneous transform ``pose``: POSE_OK, POSE_NOT_FINITE,
+    POSE_LAST_ROW (not [0, 0, 0, 1] within 1e-12) or POSE_NOT_ROTATION
+    (``|R^T R - I|_max`` or ``|det R - 1|`` above ``tolerance``)."""
+    for a in range(4):
+        for b in range(4):
+            if not math.isfinite(pose[a, b]):
+                return POSE_NOT_FINITE
+    for b in range(4):
+        if abs(pose[3, b] - (1.0 if b == 3 else 0.0)) > 1e-12:
+            return POSE_LAST_ROW
+    for a in range(3):
+        for b in range(3):
+            gram = pose[0, a] * pose[0, b] + pose[1, a] * pose[1, b] + pose[2, a] * pose[2, b]
+            if abs(gram - (1.0 if a == b else 0.0)) > tolerance:
+                return POSE_NOT_ROTATION
+    determinant = (pose[0, 0] * (pose[1, 1] * pose[2, 2] - pose[1, 2] * pose[2, 1])
+                   - pose[0, 1] * (pose[1, 0] * pose[2, 2] - pose[1, 2] * pose[2, 0])
+                   + pose[0, 2] * (pose[1, 0] * pose[2, 1] - pose[1, 1] * pose[2, 0]))
+    if abs(determinant - 1.0) > tolerance:
+        return POSE_NOT_ROTATION
+    return POSE_OK
+
+
 # ------------------------------------------------------------------- tasks
 
 #: layout of the FrameTask parameter vector (one float64 vector per task)
@@ -75,6 +106,18 @@ FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
 FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain in (0, 1], [m/s], [rad/s]
 FRAME_SCRATCH = slice(39, 48)  # R* R^T, written by the kernel
 FRAME_PARAMETERS = 48
+
+
+@njit("void(float64[:, :], float64[:], float64[:])", cache=True, nogil=True)
+def set_frame_target(pose: np.ndarray, twist: np.ndarray, parameters: np.ndarray) -> None:
+    """FrameTask target: R* and p* from the (validated) ``pose``, ``W twist`` (``twist`` of
+    length 6, or empty for none) into the parameter vector."""
+    for a in range(3):
+        for b in range(3):
+            parameters[12 + 3 * a + b] = pose[a, b]
+        parameters[21 + a] = pose[a, 3]
+    for a in range(6):
+        parameters[30 + a] = parameters[24 + a] * twist[a] if len(twist) == 6 else 0.0
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64, float64[:], float64[:, :], float64[:])", cache=True, nogil=True)

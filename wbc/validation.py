@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from . import kernels
 from .errors import InvalidInputError
 
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
@@ -75,7 +76,14 @@ def as_gain(value, name: str = "gain") -> float:
 
 
 def as_pose(value, name: str) -> np.ndarray:
-    """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation."""
+    """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation.
+
+    Fast path for the control loop: a float64 (4, 4) array is checked by one compiled call
+    (:func:`wbc.kernels.pose_defect`); the messages come from the checks below.
+    """
+    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (4, 4)
+            and kernels.pose_defect(value, ROTATION_TOLERANCE) == kernels.POSE_OK):
+        return value
     pose = _real_array(value, (4, 4), name)
     if not np.all(np.isfinite(pose)):
         raise InvalidInputError(f"{name} contains NaN or inf")

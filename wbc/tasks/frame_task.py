@@ -13,6 +13,9 @@ from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
 from .task import Task, _norm
 
 
+_NO_TWIST = np.zeros(0)
+
+
 class FrameTask(Task):
     """Drive a frame to a target pose.
 
@@ -63,7 +66,6 @@ class FrameTask(Task):
         self._parameters[kernels.FRAME_GAIN] = self.gain
         self._parameters[kernels.FRAME_MAX_SPEED] = self.max_speed
         self._parameters[kernels.FRAME_MAX_ANGULAR_SPEED] = self.max_angular_speed
-        self._feedforward = np.zeros(6)
         self._kin: Kinematics | None = None
         self._has_target = False
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
@@ -76,13 +78,8 @@ class FrameTask(Task):
     def set_target(self, pose, twist=None) -> None:
         """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
         pose = as_pose(pose, "target pose")
-        self._target_rotation[...] = pose[:3, :3]
-        self._target_position[...] = pose[:3, 3]
-        if twist is None:
-            self._feedforward.fill(0.0)
-        else:
-            self._feedforward[...] = as_vector(twist, 6, "target twist")
-        np.multiply(self._feedforward, self._weights, out=self._weighted_feedforward)
+        twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
+        kernels.set_frame_target(pose, twist, self._parameters)
         self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
