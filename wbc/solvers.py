@@ -143,9 +143,10 @@ class QpsolversBackend(QPSolver):
 class DaqpBackend(QPSolver):
     """DAQP through a persistent ``daqp.Model`` workspace on the QP buffers.
 
-    ``setup`` is run once per QP object: DAQP then holds pointers into that QP's own
-    buffers (they are C-contiguous float64, so its binding copies nothing), and each
-    tick only has to refresh DAQP's factorisation with ``update(H)``. Updating H
+    ``setup`` is run once: DAQP then holds pointers into the QP's own buffers (they are
+    C-contiguous float64, so its binding copies nothing), and each tick only has to
+    refresh DAQP's factorisation with ``update(H)`` (a different QP object of the same
+    shape re-points the workspace with a full ``update``). Updating H
     re-derives every other part of the workspace (``A R^-1``, ``R^-T f`` and the scaled
     bounds) from those pointers, so the fresh ``c``, rows and bounds are picked up too.
     With ``warm_start=True`` (default) the solve starts from the previous tick's active
@@ -165,9 +166,11 @@ class DaqpBackend(QPSolver):
         self.settings = settings
         self._model = None
         self._data: np.ndarray | None = None  # buffer of the QP the workspace points into
+        self._shape: tuple[int, int, int] | None = None
         self._sense = np.zeros(0, dtype=np.int32)
 
     def _setup(self, qp: QP) -> int:
+        self._shape = (qp.n, qp.n_ineq, qp.n_eq)
         self._sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
         self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
         self._model = self._daqp.Model()
@@ -184,12 +187,16 @@ class DaqpBackend(QPSolver):
     def solve(self, qp: QP) -> QPSolution:
         start = time.perf_counter()
         try:
-            if self._model is None or self._data is not qp.data:
+            sense = None if self.warm_start else self._sense  # passing sense forgets the active set
+            if self._model is None or self._shape != (qp.n, qp.n_ineq, qp.n_eq):
                 exitflag = self._setup(qp)
-            elif self.warm_start:
-                exitflag = self._model.update(qp.H)
+            elif self._data is not qp.data:  # another QP of the same shape: point the workspace at it
+                # (A=None without rows: daqp 0.11's update indexes an empty A out of bounds)
+                exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C if len(qp.C) else None, bupper=qp.upper,
+                                              blower=qp.lower, sense=sense)
+                self._data = qp.data
             else:
-                exitflag = self._model.update(qp.H, sense=self._sense)  # forget the active set
+                exitflag = self._model.update(qp.H, sense=sense)
             if exitflag >= 0:
                 x, _, exitflag, _ = self._model.solve()
         except Exception as exc:
