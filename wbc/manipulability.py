@@ -14,7 +14,9 @@ the SVD): with ``J = U diag(s) V^T`` and ``ds_l = u_l^T dJ v_l``,
 
     dm/dq_i = < G , dJ/dq_i >_F ,   G = U diag(c) V^T ,   c_l = prod_{p != l} s_p
 
-and ``dJ/dq_i`` comes from Pinocchio's kinematic Hessian (:meth:`Kinematics.frame_hessian`).
+and ``dJ/dq_i`` from motion cross products of the joint Jacobian columns (compiled, chains
+of 1-DOF joints: :func:`wbc.kernels.manipulability_gradient`) or from Pinocchio's
+kinematic Hessian (:meth:`Kinematics.frame_hessian`, any joint type).
 Where ``J`` has full rank, ``G = m (J^+)^T`` and the formula is the familiar
 ``dm/dq_i = m tr((J J^T)^-1 J (dJ/dq_i)^T)``; unlike that form it needs no inverse
 and stays accurate next to a singularity. On the singular set itself m is not
