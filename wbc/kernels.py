@@ -104,8 +104,7 @@ FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
 FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
 FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
 FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain in (0, 1], [m/s], [rad/s]
-FRAME_SCRATCH = slice(39, 48)  # R* R^T, written by the kernel
-FRAME_PARAMETERS = 48
+FRAME_PARAMETERS = 48  # 39:48 is the kernel's scratch (R* R^T)
 
 
 @njit("void(float64[:, :], float64[:], float64[:])", cache=True, nogil=True)

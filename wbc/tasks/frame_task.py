@@ -12,7 +12,6 @@ from ..robot import Robot
 from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
 from .task import Task, _norm
 
-
 _NO_TWIST = np.zeros(0)
 
 
@@ -60,7 +59,6 @@ class FrameTask(Task):
         self._target_rotation = self._parameters[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
         self._target_position = self._parameters[kernels.FRAME_TARGET_POSITION]
         self._weights = self._parameters[kernels.FRAME_WEIGHTS]
-        self._weighted_feedforward = self._parameters[kernels.FRAME_WEIGHTED_FEEDFORWARD]
         self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
         self._target_rotation[...] = np.eye(3)
         self._parameters[kernels.FRAME_GAIN] = self.gain
