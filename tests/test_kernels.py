@@ -82,6 +82,29 @@ def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
 
 
 @pytest.mark.parametrize("name, frame", MODELS)
+def test_position_task_rows_are_pinocchios(name, frame, rng):
+    robot = wbc.load_robot(name)
+    task = wbc.PositionTask(frame, [1.0, 4.0, 9.0], gain=0.2, max_speed=0.3)
+    task.bind(robot)
+    kin = Kinematics(robot)
+    dt = 0.01
+    for _ in range(20):
+        q = robot.random_configuration(rng)
+        goal, velocity = rng.uniform(-1, 1, 3), rng.standard_normal(3)
+        task.set_target(goal, velocity)
+        kin.update(q)
+        jacobian, rows = np.zeros((3, robot.nv)), np.zeros(3)
+        task.compute(kin, dt, jacobian, rows)
+        J = robot.frame_jacobian(q, frame)[:3]
+        error = goal - robot.frame_pose(q, frame)[:3, 3]
+        feedback = 0.2 / dt * error
+        feedback *= min(1.0, 0.3 / np.linalg.norm(feedback))
+        np.testing.assert_allclose(task.error, error, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(jacobian, np.array([1.0, 2.0, 3.0])[:, None] * J, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rows, [1.0, 2.0, 3.0] * (feedback + velocity), rtol=0, atol=1e-10)
+
+
+@pytest.mark.parametrize("name, frame", MODELS)
 @pytest.mark.parametrize("rows", ["all", "position", "orientation"])
 def test_compiled_manipulability_is_the_kinematic_hessian_form(name, frame, rows, rng):
     """dJ/dq from motion cross products (compiled) vs Pinocchio's kinematic Hessian, on random

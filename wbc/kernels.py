@@ -97,8 +97,7 @@ def pose_defect(pose: np.ndarray, tolerance: float) -> int:
 # ------------------------------------------------------------------- tasks
 
 #: layout of the FrameTask parameter vector (one float64 vector per task)
-FRAME_LOCAL_ROTATION = slice(0, 9)  # frame placement in its parent joint: rotation (row-major)
-FRAME_LOCAL_TRANSLATION = slice(9, 12)  # ... and translation [m]
+FRAME_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation [m]
 FRAME_TARGET_ROTATION = slice(12, 21)  # target orientation R* (row-major)
 FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
 FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
@@ -171,6 +170,62 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
         scale = gain if norm <= limit else limit / norm * gain
         for a in range(part, part + 3):
             target[a] = weights[a] * (scale * error[a]) + feedforward[a]
+
+
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                   local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
+    """World-aligned Jacobian (6 x nv) at the origin of a frame placed at ``local`` (rotation
+    row-major, then translation) in its parent joint, as in :func:`frame_task_rows` but
+    unweighted; the frame origin (world) goes to ``origin``."""
+    Ri, pf = joint_rotation, local[9:12]
+    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
+    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
+    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
+    origin[0], origin[1], origin[2] = px, py, pz
+    for k in range(joint_jacobians.shape[1]):
+        if support[k] == 0.0:
+            for a in range(6):
+                jacobian[a, k] = 0.0
+            continue
+        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
+        jacobian[0, k] = joint_jacobians[0, k] + wy * pz - wz * py
+        jacobian[1, k] = joint_jacobians[1, k] + wz * px - wx * pz
+        jacobian[2, k] = joint_jacobians[2, k] + wx * py - wy * px
+        jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
+
+
+#: layout of the PositionTask parameter vector
+POSITION_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation
+POSITION_TARGET = slice(12, 15)  # p* [m]
+POSITION_WEIGHTS = slice(15, 18)  # W = sqrt(cost)
+POSITION_FEEDFORWARD = slice(18, 21)  # pdot* [m/s]
+POSITION_GAIN, POSITION_MAX_SPEED = 21, 22  # gain in (0, 1], [m/s]
+POSITION_PARAMETERS = 23
+
+
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64, float64[:], "
+      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                       support: np.ndarray, parameters: np.ndarray, dt: float, error: np.ndarray,
+                       jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray,
+                       origin: np.ndarray) -> None:
+    """Rows of :class:`~wbc.PositionTask`: ``error = p* - p``, ``jacobian = W J_lin``,
+    ``target = W (sat(gain/dt * error) + pdot*)`` (parameter layout: ``POSITION_*``)."""
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, parameters[0:12], support,
+                   frame_jacobian_scratch, origin)
+    weights, feedforward = parameters[15:18], parameters[18:21]
+    gain, max_speed = parameters[21] / dt, parameters[22]
+    norm = 0.0
+    for a in range(3):
+        error[a] = parameters[12 + a] - origin[a]
+        norm += error[a] * error[a]
+    norm = math.sqrt(norm) * gain
+    scale = gain if norm <= max_speed else max_speed / norm * gain
+    for a in range(3):
+        for k in range(jacobian.shape[1]):
+            jacobian[a, k] = weights[a] * frame_jacobian_scratch[a, k]
+        target[a] = weights[a] * (scale * error[a] + feedforward[a])
 
 
 @njit("void(float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True, nogil=True)
@@ -257,29 +312,6 @@ def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.n
 
 #: closed form accepted while det(gram) > GRAM_CONDITION * (mean eigenvalue)^size
 GRAM_CONDITION = 1e-8
-
-
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
-def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
-                   local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
-    """World-aligned Jacobian (6 x nv) at the origin of a frame placed at ``local`` (rotation
-    row-major, then translation) in its parent joint, as in :func:`frame_task_rows` but
-    unweighted; the frame origin (world) goes to ``origin``."""
-    Ri, pf = joint_rotation, local[9:12]
-    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
-    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
-    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
-    origin[0], origin[1], origin[2] = px, py, pz
-    for k in range(joint_jacobians.shape[1]):
-        if support[k] == 0.0:
-            for a in range(6):
-                jacobian[a, k] = 0.0
-            continue
-        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
-        jacobian[0, k] = joint_jacobians[0, k] + wy * pz - wz * py
-        jacobian[1, k] = joint_jacobians[1, k] + wz * px - wx * pz
-        jacobian[2, k] = joint_jacobians[2, k] + wx * py - wy * px
-        jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
 
 
 @njit("void(float64[:, :], float64[:, :])", cache=True, nogil=True)
@@ -524,7 +556,7 @@ def has_nan(data: np.ndarray) -> bool:
 # sizes); the layouts are those of the kernels above.
 
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER) = range(1, 9)
+ OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK) = range(1, 10)
 
 
 @intrinsic
@@ -562,6 +594,8 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
     * HAS_NAN: data, size
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
+    * POSITION_TASK: J^T, R^T, p, support (nv), parameters, error (3), stack, first row, nv, rows,
+      Jacobian scratch (6 x nv), origin scratch (3)
     * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
       Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
       state (value out, gain, min value), first row, last row, nv
@@ -601,6 +635,14 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             rows, nq, nv = op[6], op[7], op[8]
             heading_rows(_matrix(addresses, op[1], rows, 2), _matrix(addresses, op[2], rows, 2),
                          _vector(addresses, op[3], nq), op[4], _matrix(addresses, op[5], rows, nv), op[9], op[10])
+        elif code == OP_POSITION_TASK:
+            nv, rows, start = op[9], op[10], op[8]
+            stack_t = _matrix(addresses, op[7], nv + 1, rows)
+            position_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                               _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
+                               _vector(addresses, op[5], POSITION_PARAMETERS), dt, _vector(addresses, op[6], 3),
+                               stack_t[:nv, start:start + 3].T, stack_t[nv, start:start + 3],
+                               _matrix(addresses, op[11], 6, nv), _vector(addresses, op[12], 3))
         elif code == OP_MANIPULABILITY_BARRIER:
             nv = op[15]
             barrier_row(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,

@@ -83,6 +83,19 @@ class Kinematics:
         return np.einsum("ja,aji->i", weights_t, tensor, out=out)
 
 
+def frame_in_joint(model: pin.Model, frame_id: int) -> tuple[int, np.ndarray, np.ndarray]:
+    """What the compiled kernels need to place a frame: its parent joint, its placement in
+    that joint as 12 numbers (rotation row-major, then translation) and the support mask
+    (nv; 1 on the velocity coordinates of the joints from the root to the frame)."""
+    frame = model.frames[frame_id]
+    local = np.concatenate([frame.placement.rotation.ravel(), frame.placement.translation])
+    support = np.zeros(model.nv)
+    for joint_id in model.supports[frame.parentJoint][1:]:
+        joint = model.joints[joint_id]
+        support[joint.idx_v:joint.idx_v + joint.nv] = 1.0
+    return frame.parentJoint, local, support
+
+
 @functools.cache
 def _binding_returns_live_views() -> bool:
     """Whether ``data.J`` and ``data.oMi[i].rotation / .translation`` are views that follow

@@ -38,7 +38,7 @@ from scipy.linalg.lapack import dgesvd, dposv
 
 from . import kernels
 from .errors import InvalidInputError
-from .kinematics import Kinematics
+from .kinematics import Kinematics, frame_in_joint
 from .program import TickProgram
 from .robot import Robot
 
@@ -80,16 +80,12 @@ class Manipulability:
         self._weighted_t = self._weights_t[:, self._rows]
         self._wide = (self._rows.stop - self._rows.start) <= robot.nv
         model = robot.model
-        frame_data = model.frames[self.frame_id]
-        self._joint_id = frame_data.parentJoint
+        self._joint_id, self._local, self._support = frame_in_joint(model, self.frame_id)
         chain = list(model.supports[self._joint_id])[1:]
         self._compiled = all(model.joints[j].nv == 1 for j in chain)
-        self._local = np.concatenate([frame_data.placement.rotation.ravel(), frame_data.placement.translation])
-        self._support = np.zeros(robot.nv)
         self._ancestor = np.zeros((robot.nv, robot.nv))  # 1 where joint of i is a strict ancestor of k's
         for position, joint_id in enumerate(chain):
             k = model.joints[joint_id].idx_v
-            self._support[k] = 1.0
             for ancestor_id in chain[:position]:
                 self._ancestor[model.joints[ancestor_id].idx_v, k] = 1.0
         self._jacobian = np.zeros((6, robot.nv))

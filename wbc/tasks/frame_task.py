@@ -6,7 +6,7 @@ import numpy as np
 
 from .. import kernels
 from ..errors import InvalidInputError
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, frame_in_joint
 from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
@@ -96,16 +96,8 @@ class FrameTask(Task):
         self._robot = robot
         self._frame_id = robot.frame_id(self.frame)
         self._keys = (f"{self.name}.position", f"{self.name}.orientation")
-        model = robot.model
-        frame = model.frames[self._frame_id]
-        self._joint_id = frame.parentJoint
-        self._parameters[kernels.FRAME_LOCAL_ROTATION] = frame.placement.rotation.ravel()
-        self._parameters[kernels.FRAME_LOCAL_TRANSLATION] = frame.placement.translation
-        # 1 on the velocity coordinates of the joints between the root and the frame
-        self._support = np.zeros(robot.nv)
-        for joint_id in model.supports[self._joint_id][1:]:
-            joint = model.joints[joint_id]
-            self._support[joint.idx_v:joint.idx_v + joint.nv] = 1.0
+        self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
+        self._parameters[kernels.FRAME_LOCAL] = local
         self._kin = None
 
     def check_ready(self) -> None:

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import kernels
 from ..errors import InvalidInputError
-from ..kinematics import Kinematics
+from ..kinematics import Kinematics, frame_in_joint
+from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive, as_vector, as_weights
-from .task import Task, _norm, _saturate
+from .task import Task, _norm
 
 
 class PositionTask(Task):
@@ -36,11 +38,18 @@ class PositionTask(Task):
         self.cost = as_weights(cost, 3, "cost")
         self.gain = as_gain(gain)
         self.max_speed = np.inf if max_speed is None else as_positive(max_speed, "max_speed")
-        self._weights = np.sqrt(self.cost)
-        self._target = np.zeros(3)
-        self._feedforward = np.zeros(3)
+        # everything the compiled kernel reads, in one vector (layout: wbc.kernels.POSITION_*)
+        self._parameters = np.zeros(kernels.POSITION_PARAMETERS)
+        self._weights = self._parameters[kernels.POSITION_WEIGHTS]
+        self._target = self._parameters[kernels.POSITION_TARGET]
+        self._feedforward = self._parameters[kernels.POSITION_FEEDFORWARD]
+        self._weights[:] = np.sqrt(self.cost)
+        self._parameters[kernels.POSITION_GAIN] = self.gain
+        self._parameters[kernels.POSITION_MAX_SPEED] = self.max_speed
         self._has_target = False
         self.error = np.zeros(3)  #: last error p* - p [m], world
+        self._robot: Robot | None = None
+        self._kin: Kinematics | None = None
 
     def default_name(self) -> str:
         return f"PositionTask({self.frame})"
@@ -56,18 +65,39 @@ class PositionTask(Task):
         return self._target.copy()
 
     def bind(self, robot: Robot) -> None:
+        if robot is self._robot:
+            return  # a second controller on the same robot: the buffers (compiled into both) stay
+        self._robot = robot
         self._frame_id = robot.frame_id(self.frame)
         self._key = self.name
+        self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
+        self._parameters[kernels.POSITION_LOCAL] = local
+        self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
+        self._origin = np.zeros(3)
+        self._kin = None
 
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+    def check_ready(self) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
-        np.subtract(self._target, kin.frame_placement(self._frame_id).translation, out=self.error)
-        np.multiply(self._weights[:, None], kin.frame_jacobian(self._frame_id)[:3], out=jacobian)
-        np.multiply(self.error, self.gain / dt, out=target)
-        _saturate(target, self.max_speed)
-        target += self._feedforward
-        target *= self._weights
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
+        if type(self).compute is not PositionTask.compute:
+            return False  # a subclass with rows of its own
+        rotation, translation = kin.joint_placement(self._joint_id)
+        program.add(kernels.OP_POSITION_TASK, program.array(kin.joint_jacobians.T), program.array(rotation.T),
+                    program.array(translation), program.array(self._support), program.array(self._parameters),
+                    program.array(self.error), program.array(stack_t), start, stack_t.shape[0] - 1,
+                    stack_t.shape[1], program.array(self._jacobian), program.array(self._origin))
+        return True
+
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        self.check_ready()
+        if kin is not self._kin:  # live views of this Kinematics' joint data (one task, several controllers)
+            self._kin = kin
+            self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
+        joint_jacobians, rotation, translation = self._views
+        kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self._parameters, dt,
+                                   self.error, jacobian, target, self._jacobian, self._origin)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self._key] = _norm(self.error)

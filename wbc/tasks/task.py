@@ -70,10 +70,3 @@ class Task(ABC):
 def _norm(vector: np.ndarray) -> float:
     """Euclidean norm of a small vector (cheaper than np.linalg.norm on the hot path)."""
     return math.sqrt(float(vector @ vector))
-
-
-def _saturate(vector: np.ndarray, limit: float) -> None:
-    """Scale ``vector`` in place so that its norm is at most ``limit``."""
-    norm = _norm(vector)
-    if norm > limit:
-        vector *= limit / norm
