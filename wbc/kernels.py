@@ -9,7 +9,9 @@ placements and joint Jacobians in place (see :class:`wbc.kinematics.Kinematics`)
 Each kernel has one explicit signature (float64 arrays of any memory layout), so all are
 compiled when this module is imported -- never inside a control tick -- and cached on disk
 (``cache=True``): only the first import after an install pays the compilation (~10 s);
-later imports load the machine code (~0.3 s).
+later imports load the machine code (~0.3 s). They live in this one module on purpose:
+numba invalidates a cached function when *its* source file changes, not when a callee in
+another file does, so kernels that call each other share a file.
 
 Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
 rotation matrices row-major 3x3.
