@@ -136,8 +136,9 @@ def _python_only(monkeypatch):
             break
         classes |= more
     for cls in classes:
-        if "add_ops" in vars(cls):
-            monkeypatch.setattr(cls, "add_ops", lambda self, *args: False)
+        for name in ("add_ops", "add_preview_ops"):
+            if name in vars(cls):
+                monkeypatch.setattr(cls, name, lambda self, *args: False)
 
 
 @pytest.mark.parametrize("path", sorted(TASKS.glob("*.toml")), ids=lambda p: p.stem)
@@ -222,3 +223,23 @@ def test_pose_check_agrees_with_the_plain_checks(rng):
         if not plain_ok(pose):
             with pytest.raises(InvalidInputError):
                 wbc.validation.as_pose(pose, "pose")
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_steering_preview_without_damping_is_a_safe_zero_preview(compiled, monkeypatch):
+    """No damping and fewer task rows than DOF: H is singular, the holonomic relaxation has no
+    unique solution. The preview is then zero (the steering row fades out) instead of an
+    exception from the solve, on the compiled and the Python path alike."""
+    if not compiled:
+        _python_only(monkeypatch)
+    robot = wbc.load_robot("deluca_mm")
+    task = wbc.PositionTask("wrist_center", 1.0, gain=0.1)
+    task.set_target([1.0, 2.0, 0.5])
+    steering = wbc.SteeringTask()
+    controller = wbc.Controller(robot, [task, steering], [wbc.NonholonomicBase(), wbc.JointVelocityLimits()],
+                                damping=0.0)
+    assert controller._preview_in_program == compiled
+    v = controller.step(robot.neutral())
+    assert np.all(np.isfinite(v))
+    np.testing.assert_array_equal(controller._preview, 0.0)
+    assert steering.error[0] == 0.0

@@ -139,7 +139,6 @@ class Controller:
             (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
             start = stop
         self._n_plain = n_plain
-        self._preview_rows = self._stack[n_plain:]
 
         n_ineq = sum(c.n_inequalities for c in self.constraints)
         n_eq = sum(c.n_equalities for c in self.constraints)
@@ -187,7 +186,8 @@ class Controller:
         self._row_labels = row_labels
         self._soft_rows = np.array(soft_rows, dtype=int)  # indices among the inequality rows
         self._elastic = None  # DAQP workspace of the fallback, built on first use
-        self._preview = np.zeros(nv)
+        self._preview = np.zeros(nv)  # holonomic relaxation -H^-1 c of the plain tasks
+        self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
         self._build_program(n_soft)
 
         self._nonholonomic = robot.base.is_nonholonomic
@@ -212,9 +212,21 @@ class Controller:
         program = TickProgram()
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
                               if not task.add_ops(program, kin, self._stack_t, start)]
-        stack = program.array(self._stack_t)
-        program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, self._stack_t.shape[1], self._n_plain,
-                    program.array(qp.Hc))
+        stack, rows = program.array(self._stack_t), self._stack_t.shape[1]
+        program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, 0, self._n_plain, 1, program.array(qp.Hc))
+        # preview tasks (SteeringTask): in the program when all of them have ops, else in Python after it
+        self._preview_in_program = False
+        if self._preview_blocks:
+            mark = len(program)
+            program.add(kernels.OP_PREVIEW, program.array(qp.Hc), program.array(self._factor),
+                        program.array(self._preview), nv)
+            if all(task.add_preview_ops(program, kin, self._stack_t, start, self._preview)
+                   for task, _, _, start in self._preview_blocks):
+                program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, self._n_plain, rows, 0,
+                            program.array(qp.Hc))
+                self._preview_in_program = True
+            else:
+                program.truncate(mark)
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not constraint.add_ops(program, kin, block)]
         self._merge_in_program = self._n_hard_bounds >= 1 and n_soft == 1 and not self._hard_dynamic
@@ -223,7 +235,7 @@ class Controller:
             program.add(kernels.OP_CLIP_BOUNDS, program.array(soft_upper), program.array(soft_lower),
                         program.array(hard_upper), program.array(hard_lower), program.array(qp.ub),
                         program.array(qp.lb), nv)
-        self._nan_in_program = self._merge_in_program and not self._preview_blocks
+        self._nan_in_program = self._merge_in_program and (self._preview_in_program or not self._preview_blocks)
         if self._nan_in_program:
             program.add(kernels.OP_HAS_NAN, program.array(qp.data), qp.data.size)
         self._program = program
@@ -253,7 +265,7 @@ class Controller:
         if qp.n_eq:
             qp.sync_equalities()
         has_nan = self._program.run(dt)  # compiled tasks and constraints, normal equations, ...
-        if self._preview_blocks:
+        if self._preview_blocks and not self._preview_in_program:
             self._add_preview_tasks(kin, dt, qp)
         if not self._merge_in_program:
             self._merge_bounds(qp)
@@ -354,14 +366,12 @@ class Controller:
         return QPSolution(x, True, "optimal", elapsed)
 
     def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
-        """Holonomic relaxation of the plain tasks, then the rows of the preview tasks."""
-        self._preview[:] = np.linalg.solve(qp.H, qp.c)
-        np.negative(self._preview, out=self._preview)
+        """Holonomic relaxation of the plain tasks, then the rows of the preview tasks (the
+        Python path of the program's PREVIEW / STEERING / NORMAL_EQUATIONS ops)."""
+        kernels.preview_solve(qp.Hc, self._factor, self._preview)
         for task, jacobian, target, _ in self._preview_blocks:
             task.compute_preview(kin, dt, jacobian, target, self._preview)
-        rows = self._preview_rows
-        qp.H += rows[:, :-1].T @ rows[:, :-1]
-        qp.c -= rows[:, -1] @ rows[:, :-1]
+        kernels.normal_equations(self._stack_t, self._n_plain, self._stack_t.shape[1], False, qp.Hc)
 
     def _reduce(self, S: np.ndarray) -> None:
         """Rewrite the QP over v as a QP over u with v = S u."""

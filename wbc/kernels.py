@@ -240,6 +240,27 @@ def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray,
         target[i] = gain_weights[i] / dt * error[i]
 
 
+@njit("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
+      cache=True, nogil=True)
+def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, parameters: np.ndarray,
+                 dt: float, error: np.ndarray, jacobian: np.ndarray, target: np.ndarray) -> None:
+    """Row of :class:`~wbc.SteeringTask` from the holonomic ``preview`` velocity:
+    ``delta = wrap_[-pi/2, pi/2)(atan2(ydot, xdot) - heading)``, weight
+    ``sqrt(cost) min(1, speed / speed_scale)``; ``parameters = (sqrt(cost), gain, speed_scale)``."""
+    xdot, ydot = preview[x], preview[y]
+    speed = math.sqrt(xdot * xdot + ydot * ydot)
+    delta = 0.0
+    if speed > 0.0:
+        delta = math.atan2(ydot, xdot) - q[heading]
+        delta = (delta + math.pi / 2) % math.pi - math.pi / 2  # drive forward or backward
+    weight = parameters[0] * min(1.0, speed / parameters[2])
+    error[0] = delta
+    for k in range(len(jacobian)):
+        jacobian[k] = 0.0
+    jacobian[heading] = weight
+    target[0] = weight * parameters[1] * delta / dt
+
+
 # ------------------------------------------------------------- constraints
 
 
@@ -268,21 +289,23 @@ def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, head
 # --------------------------------------------------------------- assembly
 
 
-@njit("void(float64[:, :], int64, float64[:, :])", cache=True, nogil=True)
-def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
+@njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=True, nogil=True)
+def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
     """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
 
-    ``stack_t`` is ``A^T`` ((nv + 1) x rows), of which the first ``columns`` rows of ``A``
-    are used: ``H = sum_rows (WJ)_r^T (WJ)_r``, ``c = -sum_rows (WJ)_r^T (W r)_r``, one rank-1
-    update per row over its non-zero entries only -- posture and damping rows have one,
-    so the cost grows with the dense rows (nv^2 each), not with nv^2 times every row.
+    ``stack_t`` is ``A^T`` ((nv + 1) x rows); rows ``first:last`` of ``A`` are used:
+    ``H = sum_rows (WJ)_r^T (WJ)_r``, ``c = -sum_rows (WJ)_r^T (W r)_r``, one rank-1 update
+    per row over its non-zero entries only -- posture and damping rows have one, so the cost
+    grows with the dense rows (nv^2 each), not with nv^2 times every row. ``reset=False``
+    adds to ``Hc`` instead of overwriting it (the preview rows).
     """
     nv = Hc.shape[1]
-    for i in range(nv + 1):
-        for j in range(nv):
-            Hc[i, j] = 0.0
+    if reset:
+        for i in range(nv + 1):
+            for j in range(nv):
+                Hc[i, j] = 0.0
     nonzero = np.empty(nv, dtype=np.int64)
-    for r in range(columns):
+    for r in range(first, last):
         count = 0
         for i in range(nv):
             if stack_t[i, r] != 0.0:
@@ -299,6 +322,38 @@ def normal_equations(stack_t: np.ndarray, columns: int, Hc: np.ndarray) -> None:
     for i in range(nv):  # mirror the upper triangle
         for j in range(i):
             Hc[i, j] = Hc[j, i]
+
+
+@njit("boolean(float64[:, :], float64[:, :], float64[:])", cache=True, nogil=True)
+def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
+    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (``factor``: nv x nv scratch).
+    Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
+    nv = Hc.shape[1]
+    for j in range(nv):
+        pivot = Hc[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if not pivot > 0.0:
+            for i in range(nv):
+                preview[i] = 0.0
+            return False
+        factor[j, j] = math.sqrt(pivot)
+        for a in range(j + 1, nv):
+            total = Hc[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total / factor[j, j]
+    for a in range(nv):  # L y = -c
+        total = -Hc[nv, a]
+        for p in range(a):
+            total -= factor[a, p] * preview[p]
+        preview[a] = total / factor[a, a]
+    for a in range(nv - 1, -1, -1):  # L^T x = y
+        total = preview[a]
+        for p in range(a + 1, nv):
+            total -= factor[p, a] * preview[p]
+        preview[a] = total / factor[a, a]
+    return True
 
 
 @njit("void(float64[:], float64[:], float64[:], float64[:], float64[:], float64[:])", cache=True, nogil=True)
@@ -558,7 +613,7 @@ def has_nan(data: np.ndarray) -> bool:
 # sizes); the layouts are those of the kernels above.
 
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK) = range(1, 10)
+ OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING) = range(1, 12)
 
 
 @intrinsic
@@ -592,7 +647,10 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
       stack A^T ((nv + 1) x rows), first row, nv, rows
     * POSTURE: q (dim), reference (dim), W gain (dim), error (dim), stack, first row, dim, nv, rows
     * POSITION_LIMITS: q (k), lower limit, upper limit, gain (1), lower out, upper out, k
-    * NORMAL_EQUATIONS: stack, nv, rows, rows used, Hc ((nv + 1) x nv)
+    * NORMAL_EQUATIONS: stack, nv, rows, first row, last row, reset (0/1), Hc ((nv + 1) x nv)
+    * PREVIEW: Hc, factor scratch (nv x nv), preview (nv), nv
+    * STEERING: preview (nv), q (nq), x, y, heading, parameters (3), error (1), stack, first row,
+      nv, rows, nq
     * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
     * HAS_NAN: data, size
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
@@ -626,7 +684,18 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
                                   _vector(addresses, op[5], k), _vector(addresses, op[6], k))
         elif code == OP_NORMAL_EQUATIONS:
             nv, rows = op[2], op[3]
-            normal_equations(_matrix(addresses, op[1], nv + 1, rows), op[4], _matrix(addresses, op[5], nv + 1, nv))
+            normal_equations(_matrix(addresses, op[1], nv + 1, rows), op[4], op[5], op[6] != 0,
+                             _matrix(addresses, op[7], nv + 1, nv))
+        elif code == OP_PREVIEW:
+            nv = op[4]
+            preview_solve(_matrix(addresses, op[1], nv + 1, nv), _matrix(addresses, op[2], nv, nv),
+                          _vector(addresses, op[3], nv))
+        elif code == OP_STEERING:
+            nv, rows, start, nq = op[10], op[11], op[9], op[12]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
+            steering_row(_vector(addresses, op[1], nv), _vector(addresses, op[2], nq), op[3], op[4], op[5],
+                         _vector(addresses, op[6], 3), dt, _vector(addresses, op[7], 1), stack_t[:nv, start],
+                         stack_t[nv, start:start + 1])
         elif code == OP_CLIP_BOUNDS:
             n = op[7]
             clip_bounds(_vector(addresses, op[1], n), _vector(addresses, op[2], n), _vector(addresses, op[3], n),

@@ -47,6 +47,11 @@ class TickProgram:
         self._program = np.array(self._rows, dtype=np.int64)
         self._addresses = np.array([a.ctypes.data for a in self._arrays], dtype=np.int64)
 
+    def truncate(self, length: int) -> None:
+        """Drop the rows after the first ``length`` (registered arrays stay registered)."""
+        del self._rows[length:]
+        self._program = np.array(self._rows, dtype=np.int64).reshape(-1, _WIDTH)
+
     def __len__(self) -> int:
         return len(self._rows)
 

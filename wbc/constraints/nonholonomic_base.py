@@ -6,8 +6,10 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from .constraint import Constraint, ConstraintRows
+from .heading_rows import HeadingRows
 
 
 class NonholonomicBase(Constraint):
@@ -27,12 +29,18 @@ class NonholonomicBase(Constraint):
         if not robot.base.is_nonholonomic:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base, "
                                     "not a nonholonomic one")
-        self._x, self._y, self._heading = robot.base.indices
+        x, y, heading = robot.base.indices
+        # the row (-sin, cos) on (xdot, ydot): cos (0, 1) + sin (-1, 0)
+        self._heading_rows = HeadingRows(np.array([[0.0, 1.0]]), np.array([[-1.0, 0.0]]), heading, x, y)
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if type(self).compute is not NonholonomicBase.compute:
+            return False  # a subclass with rows of its own
+        self._heading_rows.add_op(program, kin, rows.A)
+        return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        angle = kin.q[self._heading]
-        rows.A[0, self._x] = -np.sin(angle)
-        rows.A[0, self._y] = np.cos(angle)
+        self._heading_rows.write(kin.q, rows.A)
 
     def row_labels(self) -> list[str]:
         return ["no lateral slip"]

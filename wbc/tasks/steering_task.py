@@ -6,8 +6,10 @@ import math
 
 import numpy as np
 
+from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
+from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
 from .task import Task
@@ -59,7 +61,7 @@ class SteeringTask(Task):
         self.cost = as_positive(cost, "cost")
         self.gain = as_gain(gain)
         self.speed_scale = as_positive(speed_scale, "speed_scale")
-        self._weight = math.sqrt(self.cost)
+        self._parameters = np.array([math.sqrt(self.cost), self.gain, self.speed_scale])  # kernel operand
         self.error = np.zeros(1)  #: heading error delta [rad]
 
     def bind(self, robot: Robot) -> None:
@@ -74,17 +76,17 @@ class SteeringTask(Task):
     def compute_preview(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray,
                         preview: np.ndarray) -> None:
         """Write the row given the holonomic relaxation's velocity ``preview`` (nv)."""
-        xdot, ydot = preview[self._x], preview[self._y]
-        speed = math.hypot(xdot, ydot)
-        delta = 0.0
-        if speed > 0.0:
-            delta = math.atan2(ydot, xdot) - kin.q[self._heading]
-            delta = (delta + math.pi / 2) % math.pi - math.pi / 2  # drive forward or backward
-        weight = self._weight * min(1.0, speed / self.speed_scale)
-        self.error[0] = delta
-        jacobian.fill(0.0)
-        jacobian[0, self._heading] = weight
-        target[0] = weight * self.gain * delta / dt
+        kernels.steering_row(preview, kin.q, self._x, self._y, self._heading, self._parameters, dt, self.error,
+                             jacobian[0], target)
+
+    def add_preview_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int,
+                        preview: np.ndarray) -> bool:
+        if type(self).compute_preview is not SteeringTask.compute_preview:
+            return False  # a subclass with a row of its own
+        program.add(kernels.OP_STEERING, program.array(preview), program.array(kin.q), self._x, self._y,
+                    self._heading, program.array(self._parameters), program.array(self.error),
+                    program.array(stack_t), start, stack_t.shape[0] - 1, stack_t.shape[1], len(kin.q))
+        return True
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = abs(float(self.error[0]))

@@ -59,6 +59,12 @@ class Task(ABC):
         """
         return False
 
+    def add_preview_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int,
+                        preview: np.ndarray) -> bool:
+        """As :meth:`add_ops` for a task with ``uses_preview``: ``preview`` (nv) holds the
+        holonomic relaxation's velocity when the ops run."""
+        return False
+
     def check_ready(self) -> None:
         """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
 
