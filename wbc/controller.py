@@ -10,8 +10,9 @@ The whole hot path is :meth:`Controller.step`. Every buffer is allocated once in
 
 A tick: Pinocchio updates the kinematics; tasks and constraints without a compiled op
 compute in Python; then one native call (:class:`wbc.program.TickProgram`) runs the
-compiled ones (FrameTask, PositionTask, PostureTask, position and speed limits, wheel rows, the
-manipulability barrier), the normal equations, the bound merge and the NaN screen; DAQP
+compiled ones (FrameTask, PositionTask, PostureTask, the SteeringTask preview, position and
+speed limits, wheel and no-slip rows, the manipulability barrier), the normal equations, the
+bound merge and the NaN screen; DAQP
 solves on the QP buffers in place.
 
 Two optional stages: tasks that need the holonomic preview (SteeringTask) get
