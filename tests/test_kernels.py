@@ -243,3 +243,29 @@ def test_steering_preview_without_damping_is_a_safe_zero_preview(compiled, monke
     assert np.all(np.isfinite(v))
     np.testing.assert_array_equal(controller._preview, 0.0)
     assert steering.error[0] == 0.0
+
+
+def test_settings_changed_between_ticks_reach_the_compiled_ops(youbot):
+    """Gains, speed bounds and barrier settings assigned after construction act on the next
+    tick exactly as if the controller had been built with them (and are validated)."""
+    def stack(gain, speed, limit_gain, floor):
+        frame = wbc.FrameTask("ee", 1.0, 0.5, gain=gain, max_speed=speed)
+        frame.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+        posture = wbc.PostureTask(1e-2, gain=gain)
+        limits = wbc.JointPositionLimits(gain=limit_gain)
+        barrier = wbc.ManipulabilityBarrier("ee", min_value=floor, gain=gain)
+        controller = wbc.Controller(youbot, [frame, posture], [limits, wbc.JointVelocityLimits(), barrier])
+        return controller, (frame, posture, limits, barrier)
+
+    q = youbot.neutral()
+    q[3:] = [2.9, 1.5, -2.5, 1.7, 0.3]  # near some position limits
+    tuned, (frame, posture, limits, barrier) = stack(0.5, None, 0.5, 1e-4)
+    tuned.step(q)
+    frame.gain = posture.gain = barrier.gain = 0.2
+    frame.max_speed, limits.gain, barrier.min_value = 0.05, 0.9, 0.02
+    fresh, _ = stack(0.2, 0.05, 0.9, 0.02)
+    np.testing.assert_allclose(tuned.step(q), fresh.step(q), rtol=0, atol=1e-9)
+    with pytest.raises(wbc.InvalidInputError):
+        frame.gain = 1.5
+    with pytest.raises(wbc.InvalidInputError):
+        barrier.min_value = -1.0

@@ -12,6 +12,9 @@ C-contiguous float64 arrays (views included: they keep their base alive).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 from . import kernels
@@ -58,3 +61,26 @@ class TickProgram:
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
         return kernels.run_program(self._program, self._addresses, dt)
+
+
+class Operand:
+    """A scalar setting that lives in an operand array of a compiled op.
+
+    ``gain = Operand("_parameters", 36, as_gain)`` makes ``task.gain`` read and write slot
+    36 of ``task._parameters``, validated by ``check(value, name)`` on every assignment, so
+    tuning a setting between ticks reaches the compiled code.
+    """
+
+    def __init__(self, array: str, index: int, check: Callable[[Any, str], float]) -> None:
+        self._array, self._index, self._check = array, index, check
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = name
+
+    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        return float(getattr(instance, self._array)[self._index])
+
+    def __set__(self, instance: Any, value: Any) -> None:
+        getattr(instance, self._array)[self._index] = self._check(value, self._name)

@@ -67,6 +67,11 @@ def as_positive(value, name: str) -> float:
     return number
 
 
+def as_speed_limit(value, name: str) -> float:
+    """Return an optional speed bound: ``None`` means unbounded (inf), else a finite float > 0."""
+    return np.inf if value is None else as_positive(value, name)
+
+
 def as_gain(value, name: str = "gain") -> float:
     """Return a per-tick gain in (0, 1]."""
     gain = as_positive(value, name)

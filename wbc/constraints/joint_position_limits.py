@@ -6,7 +6,7 @@ import numpy as np
 
 from .. import kernels
 from ..kinematics import Kinematics
-from ..program import TickProgram
+from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain
 from .constraint import Constraint, ConstraintRows
@@ -34,12 +34,14 @@ class JointPositionLimits(Constraint):
     """
 
     has_bounds = True
+    #: may be changed between ticks (validated; it lives in the compiled operand)
+    gain = Operand("_gain", 0, as_gain)
     hard = False  # yields to the speed limits: from outside the limits, return at top speed
 
     def __init__(self, gain: float = 0.5, name: str | None = None) -> None:
         super().__init__(name)
-        self.gain = as_gain(gain)
-        self._gain = np.array([self.gain])  # operand of the compiled op
+        self._gain = np.zeros(1)  # operand of the compiled op
+        self.gain = gain
 
     def bind(self, robot: Robot) -> None:
         if robot is getattr(self, "_robot", None):

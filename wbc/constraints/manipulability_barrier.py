@@ -8,7 +8,7 @@ from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
-from ..program import TickProgram
+from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
 from .constraint import Constraint, ConstraintRows
@@ -46,6 +46,9 @@ class ManipulabilityBarrier(Constraint):
     """
 
     n_inequalities = 1
+    #: settings that may be changed between ticks (validated; they live in the compiled operand)
+    gain = Operand("_state", 1, as_gain)
+    min_value = Operand("_state", 2, as_positive)
     hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: str = "all",
@@ -53,12 +56,11 @@ class ManipulabilityBarrier(Constraint):
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
-        self.min_value = as_positive(min_value, "min_value")
-        self.gain = as_gain(gain)
         row_selection(rows)
         self.rows = rows
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self._state = np.array([np.nan, self.gain, self.min_value])  # (m at the last tick, gain, m_min)
+        self._state = np.array([np.nan, 0.0, 0.0])  # (m at the last tick, gain, m_min): compiled operand
+        self.gain, self.min_value = gain, min_value
 
     @property
     def value(self) -> float:

@@ -7,9 +7,9 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import TickProgram
+from ..program import Operand, TickProgram
 from ..robot import Robot
-from ..validation import as_gain, as_pose, as_positive, as_vector, as_weights
+from ..validation import as_gain, as_pose, as_speed_limit, as_vector, as_weights
 from .task import Task, _norm
 
 _NO_TWIST = np.zeros(0)
@@ -42,6 +42,10 @@ class FrameTask(Task):
     """
 
     dim = 6
+    #: settings that may be changed between ticks (validated; they live in the compiled operands)
+    gain = Operand("_parameters", kernels.FRAME_GAIN, as_gain)
+    max_speed = Operand("_parameters", kernels.FRAME_MAX_SPEED, as_speed_limit)
+    max_angular_speed = Operand("_parameters", kernels.FRAME_MAX_ANGULAR_SPEED, as_speed_limit)
 
     def __init__(self, frame: str, position_cost=1.0, orientation_cost=1.0, gain: float = 1.0,
                  max_speed: float | None = None, max_angular_speed: float | None = None,
@@ -50,10 +54,6 @@ class FrameTask(Task):
         super().__init__(name)
         self.position_cost = as_weights(position_cost, 3, "position_cost")
         self.orientation_cost = as_weights(orientation_cost, 3, "orientation_cost")
-        self.gain = as_gain(gain)
-        self.max_speed = np.inf if max_speed is None else as_positive(max_speed, "max_speed")
-        self.max_angular_speed = (np.inf if max_angular_speed is None
-                                  else as_positive(max_angular_speed, "max_angular_speed"))
         # everything the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*)
         self._parameters = np.zeros(kernels.FRAME_PARAMETERS)
         self._target_rotation = self._parameters[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
@@ -61,9 +61,7 @@ class FrameTask(Task):
         self._weights = self._parameters[kernels.FRAME_WEIGHTS]
         self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
         self._target_rotation[...] = np.eye(3)
-        self._parameters[kernels.FRAME_GAIN] = self.gain
-        self._parameters[kernels.FRAME_MAX_SPEED] = self.max_speed
-        self._parameters[kernels.FRAME_MAX_ANGULAR_SPEED] = self.max_angular_speed
+        self.gain, self.max_speed, self.max_angular_speed = gain, max_speed, max_angular_speed
         self._kin: Kinematics | None = None
         self._has_target = False
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned

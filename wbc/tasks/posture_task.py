@@ -35,10 +35,21 @@ class PostureTask(Task):
         self._cost_spec = cost
         self._target_spec = target
         self._joint_spec = joints
-        self.gain = as_gain(gain)
+        self._gain = as_gain(gain)
         self.dim = 0
         self._robot: Robot | None = None
         self.target: np.ndarray | None = None  #: reference configuration, set when bound
+
+    @property
+    def gain(self) -> float:
+        """Fraction of the error removed per tick, in (0, 1]; may be changed between ticks."""
+        return self._gain
+
+    @gain.setter
+    def gain(self, value) -> None:
+        self._gain = as_gain(value)
+        if self._robot is not None:
+            np.multiply(self._weights, self._gain, out=self._gain_weights)  # in place: a compiled operand
 
     def bind(self, robot: Robot) -> None:
         if robot is self._robot:
@@ -62,7 +73,7 @@ class PostureTask(Task):
         self._weighted_selection = np.zeros((self.dim, robot.nv))
         self._weighted_selection[np.arange(self.dim), self.indices] = self._weights
         self.error = np.zeros(self.dim)
-        self._gain_weights = self._weights * self.gain  # W gain; the rows use W gain / dt
+        self._gain_weights = self._weights * self._gain  # W gain; the rows use W gain / dt
         # vector-space shortcut: 1-DOF joints (nq = nv) forming one contiguous block of q and v
         q_index = np.array([j.idx_q for j in joints], dtype=int)
         simple = all(j.nq == 1 and j.nv == 1 for j in joints) and self.dim > 0

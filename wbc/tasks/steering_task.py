@@ -9,7 +9,7 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import TickProgram
+from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
 from .task import Task
@@ -54,14 +54,24 @@ class SteeringTask(Task):
 
     dim = 1
     uses_preview = True
+    #: settings that may be changed between ticks (validated; they live in the compiled operand)
+    gain = Operand("_parameters", 1, as_gain)
+    speed_scale = Operand("_parameters", 2, as_positive)
+
+    @property
+    def cost(self) -> float:
+        """[cost] / [rad/s]^2."""
+        return self._parameters[0] ** 2
+
+    @cost.setter
+    def cost(self, value) -> None:
+        self._parameters[0] = math.sqrt(as_positive(value, "cost"))
 
     def __init__(self, cost: float = 1.0, gain: float = 0.1, speed_scale: float = 0.1,
                  name: str | None = None) -> None:
         super().__init__(name)
-        self.cost = as_positive(cost, "cost")
-        self.gain = as_gain(gain)
-        self.speed_scale = as_positive(speed_scale, "speed_scale")
-        self._parameters = np.array([math.sqrt(self.cost), self.gain, self.speed_scale])  # kernel operand
+        self._parameters = np.zeros(3)  # kernel operand: (sqrt(cost), gain, speed_scale)
+        self.cost, self.gain, self.speed_scale = cost, gain, speed_scale
         self.error = np.zeros(1)  #: heading error delta [rad]
 
     def bind(self, robot: Robot) -> None:
