@@ -35,6 +35,7 @@ class Kinematics:
         #: every joint's Jacobian columns (6 x nv): spatial velocity at the world origin,
         #: world axes (Pinocchio's data.J); a live view, refreshed by :meth:`update`
         self.joint_jacobians = self.data.J
+        self._joint_views: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 
     def update(self, q: np.ndarray) -> None:
         """Recompute for configuration ``q`` (already validated)."""
@@ -42,10 +43,15 @@ class Kinematics:
         pin.computeJointJacobians(self.model, self.data, self.q)
         self._hessians_current = False
 
-    def joint_placement(self, joint_id: int) -> tuple[np.ndarray, np.ndarray]:
-        """World rotation (3 x 3) and translation (3) of a joint: live views, refreshed by :meth:`update`."""
-        placement = self.data.oMi[joint_id]
-        return placement.rotation, placement.translation
+    def joint_views(self, joint_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every joint's Jacobian columns (:attr:`joint_jacobians`) and the world rotation
+        (3 x 3) and translation (3) of joint ``joint_id``: live views, refreshed by
+        :meth:`update` (the kernels read them in place). Fetched once per joint."""
+        views = self._joint_views.get(joint_id)
+        if views is None:
+            placement = self.data.oMi[joint_id]
+            views = self._joint_views[joint_id] = (self.joint_jacobians, placement.rotation, placement.translation)
+        return views
 
     def frame_placement(self, frame_id: int) -> pin.SE3:
         """World placement of a frame (an SE3 owned by this object's data)."""

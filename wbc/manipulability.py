@@ -90,7 +90,6 @@ class Manipulability:
                 self._ancestor[model.joints[ancestor_id].idx_v, k] = 1.0
         self._jacobian = np.zeros((6, robot.nv))
         self._origin = np.zeros(3)
-        self._kin: Kinematics | None = None
 
     @property
     def compiled(self) -> bool:
@@ -99,8 +98,8 @@ class Manipulability:
 
     def operands(self, program: TickProgram, kin: Kinematics) -> list[int]:
         """Program operands of :func:`wbc.kernels.barrier_row` up to the gradient (compiled only)."""
-        rotation, translation = kin.joint_placement(self._joint_id)
-        arrays = (kin.joint_jacobians.T, rotation.T, translation, self._local, self._support, self._ancestor,
+        joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
+        arrays = (joint_jacobians.T, rotation.T, translation, self._local, self._support, self._ancestor,
                   self._jacobian, self._origin, self.gradient)
         return [program.array(array) for array in arrays]
 
@@ -112,10 +111,7 @@ class Manipulability:
         that loses accuracy, the SVD form.
         """
         if self._compiled:
-            if kin is not self._kin:  # live views of this Kinematics' joint data
-                self._kin = kin
-                self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
-            joint_jacobians, rotation, translation = self._views
+            joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
             kernels.frame_jacobian(joint_jacobians, rotation, translation, self._local, self._support,
                                    self._jacobian, self._origin)
             self.value = kernels.manipulability_gradient(

@@ -62,7 +62,6 @@ class FrameTask(Task):
         self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
         self._target_rotation[...] = np.eye(3)
         self.gain, self.max_speed, self.max_angular_speed = gain, max_speed, max_angular_speed
-        self._kin: Kinematics | None = None
         self._has_target = False
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
@@ -96,7 +95,6 @@ class FrameTask(Task):
         self._keys = (f"{self.name}.position", f"{self.name}.orientation")
         self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
         self._parameters[kernels.FRAME_LOCAL] = local
-        self._kin = None
 
     def check_ready(self) -> None:
         if not self._has_target:
@@ -105,20 +103,17 @@ class FrameTask(Task):
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         if type(self).compute is not FrameTask.compute:
             return False  # a subclass with rows of its own
-        rotation, translation = kin.joint_placement(self._joint_id)
+        joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         nv = stack_t.shape[0] - 1
         # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views
-        program.add(kernels.OP_FRAME_TASK, program.array(kin.joint_jacobians.T), program.array(rotation.T),
+        program.add(kernels.OP_FRAME_TASK, program.array(joint_jacobians.T), program.array(rotation.T),
                     program.array(translation), program.array(self._support), program.array(self._parameters),
                     program.array(self.error), program.array(stack_t), start, nv, stack_t.shape[1])
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
-        if kin is not self._kin:  # live views of this Kinematics' joint data (one task, several controllers)
-            self._kin = kin
-            self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
-        joint_jacobians, joint_rotation, joint_translation = self._views
+        joint_jacobians, joint_rotation, joint_translation = kin.joint_views(self._joint_id)
         kernels.frame_task_rows(joint_jacobians, joint_rotation, joint_translation, self._support,
                                 self._parameters, dt, self.error, jacobian, target)
 

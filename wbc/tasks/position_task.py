@@ -49,7 +49,6 @@ class PositionTask(Task):
         self._has_target = False
         self.error = np.zeros(3)  #: last error p* - p [m], world
         self._robot: Robot | None = None
-        self._kin: Kinematics | None = None
 
     def default_name(self) -> str:
         return f"PositionTask({self.frame})"
@@ -74,7 +73,6 @@ class PositionTask(Task):
         self._parameters[kernels.POSITION_LOCAL] = local
         self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
         self._origin = np.zeros(3)
-        self._kin = None
 
     def check_ready(self) -> None:
         if not self._has_target:
@@ -83,8 +81,8 @@ class PositionTask(Task):
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         if type(self).compute is not PositionTask.compute:
             return False  # a subclass with rows of its own
-        rotation, translation = kin.joint_placement(self._joint_id)
-        program.add(kernels.OP_POSITION_TASK, program.array(kin.joint_jacobians.T), program.array(rotation.T),
+        joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
+        program.add(kernels.OP_POSITION_TASK, program.array(joint_jacobians.T), program.array(rotation.T),
                     program.array(translation), program.array(self._support), program.array(self._parameters),
                     program.array(self.error), program.array(stack_t), start, stack_t.shape[0] - 1,
                     stack_t.shape[1], program.array(self._jacobian), program.array(self._origin))
@@ -92,10 +90,7 @@ class PositionTask(Task):
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
-        if kin is not self._kin:  # live views of this Kinematics' joint data (one task, several controllers)
-            self._kin = kin
-            self._views = (kin.joint_jacobians, *kin.joint_placement(self._joint_id))
-        joint_jacobians, rotation, translation = self._views
+        joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self._parameters, dt,
                                    self.error, jacobian, target, self._jacobian, self._origin)
 
