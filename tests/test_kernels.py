@@ -184,6 +184,37 @@ def test_a_subclass_with_its_own_compute_is_not_compiled(youbot):
     np.testing.assert_allclose(half, 0.5 * full, rtol=1e-6, atol=1e-9)
 
 
+def test_inherited_ops_never_replace_an_overridden_compute():
+    """The rule behind the subclass test above, for constraints and preview tasks too."""
+    from wbc.program import ops_follow_compute
+
+    class Limits(wbc.JointPositionLimits):
+        def compute(self, kin, dt, rows):
+            super().compute(kin, dt, rows)
+
+    class Steering(wbc.SteeringTask):
+        def compute_preview(self, kin, dt, jacobian, target, preview):
+            super().compute_preview(kin, dt, jacobian, target, preview)
+
+    class OwnOps(wbc.JointPositionLimits):  # overrides both: its own ops stand
+        def compute(self, kin, dt, rows):
+            super().compute(kin, dt, rows)
+
+        def add_ops(self, program, kin, rows):
+            return super().add_ops(program, kin, rows)
+
+    assert ops_follow_compute(wbc.JointPositionLimits()) and ops_follow_compute(OwnOps())
+    assert not ops_follow_compute(Limits())
+    assert not ops_follow_compute(Steering(), "compute_preview", "add_preview_ops")
+    robot = wbc.load_robot("deluca_mm")
+    task = wbc.PositionTask("wrist_center")
+    task.set_target([1.0, 0.5, 0.5])
+    controller = wbc.Controller(robot, [task, Steering()], [wbc.NonholonomicBase(), Limits()])
+    assert not controller._preview_in_program
+    assert [type(c) for c, _ in controller._python_constraints] == [Limits]
+    assert np.all(np.isfinite(controller.step(robot.neutral())))
+
+
 def test_program_operands_must_be_contiguous_float64():
     program = TickProgram()
     with pytest.raises(TypeError):

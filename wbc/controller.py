@@ -33,7 +33,7 @@ from .constraints.constraint import Constraint, ConstraintRows
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
-from .program import TickProgram
+from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
@@ -211,8 +211,9 @@ class Controller:
         no op runs in Python before the program (nothing it writes depends on the program)."""
         kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
         program = TickProgram()
+        # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
-                              if not task.add_ops(program, kin, self._stack_t, start)]
+                              if not (ops_follow_compute(task) and task.add_ops(program, kin, self._stack_t, start))]
         stack, rows = program.array(self._stack_t), self._stack_t.shape[1]
         program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, 0, self._n_plain, 1, program.array(qp.Hc))
         # preview tasks (SteeringTask): in the program when all of them have ops, else in Python after it
@@ -221,7 +222,8 @@ class Controller:
             mark = len(program)
             program.add(kernels.OP_PREVIEW, program.array(qp.Hc), program.array(self._factor),
                         program.array(self._preview), nv)
-            if all(task.add_preview_ops(program, kin, self._stack_t, start, self._preview)
+            if all(ops_follow_compute(task, "compute_preview", "add_preview_ops")
+                   and task.add_preview_ops(program, kin, self._stack_t, start, self._preview)
                    for task, _, _, start in self._preview_blocks):
                 program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, self._n_plain, rows, 0,
                             program.array(qp.Hc))
@@ -229,7 +231,7 @@ class Controller:
             else:
                 program.truncate(mark)
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
-                                    if not constraint.add_ops(program, kin, block)]
+                                    if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
         self._merge_in_program = self._n_hard_bounds >= 1 and n_soft == 1 and not self._hard_dynamic
         if self._merge_in_program:
             (soft_upper, soft_lower), (hard_upper, hard_lower) = self._soft_bound_rows, self._hard_bound_rows

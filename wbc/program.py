@@ -63,6 +63,16 @@ class TickProgram:
         return kernels.run_program(self._program, self._addresses, dt)
 
 
+def ops_follow_compute(item: Any, compute: str = "compute", add_ops: str = "add_ops") -> bool:
+    """Whether ``item``'s compiled ops may stand in for its Python ``compute``: False when a
+    subclass overrides ``compute`` below the class that defines ``add_ops`` (it has rows of
+    its own, which the inherited ops would silently replace)."""
+    def owner(name: str) -> type:
+        return next(cls for cls in type(item).__mro__ if name in vars(cls))
+
+    return issubclass(owner(add_ops), owner(compute))
+
+
 class Operand:
     """A scalar setting that lives in an operand array of a compiled op.
 

@@ -67,7 +67,8 @@ class Constraint(ABC):
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         """Register this constraint's per-tick work as compiled ops and return True, or return
         False to be computed by :meth:`compute` every tick (the default). The ops must
-        compute exactly what :meth:`compute` would."""
+        compute exactly what :meth:`compute` would; a subclass that overrides ``compute`` but
+        not ``add_ops`` is computed in Python (``program.ops_follow_compute``)."""
         return False
 
     def row_labels(self) -> list[str]:

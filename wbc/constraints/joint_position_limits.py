@@ -76,8 +76,6 @@ class JointPositionLimits(Constraint):
             self._out = (np.zeros(len(self._q_index)), np.zeros(len(self._q_index)))
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if type(self).compute is not JointPositionLimits.compute:
-            return False  # a subclass with rows of its own
         if self._slices is None:
             return False
         q_slice, v_slice = self._slices

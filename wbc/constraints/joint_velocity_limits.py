@@ -45,8 +45,6 @@ class JointVelocityLimits(Constraint):
         rows.h.fill(self._linear_limit if self._base_rows else 0.0)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if type(self).compute is not JointVelocityLimits.compute:
-            return False  # a subclass with rows of its own
         if self._base_rows:
             self._heading_rows.add_op(program, kin, rows.G)
         return True

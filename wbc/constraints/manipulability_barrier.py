@@ -71,8 +71,8 @@ class ManipulabilityBarrier(Constraint):
         self._manipulability = Manipulability(robot, self.frame, self.rows)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if type(self).compute is not ManipulabilityBarrier.compute or not self._manipulability.compiled:
-            return False
+        if not self._manipulability.compiled:
+            return False  # multi-DOF joints on the chain: the Hessian path, in Python
         selected = row_selection(self.rows)
         program.add(kernels.OP_MANIPULABILITY_BARRIER, *self._manipulability.operands(program, kin),
                     program.array(rows.G[0]), program.array(rows.h[0:1]), program.array(self._state),

@@ -34,8 +34,6 @@ class NonholonomicBase(Constraint):
         self._heading_rows = HeadingRows(np.array([[0.0, 1.0]]), np.array([[-1.0, 0.0]]), heading, x, y)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if type(self).compute is not NonholonomicBase.compute:
-            return False  # a subclass with rows of its own
         self._heading_rows.add_op(program, kin, rows.A)
         return True
 

@@ -59,8 +59,6 @@ class WheelSpeedLimits(Constraint):
         G[n:, self._heading] = -self._H0[:, 2]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if type(self).compute is not WheelSpeedLimits.compute:
-            return False  # a subclass with rows of its own
         self._heading_rows.add_op(program, kin, rows.G)
         return True
 

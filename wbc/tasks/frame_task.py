@@ -101,8 +101,6 @@ class FrameTask(Task):
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
-        if type(self).compute is not FrameTask.compute:
-            return False  # a subclass with rows of its own
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         nv = stack_t.shape[0] - 1
         # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views

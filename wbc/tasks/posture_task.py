@@ -91,8 +91,6 @@ class PostureTask(Task):
             self._target_selected[:] = self.target[self._q_slice]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
-        if type(self).compute is not PostureTask.compute:
-            return False  # a subclass with rows of its own
         if self._q_slice is None:
             return False  # pin.difference over general joints: computed in Python
         nv = stack_t.shape[0] - 1

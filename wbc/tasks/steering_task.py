@@ -91,8 +91,6 @@ class SteeringTask(Task):
 
     def add_preview_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int,
                         preview: np.ndarray) -> bool:
-        if type(self).compute_preview is not SteeringTask.compute_preview:
-            return False  # a subclass with a row of its own
         program.add(kernels.OP_STEERING, program.array(preview), program.array(kin.q), self._x, self._y,
                     self._heading, program.array(self._parameters), program.array(self.error),
                     program.array(stack_t), start, stack_t.shape[0] - 1, stack_t.shape[1], len(kin.q))

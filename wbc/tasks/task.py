@@ -55,7 +55,8 @@ class Task(ABC):
 
         The rows are ``start:start + dim`` of the controller's stack ``A = stack_t^T``
         (``stack_t``: (nv + 1) x rows, C-contiguous; column nv of A holds ``W r``). The ops
-        must compute exactly what :meth:`compute` would.
+        must compute exactly what :meth:`compute` would; a subclass that overrides
+        ``compute`` but not ``add_ops`` is computed in Python (``program.ops_follow_compute``).
         """
         return False
 
