@@ -98,6 +98,32 @@ def pose_defect(pose: np.ndarray, tolerance: float) -> int:
 
 # ------------------------------------------------------------------- tasks
 
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
+                   local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
+    """World-aligned Jacobian (6 x nv) at the origin ``p = R_i p_f + p_i`` of a frame placed at
+    ``local`` (rotation row-major, then translation) in its parent joint ``(R_i, p_i)``; the
+    origin goes to ``origin``. ``joint_jacobians`` (6 x nv) holds every joint's columns as
+    spatial velocities at the world origin (Pinocchio's ``data.J``); at the frame origin,
+    world-aligned, a column is ``(v + w x p; w)``, kept where ``support`` is 1 (the joints
+    between the root and the frame), zero elsewhere."""
+    Ri, pf = joint_rotation, local[9:12]
+    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
+    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
+    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
+    origin[0], origin[1], origin[2] = px, py, pz
+    for k in range(joint_jacobians.shape[1]):
+        if support[k] == 0.0:
+            for a in range(6):
+                jacobian[a, k] = 0.0
+            continue
+        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
+        jacobian[0, k] = joint_jacobians[0, k] + wy * pz - wz * py
+        jacobian[1, k] = joint_jacobians[1, k] + wz * px - wx * pz
+        jacobian[2, k] = joint_jacobians[2, k] + wx * py - wy * px
+        jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
+
+
 #: layout of the FrameTask parameter vector (one float64 vector per task)
 FRAME_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation [m]
 FRAME_TARGET_ROTATION = slice(12, 21)  # target orientation R* (row-major)
@@ -105,7 +131,7 @@ FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
 FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
 FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
 FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain in (0, 1], [m/s], [rad/s]
-FRAME_PARAMETERS = 48  # 39:48 is the kernel's scratch (R* R^T)
+FRAME_PARAMETERS = 51  # 39:51 is the kernel's scratch (R* R^T, then the frame origin)
 
 
 @njit("void(float64[:, :], float64[:], float64[:])", cache=True, nogil=True)
@@ -127,23 +153,20 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
     """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
 
     Frame placement ``R = R_i R_f``, ``p = R_i p_f + p_i`` (``R_i, p_i``: parent joint;
-    ``R_f, p_f``: frame in the joint). ``joint_jacobians`` (6 x nv) holds every joint's
-    columns as spatial velocities at the world origin (Pinocchio's ``data.J``); at the frame
-    origin, world-aligned, a column is ``(v + w x p; w)``, kept where ``support`` is 1 (the
-    joints between the root and the frame). Writes ``error = (p* - p, log3(R* R^T))``,
+    ``R_f, p_f``: frame in the joint); the Jacobian is :func:`frame_jacobian`'s. Writes ``error = (p* - p, log3(R* R^T))``,
     ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (parameter layout:
     the ``FRAME_*`` slices of this module).
     """
-    Rf, pf, Rt, pt = parameters[0:9], parameters[9:12], parameters[12:21], parameters[21:24]
+    Rf, Rt, pt = parameters[0:9], parameters[12:21], parameters[21:24]
     weights, feedforward = parameters[24:30], parameters[30:36]
     gain, max_speed, max_angular_speed = parameters[36] / dt, parameters[37], parameters[38]
-    relative = parameters[39:48]
+    relative, origin = parameters[39:48], parameters[48:51]
     Ri = joint_rotation
-    # frame position p = R_i p_f + p_i and the position error
-    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
-    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
-    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
-    error[0], error[1], error[2] = pt[0] - px, pt[1] - py, pt[2] - pz
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, parameters[0:12], support, jacobian, origin)
+    for a in range(6):
+        for k in range(jacobian.shape[1]):
+            jacobian[a, k] *= weights[a]
+    error[0], error[1], error[2] = pt[0] - origin[0], pt[1] - origin[1], pt[2] - origin[2]
     # orientation error log3(R* R^T) with R = R_i R_f: (R* R^T)_ab = sum_c R*_ac R_bc
     for b in range(3):
         r0 = Ri[b, 0] * Rf[0] + Ri[b, 1] * Rf[3] + Ri[b, 2] * Rf[6]  # row b of R
@@ -152,19 +175,6 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
         for a in range(3):
             relative[3 * a + b] = Rt[3 * a] * r0 + Rt[3 * a + 1] * r1 + Rt[3 * a + 2] * r2
     log3(relative, error[3:])
-    # weighted world-aligned frame Jacobian
-    for k in range(joint_jacobians.shape[1]):
-        if support[k] == 0.0:
-            for a in range(6):
-                jacobian[a, k] = 0.0
-            continue
-        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
-        jacobian[0, k] = weights[0] * (joint_jacobians[0, k] + wy * pz - wz * py)
-        jacobian[1, k] = weights[1] * (joint_jacobians[1, k] + wz * px - wx * pz)
-        jacobian[2, k] = weights[2] * (joint_jacobians[2, k] + wx * py - wy * px)
-        jacobian[3, k] = weights[3] * wx
-        jacobian[4, k] = weights[4] * wy
-        jacobian[5, k] = weights[5] * wz
     # feedback velocity gain/dt * e, each part bounded in norm (direction kept), then weighted
     for part in (0, 3):
         limit = max_speed if part == 0 else max_angular_speed
@@ -172,29 +182,6 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
         scale = gain if norm <= limit else limit / norm * gain
         for a in range(part, part + 3):
             target[a] = weights[a] * (scale * error[a]) + feedforward[a]
-
-
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
-def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
-                   local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
-    """World-aligned Jacobian (6 x nv) at the origin of a frame placed at ``local`` (rotation
-    row-major, then translation) in its parent joint, as in :func:`frame_task_rows` but
-    unweighted; the frame origin (world) goes to ``origin``."""
-    Ri, pf = joint_rotation, local[9:12]
-    px = Ri[0, 0] * pf[0] + Ri[0, 1] * pf[1] + Ri[0, 2] * pf[2] + joint_translation[0]
-    py = Ri[1, 0] * pf[0] + Ri[1, 1] * pf[1] + Ri[1, 2] * pf[2] + joint_translation[1]
-    pz = Ri[2, 0] * pf[0] + Ri[2, 1] * pf[1] + Ri[2, 2] * pf[2] + joint_translation[2]
-    origin[0], origin[1], origin[2] = px, py, pz
-    for k in range(joint_jacobians.shape[1]):
-        if support[k] == 0.0:
-            for a in range(6):
-                jacobian[a, k] = 0.0
-            continue
-        wx, wy, wz = joint_jacobians[3, k], joint_jacobians[4, k], joint_jacobians[5, k]
-        jacobian[0, k] = joint_jacobians[0, k] + wy * pz - wz * py
-        jacobian[1, k] = joint_jacobians[1, k] + wz * px - wx * pz
-        jacobian[2, k] = joint_jacobians[2, k] + wx * py - wy * px
-        jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
 
 
 #: layout of the PositionTask parameter vector
