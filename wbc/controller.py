@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import time
+import weakref
 from collections.abc import Sequence
 
 import numpy as np
@@ -38,7 +39,7 @@ from .qp import QP
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
 from .tasks.task import Task
-from .validation import as_positive
+from .validation import as_flag, as_positive
 
 
 class Controller:
@@ -55,7 +56,8 @@ class Controller:
         solver_options: settings passed to the backend (override :data:`wbc.solvers.DEFAULT_SETTINGS`).
         reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
-            ``last.u`` holds the inputs in both forms.
+            ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have
+            ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
         strict: raise :class:`SolverError` when the QP cannot be solved, instead of the
             fallback below.
 
@@ -92,8 +94,9 @@ class Controller:
         for item in self.constraints:
             if not isinstance(item, Constraint):
                 raise InvalidInputError(f"not a Constraint: {item!r}")
-        self.reduced = bool(reduced)
-        self.strict = bool(strict)
+        # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
+        self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
+        self.strict = as_flag(strict, "strict")
         if self.reduced:
             self.constraints = [c for c in self.constraints if not getattr(c, "satisfied_by_input_map", False)]
         elif robot.base.is_nonholonomic and not any(getattr(c, "satisfied_by_input_map", False)
@@ -108,15 +111,14 @@ class Controller:
         self._tick = 0
         self._q_shape = (robot.nq,)
         self.last: TickDiagnostics | None = None
+        self._eager_task_errors = False  # set when a task or constraint is shared (see _bind)
         self._allocate()
 
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
         robot, nv = self.robot, self.robot.nv
-        for task in self.tasks:
-            task.bind(robot)
-        for constraint in self.constraints:
-            constraint.bind(robot)
+        for item in self.tasks + self.constraints:
+            self._bind(item)
 
         # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
         # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
@@ -204,6 +206,28 @@ class Controller:
         else:
             self.qp = qp
 
+    def _bind(self, item: Task | Constraint) -> None:
+        """Bind ``item`` to the robot once for its life; later controllers share it.
+
+        An item holds robot-specific data (frame and joint indices, limits) that the compiled
+        programs of every controller using it read, so it serves controllers of one robot
+        object only. Its settings (targets, gains) are shared on purpose; its per-tick error
+        buffers are too, so the task errors of controllers sharing an item are read eagerly
+        at the end of each of their ticks."""
+        robot = getattr(item, "_bound_robot", None)
+        if robot is None:
+            item.bind(self.robot)
+            item._bound_robot, item._controllers = self.robot, weakref.WeakSet()
+        elif robot is not self.robot:
+            raise InvalidInputError(
+                f"{item.name} is bound to another robot object ({robot.name!r}) by an earlier controller; "
+                f"an item serves the controllers of one robot: create another {type(item).__name__} for "
+                f"{self.robot.name!r}")
+        item._controllers.add(self)
+        if len(item._controllers) > 1:
+            for controller in item._controllers:
+                controller._eager_task_errors = True
+
     def _build_program(self, n_soft: int) -> None:
         """The compiled part of the tick (wbc.program): tasks and constraints that have ops,
         the normal equations, and -- in the usual case of one soft bound constraint clipped
@@ -282,7 +306,8 @@ class Controller:
         if has_nan:
             solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
         else:
-            solution = self.solver.solve(self.qp)
+            kernels.normalise_cost(self.qp.Hc)
+            solution = self._checked(self.solver.solve(self.qp))
         self._tick += 1
         if not solution.success:
             solution = self._fallback(solution)
@@ -296,7 +321,22 @@ class Controller:
             v = u = solution.x
         self.last = TickDiagnostics(self, self._tick, solution.status, solution.status == "optimal",
                                     solution.solve_time, time.perf_counter() - start, v, u)
+        if self._eager_task_errors:  # a shared task's error buffer is rewritten by the other controller
+            self.last.task_errors
         return v
+
+    def _checked(self, solution: QPSolution) -> QPSolution:
+        """``solution``, unless it violates a bound or row of the QP it solved by more than
+        :data:`ANSWER_TOLERANCE` (relative): then a failure, so the fallback chain answers
+        and the backend's warm start is dropped."""
+        if solution.success:
+            qp = self.qp
+            defect = kernels.constraint_defect(qp.C, qp.upper, qp.lower, solution.x)
+            if defect > ANSWER_TOLERANCE:
+                self.solver.reset()
+                return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
+                                  solution.solve_time)
+        return solution
 
     def _check_ready(self) -> None:
         for task in self._unready:
@@ -419,6 +459,9 @@ class Controller:
 
 
 _FLOAT64 = np.dtype(np.float64)
+#: largest relative violation of its own constraints accepted in a backend's answer
+#: (:func:`wbc.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
+ANSWER_TOLERANCE = 1e-6
 
 
 def _intersect(bounds: np.ndarray, out: np.ndarray) -> None:

@@ -255,12 +255,15 @@ def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: in
 def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
                           dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
     """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
-    fraction ``gain`` of the margin per tick, outside the full margin (land on the limit)."""
+    fraction ``gain`` of each margin per tick; outside them the full margins (``gain = 1``),
+    so the joint may land on the violated limit in one tick and ``lower <= upper`` holds
+    whatever the gain (a small gain on one side only would exclude the way back)."""
     for i in range(len(q)):
         low = (lower_limit[i] - q[i]) / dt
         high = (upper_limit[i] - q[i]) / dt
-        lower[i] = max(gain * low, low)
-        upper[i] = min(gain * high, high)
+        scale = gain if low <= 0.0 <= high else 1.0
+        lower[i] = scale * low
+        upper[i] = scale * high
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=True, nogil=True)
@@ -350,6 +353,50 @@ def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.n
     for i in range(len(upper)):
         upper[i] = min(max(soft_upper[i], hard_lower[i]), hard_upper[i])
         lower[i] = min(max(soft_lower[i], hard_lower[i]), hard_upper[i])
+
+
+@njit("void(float64[:, :])", cache=True, nogil=True)
+def normalise_cost(Hc: np.ndarray) -> None:
+    """Scale ``[H; c]`` so that ``max_i H_ii = 1`` (the minimiser is unchanged).
+
+    Costs far from 1 (a weight of 1e11, or 1e-12 everywhere) otherwise meet absolute
+    tolerances inside the solvers: DAQP then returned answers violating hard rows by O(1)."""
+    n = Hc.shape[1]
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, Hc[i, i])
+    if scale > 0.0 and math.isfinite(scale):
+        inverse = 1.0 / scale
+        for i in range(n + 1):
+            for j in range(n):
+                Hc[i, j] *= inverse
+
+
+@njit("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=True, nogil=True)
+def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
+    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
+    :class:`wbc.qp.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
+    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
+    n = x.shape[0]
+    worst = 0.0
+    for i in range(upper.shape[0]):
+        if i < n:
+            value = x[i]
+            size = abs(value)
+        else:
+            value = 0.0
+            size = 0.0
+            for j in range(n):
+                term = C[i - n, j] * x[j]
+                value += term
+                size += abs(term)
+        if not math.isfinite(value):
+            return math.inf
+        excess = max(value - upper[i], lower[i] - value)
+        if excess > 0.0:
+            bound = upper[i] if value > upper[i] else lower[i]
+            worst = max(worst, excess / max(1.0, abs(bound), size))
+    return worst
 
 
 # ---------------------------------------------------------- manipulability

@@ -72,6 +72,9 @@ class QPSolver(ABC):
     @abstractmethod
     def solve(self, qp: QP) -> QPSolution: ...
 
+    def reset(self) -> None:
+        """Forget any warm start (the next solve starts cold)."""
+
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
 
@@ -107,6 +110,9 @@ class QpsolversBackend(QPSolver):
         self._sparse = name in _SPARSE_SOLVERS
         self._previous: np.ndarray | None = None
 
+    def reset(self) -> None:
+        self._previous = None
+
     def solve(self, qp: QP) -> QPSolution:
         matrix = sp.csc_matrix if self._sparse else (lambda m: m)
         problem = qpsolvers.Problem(
@@ -135,7 +141,7 @@ class QpsolversBackend(QPSolver):
         if not solution.found or x is None or not _finite(np.asarray(x, dtype=np.float64)):
             self._previous = None
             return QPSolution(None, False, "not found", elapsed)
-        x = np.asarray(x, dtype=np.float64)
+        x = np.array(x, dtype=np.float64)  # an owned, writable copy (PIQP's is read-only)
         self._previous = x
         return QPSolution(x, True, "optimal", elapsed)
 

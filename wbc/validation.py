@@ -67,6 +67,13 @@ def as_positive(value, name: str) -> float:
     return number
 
 
+def as_flag(value, name: str) -> bool:
+    """Return a boolean option; anything but a bool (e.g. the string ``"false"``) is refused."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InvalidInputError(f"{name} must be True or False, got {value!r}")
+    return bool(value)
+
+
 def as_speed_limit(value, name: str) -> float:
     """Return an optional speed bound: ``None`` means unbounded (inf), else a finite float > 0."""
     return np.inf if value is None else as_positive(value, name)

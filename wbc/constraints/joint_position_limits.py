@@ -44,8 +44,6 @@ class JointPositionLimits(Constraint):
         self.gain = gain
 
     def bind(self, robot: Robot) -> None:
-        if robot is getattr(self, "_robot", None):
-            return  # a second controller on the same robot: the buffers (compiled into both) stay
         self._robot = robot
         model = robot.model
         q_index, v_index = [], []

@@ -88,8 +88,6 @@ class FrameTask(Task):
         return pose
 
     def bind(self, robot: Robot) -> None:
-        if robot is getattr(self, "_robot", None):
-            return  # a second controller on the same robot: the buffers (compiled into both) stay
         self._robot = robot
         self._frame_id = robot.frame_id(self.frame)
         self._keys = (f"{self.name}.position", f"{self.name}.orientation")

@@ -64,8 +64,6 @@ class PositionTask(Task):
         return self._target.copy()
 
     def bind(self, robot: Robot) -> None:
-        if robot is self._robot:
-            return  # a second controller on the same robot: the buffers (compiled into both) stay
         self._robot = robot
         self._frame_id = robot.frame_id(self.frame)
         self._key = self.name

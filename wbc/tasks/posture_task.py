@@ -52,8 +52,6 @@ class PostureTask(Task):
             np.multiply(self._weights, self._gain, out=self._gain_weights)  # in place: a compiled operand
 
     def bind(self, robot: Robot) -> None:
-        if robot is self._robot:
-            return  # a second controller on the same robot: the buffers (compiled into both) stay
         model = robot.model
         base = set(robot.base.indices) if robot.base.is_mobile else set()
         if self._joint_spec is None:

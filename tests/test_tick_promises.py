@@ -1,0 +1,220 @@
+"""Regression tests of the README's "What a tick guarantees": each test failed before the
+fix it guards (answers checked against the QP, cost normalisation, the position damper
+outside a limit, ``reduced`` on holonomic bases, items shared between controllers)."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import wbc
+from wbc import kernels
+from wbc.solvers import QPSolution, QPSolver
+
+HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
+
+
+def hold(robot, q, **costs):
+    task = wbc.FrameTask("ee", **({"position_cost": 1.0, "orientation_cost": 0.5} | costs), gain=0.5)
+    task.set_target_from_configuration(robot, q)
+    return task
+
+
+def reach(robot, q, offset, **costs):
+    task = hold(robot, q, **costs)
+    target = robot.frame_pose(q, "ee")
+    target[:3, 3] += offset
+    task.set_target(target)
+    return task
+
+
+def youbot_within_hard_limits(robot, q, v, tol=1e-7):
+    vx, vy, omega = robot.base_twist(q, v)
+    return (np.all(np.abs(v[3:]) <= robot.velocity_limit[3:] + tol) and abs(omega) <= robot.base.max_yaw_rate + tol
+            and max(abs(vx), abs(vy)) <= robot.base.max_linear_speed + tol)
+
+
+# ------------------------------------------------------------------ answers are checked
+def test_huge_base_cost_gives_the_limited_base_twist_without_slip():
+    """BaseVelocityTask(cost=1e11) asking a synchro base for (3, -3, 0.5): the answer is the
+    twist clipped to the limits, (0.5, 0, 0.5), not the target (it was, marked optimal)."""
+    robot = wbc.load_robot("deluca_mm")
+    task = wbc.BaseVelocityTask(cost=1e11)
+    task.set_target((3.0, -3.0, 0.5))
+    controller = wbc.Controller(robot, [task, wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits(),
+                                                                       wbc.NonholonomicBase()])
+    q = robot.neutral()
+    v = controller.step(q)
+    assert controller.last.success
+    assert robot.base.max_linear_speed == 0.5 and robot.base.max_yaw_rate >= 0.5
+    np.testing.assert_allclose(robot.base_twist(q, v), [0.5, 0.0, 0.5], atol=1e-7)
+    assert controller.last.max_violation <= 1e-9
+
+
+class WrongAnswers(QPSolver):
+    """A backend that claims success with an answer outside the bounds."""
+
+    name = "wrong"
+
+    def __init__(self) -> None:
+        self.resets = 0
+
+    def solve(self, qp):
+        return QPSolution(np.full(qp.n, 10.0), True, "optimal", 0.0)
+
+    def reset(self) -> None:
+        self.resets += 1
+
+
+def test_an_answer_outside_the_constraints_goes_down_the_fallback_chain(youbot):
+    controller = wbc.Controller(youbot, [reach(youbot, HOME, [0.3, 0, 0])],
+                                [wbc.JointPositionLimits(), wbc.JointVelocityLimits()])
+    controller.solver = wrong = WrongAnswers()
+    v = controller.step(HOME)
+    assert not controller.last.success
+    assert controller.last.status.startswith("fallback: elastic soft rows after wrong: answer violates")
+    assert youbot_within_hard_limits(youbot, HOME, v) and wrong.resets == 1
+
+
+def test_an_answer_outside_the_constraints_raises_in_strict_mode(youbot):
+    controller = wbc.Controller(youbot, [reach(youbot, HOME, [0.3, 0, 0])], [wbc.JointVelocityLimits()], strict=True)
+    controller.solver = WrongAnswers()
+    with pytest.raises(wbc.SolverError, match="violates"):
+        controller.step(HOME)
+
+
+def test_constraint_defect_is_the_relative_violation():
+    C = np.array([[1.0, 2.0]])
+    upper = np.array([1.0, 1.0, 3.0])  # x1 <= 1, x2 <= 1, x1 + 2 x2 <= 3
+    lower = np.array([-1.0, -1.0, -np.inf])
+    assert kernels.constraint_defect(C, upper, lower, np.array([1.0, 1.0])) == 0.0
+    assert kernels.constraint_defect(C, upper, lower, np.array([-3.0, 0.0])) == pytest.approx(2.0 / 3.0)
+    # bound: x2 = 1.25 exceeds 1 by 0.25, relative to max(1, |1|, |x2|) = 1.25
+    assert kernels.constraint_defect(C, upper, lower, np.array([1.0, 1.25])) == pytest.approx(0.25 / 1.25)
+    # row: x1 + 2 x2 = 3 exceeds 2.5 by 0.5, relative to max(1, 2.5, |1| + |2|) = 3
+    upper[2] = 2.5
+    assert kernels.constraint_defect(C, upper, lower, np.array([1.0, 1.0])) == pytest.approx(0.5 / 3.0)
+    assert kernels.constraint_defect(C, upper, lower, np.array([np.nan, 0.0])) == np.inf
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1e-9, 1e-6, 1e6, 1e9, 1e12])
+@pytest.mark.parametrize("solver", ["daqp", "proxqp", "osqp"])
+def test_the_command_does_not_depend_on_the_cost_scale(youbot, scale, solver):
+    """Scaling every cost and the damping by the same factor leaves the minimiser unchanged;
+    the command at 1e-12..1e12 equals the one at scale 1 (limits active: a far target)."""
+    def command(factor):
+        task = reach(youbot, HOME, [0.6, -0.4, 0.2], position_cost=factor, orientation_cost=0.5 * factor)
+        controller = wbc.Controller(youbot, [task, wbc.PostureTask(1e-3 * factor, target=HOME, gain=0.05)],
+                                    [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()],
+                                    damping=1e-3 * factor, solver=solver)
+        v = controller.step(HOME)
+        assert controller.last.success, controller.last.status
+        return v
+
+    reference = command(1.0)
+    assert youbot_within_hard_limits(youbot, HOME, reference)
+    assert np.max(np.abs(reference[3:]) / youbot.velocity_limit[3:]) > 0.99  # a speed limit is active
+    np.testing.assert_allclose(command(scale), reference, rtol=0, atol=1e-6)
+
+
+def test_normalise_cost_keeps_the_minimiser():
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((5, 5))
+    Hc = np.vstack([M @ M.T * 1e9, rng.standard_normal(5) * 1e9])
+    x = np.linalg.solve(Hc[:5], -Hc[5])
+    kernels.normalise_cost(Hc)
+    assert np.max(np.diag(Hc[:5])) == pytest.approx(1.0)
+    np.testing.assert_allclose(np.linalg.solve(Hc[:5], -Hc[5]), x, rtol=1e-9)
+
+
+# ------------------------------------------------------------- position limits, any gain
+@pytest.mark.parametrize("gain", [1e-4, 1e-3, 0.01, 0.5, 1.0])
+@pytest.mark.parametrize("speed_limits", [False, True])
+@pytest.mark.parametrize("side", ["upper", "lower"])
+def test_a_joint_outside_its_limit_comes_back_for_any_gain(youbot, gain, speed_limits, side):
+    q = HOME.copy()
+    q[5] = youbot.upper[5] + 0.005 if side == "upper" else youbot.lower[5] - 0.005
+    constraints = [wbc.JointPositionLimits(gain=gain)] + ([wbc.JointVelocityLimits()] if speed_limits else [])
+    controller = wbc.Controller(youbot, [hold(youbot, HOME), wbc.PostureTask(1e-3)], constraints)
+    for _ in range(5):
+        q = youbot.integrate(q, controller.step(q), controller.dt)
+        assert controller.last.success, controller.last.status
+    assert youbot.lower[5] - 1e-12 <= q[5] <= youbot.upper[5] + 1e-12
+
+
+@settings(max_examples=300, deadline=None)
+@given(q=st.floats(-4.0, 4.0), low=st.floats(-3.0, 0.0), width=st.floats(0.0, 3.0),
+       gain=st.floats(1e-6, 1.0), dt=st.floats(1e-4, 0.1))
+def test_damper_bounds_never_exclude_each_other(q, low, width, gain, dt):
+    """lower <= upper always; inside the limits one Euler step stays inside; outside, every
+    admissible step moves toward the range and the full way back is admissible."""
+    high = low + width
+    lower, upper = np.zeros(1), np.zeros(1)
+    kernels.position_limit_bounds(np.array([q]), np.array([low]), np.array([high]), gain, dt, lower, upper)
+    assert lower[0] <= upper[0]
+    if low <= q <= high:
+        assert low - 1e-12 <= q + lower[0] * dt and q + upper[0] * dt <= high + 1e-12
+    elif q > high:
+        assert upper[0] * dt == pytest.approx(high - q) and lower[0] <= upper[0] < 0
+    else:
+        assert lower[0] * dt == pytest.approx(low - q) and 0 < lower[0] <= upper[0]
+
+
+# ---------------------------------------------------------------------------- reduced
+@pytest.mark.parametrize("model", ["youbot", "puma560"])
+def test_reduced_on_a_holonomic_or_fixed_base_is_the_plain_qp(model):
+    robot = wbc.load_robot(model)
+    q = HOME if model == "youbot" else np.array([0.0, -0.6, 0.4, 0.2, 0.8, 0.1])
+    commands = []
+    for reduced in (False, True):
+        controller = wbc.Controller(robot, [reach(robot, q, [0.05, 0.02, 0.0])],
+                                    [wbc.JointPositionLimits(), wbc.JointVelocityLimits()], reduced=reduced)
+        commands.append(controller.step(q))
+        assert controller.last.success and not controller.reduced
+        np.testing.assert_array_equal(controller.last.u, commands[-1])
+    np.testing.assert_allclose(commands[1], commands[0], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("option", ["reduced", "strict"])
+@pytest.mark.parametrize("value", ["false", "True", 1, 0, None])
+def test_options_that_are_not_booleans_are_refused(youbot, option, value):
+    with pytest.raises(wbc.InvalidInputError, match=option):
+        wbc.Controller(youbot, [hold(youbot, HOME)], **{option: value})
+
+
+# ----------------------------------------------------------------------------- sharing
+def test_an_item_bound_to_one_robot_is_refused_by_another(youbot):
+    puma = wbc.load_robot("puma560")
+    task = hold(youbot, HOME)
+    first = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()])
+    alone = first.step(HOME).copy()
+    with pytest.raises(wbc.InvalidInputError, match="puma560"):
+        wbc.Controller(puma, [task])
+    np.testing.assert_array_equal(first.step(HOME), alone)  # the youBot's command is untouched
+    other_youbot = wbc.load_robot("youbot")
+    posture = wbc.PostureTask(1e-3, gain=0.1)
+    wbc.Controller(youbot, [task, posture])
+    with pytest.raises(wbc.InvalidInputError, match="another robot object"):
+        wbc.Controller(other_youbot, [hold(other_youbot, HOME), posture])
+
+
+def test_items_shared_on_one_robot_give_each_controller_its_own_command_and_errors(youbot, rng):
+    task = reach(youbot, HOME, [0.2, 0.1, 0.0])
+    posture = wbc.PostureTask(1e-2, target=HOME, gain=0.2)
+    limits = [wbc.JointPositionLimits(gain=0.3), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits(),
+              wbc.ManipulabilityBarrier("ee", min_value=0.01, gain=0.3)]
+    first, second = (wbc.Controller(youbot, [task, posture], limits) for _ in range(2))
+    target = task.target
+    for _ in range(5):
+        q1, q2 = HOME + rng.normal(0, 0.2, 8), HOME + rng.normal(0, 0.2, 8)
+        posture.gain = rng.uniform(0.05, 1.0)  # settings are shared: both must use the new gain
+        v1, v2 = first.step(q1), second.step(q2)  # errors of the first read after the second stepped
+        for v, q, last in ((v1, q1, first.last), (v2, q2, second.last)):
+            own_task = wbc.FrameTask("ee", 1.0, 0.5, gain=0.5)
+            own_task.set_target(target)
+            own = wbc.Controller(youbot, [own_task, wbc.PostureTask(1e-2, target=HOME, gain=posture.gain)],
+                                 [wbc.JointPositionLimits(gain=0.3), wbc.JointVelocityLimits(),
+                                  wbc.MecanumWheelLimits(), wbc.ManipulabilityBarrier("ee", 0.01, 0.3)])
+            np.testing.assert_allclose(v, own.step(q), rtol=0, atol=1e-9)
+            position = youbot.frame_pose(q, "ee")[:3, 3]
+            assert last.task_errors["FrameTask(ee).position"] == pytest.approx(np.linalg.norm(target[:3, 3] - position))
