@@ -218,3 +218,69 @@ def test_items_shared_on_one_robot_give_each_controller_its_own_command_and_erro
             np.testing.assert_allclose(v, own.step(q), rtol=0, atol=1e-9)
             position = youbot.frame_pose(q, "ee")[:3, 3]
             assert last.task_errors["FrameTask(ee).position"] == pytest.approx(np.linalg.norm(target[:3, 3] - position))
+
+
+# ------------------------------------------------------------------------- boundary
+@pytest.mark.parametrize("make, match", [
+    (lambda y: wbc.Controller(y, [hold(y, HOME)], damping="x"), "damping"),
+    (lambda y: wbc.Controller(y, [hold(y, HOME)], damping=True), "damping"),
+    (lambda y: wbc.Controller(y, hold(y, HOME)), "list of Tasks"),
+    (lambda y: wbc.Controller(y, [hold(y, HOME)], wbc.JointVelocityLimits()), "list of Constraints"),
+    (lambda y: wbc.Controller(y, [hold(y, HOME)], solver_options=[1, 2]), "solver_options"),
+    (lambda y: wbc.FrameTask("ee", position_cost="a"), "position_cost"),
+    (lambda y: wbc.FrameTask("ee", position_cost=1j), "position_cost"),
+    (lambda y: wbc.FrameTask("ee", position_cost=None), "position_cost"),
+    (lambda y: wbc.PositionTask("ee", cost=[1.0, "a", 2.0]), "cost"),
+    (lambda y: wbc.PostureTask(1.0, joints="arm_joint_1"), r"joints=\['arm_joint_1'\]"),
+])
+def test_malformed_arguments_raise_a_wbc_error_naming_them(youbot, make, match):
+    with pytest.raises(wbc.InvalidInputError, match=match):
+        make(youbot)
+
+
+@pytest.mark.parametrize("q", [np.zeros(8, dtype=bool), np.array(["0"] * 8), [None] * 8])
+def test_configurations_that_are_not_numbers_are_refused(youbot, q):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)])
+    with pytest.raises(wbc.InvalidInputError, match="q must be numeric"):
+        controller.step(q)
+
+
+def test_integer_and_object_configurations_are_converted(youbot):
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)], [wbc.JointVelocityLimits()])
+    reference = controller.step(np.zeros(8))
+    for q in (np.zeros(8, dtype=int), np.array([0.0] * 8, dtype=object), [0] * 8):
+        np.testing.assert_allclose(controller.step(q), reference, rtol=0, atol=1e-9)  # warm vs cold start
+
+
+def test_settings_assigned_after_construction_act_on_the_next_tick(youbot):
+    """Costs, gains, dt and damping reassigned between ticks give the command of a controller
+    built with the new values (they were silently ignored)."""
+    task = reach(youbot, HOME, [0.2, 0.1, 0.0])
+    manipulability = wbc.ManipulabilityTask("ee", cost=1e-3, gain=0.1, target=0.2)
+    controller = wbc.Controller(youbot, [task, manipulability], [wbc.JointVelocityLimits()])
+    controller.step(HOME)
+    task.position_cost, task.orientation_cost = [2.0, 3.0, 4.0], 0.1
+    manipulability.cost, manipulability.gain, manipulability.target = 1e-2, 0.3, 0.1
+    controller.dt, controller.damping = 0.02, 1e-2
+    fresh_task = reach(youbot, HOME, [0.2, 0.1, 0.0], position_cost=[2.0, 3.0, 4.0], orientation_cost=0.1)
+    fresh = wbc.Controller(youbot, [fresh_task, wbc.ManipulabilityTask("ee", cost=1e-2, gain=0.3, target=0.1)],
+                           [wbc.JointVelocityLimits()], dt=0.02, damping=1e-2)
+    np.testing.assert_allclose(controller.step(HOME), fresh.step(HOME), rtol=0, atol=1e-10)
+    np.testing.assert_array_equal(task.position_cost, [2.0, 3.0, 4.0])
+
+
+@pytest.mark.parametrize("assign, match", [
+    (lambda t, m, c: setattr(m, "gain", float("nan")), "gain"),
+    (lambda t, m, c: setattr(m, "cost", -1.0), "cost"),
+    (lambda t, m, c: setattr(t, "position_cost", "a"), "position_cost"),
+    (lambda t, m, c: setattr(t, "frame", "base_link"), "frame cannot change"),
+    (lambda t, m, c: setattr(m, "value", 1.0), "read-only"),
+    (lambda t, m, c: setattr(c, "dt", 0.0), "dt"),
+    (lambda t, m, c: setattr(c, "damping", -1e-3), "damping"),
+])
+def test_invalid_or_ineffective_assignments_raise(youbot, assign, match):
+    task = hold(youbot, HOME)
+    manipulability = wbc.ManipulabilityTask("ee", cost=1e-3, target=0.2)
+    controller = wbc.Controller(youbot, [task, manipulability])
+    with pytest.raises(wbc.InvalidInputError, match=match):
+        assign(task, manipulability, controller)

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import time
 import weakref
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -39,7 +39,7 @@ from .qp import QP
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
 from .tasks.task import Task
-from .validation import as_flag, as_positive
+from .validation import as_flag, as_items, as_nonnegative, as_positive
 
 
 class Controller:
@@ -80,20 +80,14 @@ class Controller:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
-        self.dt = as_positive(dt, "dt")
-        self.damping = float(damping)
-        if not np.isfinite(self.damping) or self.damping < 0:
-            raise InvalidInputError(f"damping must be finite and >= 0, got {damping}")
-        self.tasks = list(tasks)
-        self.constraints = list(constraints)
+        self.dt = dt
+        self._damping = as_nonnegative(damping, "damping")
+        self.tasks = as_items(tasks, Task, "tasks")
+        self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
             raise InvalidInputError("a controller needs at least one task")
-        for item in self.tasks:
-            if not isinstance(item, Task):
-                raise InvalidInputError(f"not a Task: {item!r}")
-        for item in self.constraints:
-            if not isinstance(item, Constraint):
-                raise InvalidInputError(f"not a Constraint: {item!r}")
+        if solver_options is not None and not isinstance(solver_options, Mapping):
+            raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
         # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
         self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
         self.strict = as_flag(strict, "strict")
@@ -114,6 +108,26 @@ class Controller:
         self._eager_task_errors = False  # set when a task or constraint is shared (see _bind)
         self._allocate()
 
+    # --------------------------------------------------------------- settings
+    @property
+    def dt(self) -> float:
+        """Control period [s] (> 0); may be changed between ticks."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value) -> None:
+        self._dt = as_positive(value, "dt")
+
+    @property
+    def damping(self) -> float:
+        """Weight of ``|v|^2`` in the cost (>= 0); may be changed between ticks."""
+        return self._damping
+
+    @damping.setter
+    def damping(self, value) -> None:
+        self._damping = as_nonnegative(value, "damping")
+        np.fill_diagonal(self._damping_rows, np.sqrt(self._damping))
+
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
         robot, nv = self.robot, self.robot.nv
@@ -130,7 +144,8 @@ class Controller:
         n_plain = sum(t.dim for t in plain) + nv
         self._stack_t = np.zeros((nv + 1, n_plain + sum(t.dim for t in preview)))
         self._stack = self._stack_t.T  # (rows, nv + 1) view: [W J | W r]
-        self._stack[n_plain - nv:n_plain, :nv] = np.sqrt(self.damping) * np.eye(nv)
+        self._damping_rows = self._stack[n_plain - nv:n_plain, :nv]
+        self.damping = self._damping  # writes sqrt(damping) I into its rows
         self._task_blocks, self._preview_blocks = [], []
         start = 0
         for task in plain + preview:
@@ -207,22 +222,12 @@ class Controller:
             self.qp = qp
 
     def _bind(self, item: Task | Constraint) -> None:
-        """Bind ``item`` to the robot once for its life; later controllers share it.
-
-        An item holds robot-specific data (frame and joint indices, limits) that the compiled
-        programs of every controller using it read, so it serves controllers of one robot
-        object only. Its settings (targets, gains) are shared on purpose; its per-tick error
-        buffers are too, so the task errors of controllers sharing an item are read eagerly
-        at the end of each of their ticks."""
-        robot = getattr(item, "_bound_robot", None)
-        if robot is None:
-            item.bind(self.robot)
-            item._bound_robot, item._controllers = self.robot, weakref.WeakSet()
-        elif robot is not self.robot:
-            raise InvalidInputError(
-                f"{item.name} is bound to another robot object ({robot.name!r}) by an earlier controller; "
-                f"an item serves the controllers of one robot: create another {type(item).__name__} for "
-                f"{self.robot.name!r}")
+        """Bind ``item`` (once for its life, :meth:`wbc.item.Item.attach`) and note who shares it:
+        a shared task's error buffer is rewritten by each controller's tick, so controllers
+        sharing an item read their task errors eagerly at the end of each tick."""
+        item.attach(self.robot)
+        if not hasattr(item, "_controllers"):
+            item._controllers = weakref.WeakSet()
         item._controllers.add(self)
         if len(item._controllers) > 1:
             for controller in item._controllers:

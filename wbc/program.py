@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from . import kernels
+from .validation import as_weights
 
 _WIDTH = 16  # opcode + the longest operand list
 
@@ -94,3 +95,29 @@ class Operand:
 
     def __set__(self, instance: Any, value: Any) -> None:
         getattr(instance, self._array)[self._index] = self._check(value, self._name)
+
+
+class Cost:
+    """A cost setting stored as its square root (the row weights ``W = sqrt(cost)``) in a
+    slice of an operand array: ``position_cost = Cost("_weights", slice(0, 3))``.
+
+    Reads give the cost vector; assignments are validated (scalar or one per row, finite,
+    >= 0) and act from the next tick on, in every controller that uses the item.
+    """
+
+    def __init__(self, array: str, rows: slice) -> None:
+        self._array, self._rows = array, rows
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = name
+
+    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        return instance.__dict__[self._name].copy()
+
+    def __set__(self, instance: Any, value: Any) -> None:
+        weights = getattr(instance, self._array)[self._rows]
+        cost = as_weights(value, len(weights), self._name)
+        weights[...] = np.sqrt(cost)
+        instance.__dict__[self._name] = cost  # what was asked, without the rounding of sqrt

@@ -20,13 +20,29 @@ def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
     """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
     if np.iscomplexobj(value):
         raise InvalidInputError(f"{name} must be real, got complex values")
+    kind = np.asarray(value).dtype.kind if not isinstance(value, np.ndarray) else value.dtype.kind
+    if kind in "bOUSV" and not (kind == "O" and _all_real(value)):
+        raise InvalidInputError(f"{name} must be numeric (int or float), got {_describe(value)}")
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be numeric, got {type(value).__name__}") from exc
+        raise InvalidInputError(f"{name} must be numeric, got {_describe(value)}") from exc
     if array.shape != shape:
         raise InvalidInputError(f"{name} must have shape {shape}, got {array.shape}")
     return array
+
+
+def _all_real(value) -> bool:
+    """True for an object array / nested list holding only real numbers (not bools)."""
+    items = np.asarray(value, dtype=object).ravel()
+    return all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+               for x in items)
+
+
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of dtype {value.dtype}"
+    return f"{type(value).__name__} {value!r}"[:80]
 
 
 def as_vector(value, size: int, name: str) -> np.ndarray:
@@ -47,7 +63,7 @@ def as_vector(value, size: int, name: str) -> np.ndarray:
 
 def as_weights(value, size: int, name: str) -> np.ndarray:
     """Return a scalar or per-axis cost as a non-negative finite vector of length ``size``."""
-    array = np.asarray(value, dtype=np.float64)
+    array = _real_array(value, np.shape(value), name)
     if array.ndim == 0:
         array = np.full(size, float(array))
     array = as_vector(array, size, name)
@@ -56,15 +72,40 @@ def as_weights(value, size: int, name: str) -> np.ndarray:
     return array
 
 
+def as_number(value, name: str) -> float:
+    """Return a real scalar (int or float, not bool or str) as a float."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InvalidInputError(f"{name} must be a number, got {_describe(value)}")
+    return float(value)
+
+
 def as_positive(value, name: str) -> float:
     """Return ``value`` as a finite float > 0."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(f"{name} must be a number, got {value!r}") from exc
+    number = as_number(value, name)
     if not np.isfinite(number) or number <= 0.0:
         raise InvalidInputError(f"{name} must be finite and > 0, got {value!r}")
     return number
+
+
+def as_nonnegative(value, name: str) -> float:
+    """Return ``value`` as a finite float >= 0."""
+    number = as_number(value, name)
+    if not np.isfinite(number) or number < 0.0:
+        raise InvalidInputError(f"{name} must be finite and >= 0, got {value!r}")
+    return number
+
+
+def as_items(value, kind: type, name: str) -> list:
+    """``value`` (a list or tuple of ``kind``) as a list; a single item or anything else is refused."""
+    if isinstance(value, kind):
+        raise InvalidInputError(f"{name} must be a list of {kind.__name__}s, got a single {type(value).__name__}: "
+                                f"write {name}=[...]")
+    if not isinstance(value, (list, tuple)):
+        raise InvalidInputError(f"{name} must be a list of {kind.__name__}s, got {_describe(value)}")
+    for item in value:
+        if not isinstance(item, kind):
+            raise InvalidInputError(f"{name}: not a {kind.__name__}: {_describe(item)}")
+    return list(value)
 
 
 def as_flag(value, name: str) -> bool:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..item import Item
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
@@ -36,8 +37,8 @@ class ConstraintRows:
     b: np.ndarray  #: (n_equalities,)
 
 
-class Constraint(ABC):
-    """Base class of all constraints."""
+class Constraint(Item, ABC):
+    """Base class of all constraints (bound and shared as described in :class:`~wbc.item.Item`)."""
 
     has_bounds: bool = False
     n_inequalities: int = 0
@@ -53,9 +54,6 @@ class Constraint(ABC):
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or type(self).__name__
-
-    def bind(self, robot: Robot) -> None:
-        """Resolve the robot's limits and allocate (called once by the controller)."""
 
     def write_static(self, rows: ConstraintRows) -> None:
         """Write the parts that never change (called once after allocation)."""

@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import Kinematics
-from ..robot import Robot
 from ..errors import InvalidInputError
-from ..validation import as_vector, as_weights
+from ..kinematics import Kinematics
+from ..program import Cost
+from ..robot import Robot
+from ..validation import as_vector
 from .task import Task, _norm
 
 
@@ -23,11 +24,12 @@ class BaseVelocityTask(Task):
     """
 
     dim = 3
+    cost = Cost("_weights", slice(0, 3))  #: may be changed between ticks
 
     def __init__(self, cost, name: str | None = None) -> None:
         super().__init__(name)
-        self.cost = as_weights(cost, 3, "cost")
-        self._weights = np.sqrt(self.cost)
+        self._weights = np.zeros(3)
+        self.cost = cost
         self.twist = np.zeros(3)  #: commanded (v_x [m/s], v_y [m/s], omega [rad/s]), base frame
         self._achieved = np.zeros(3)
 

@@ -7,9 +7,9 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import Operand, TickProgram
+from ..program import Cost, Operand, TickProgram
 from ..robot import Robot
-from ..validation import as_gain, as_pose, as_speed_limit, as_vector, as_weights
+from ..validation import as_gain, as_pose, as_speed_limit, as_vector
 from .task import Task, _norm
 
 _NO_TWIST = np.zeros(0)
@@ -46,20 +46,20 @@ class FrameTask(Task):
     gain = Operand("_parameters", kernels.FRAME_GAIN, as_gain)
     max_speed = Operand("_parameters", kernels.FRAME_MAX_SPEED, as_speed_limit)
     max_angular_speed = Operand("_parameters", kernels.FRAME_MAX_ANGULAR_SPEED, as_speed_limit)
+    position_cost = Cost("_weights", slice(0, 3))
+    orientation_cost = Cost("_weights", slice(3, 6))
 
     def __init__(self, frame: str, position_cost=1.0, orientation_cost=1.0, gain: float = 1.0,
                  max_speed: float | None = None, max_angular_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        self.position_cost = as_weights(position_cost, 3, "position_cost")
-        self.orientation_cost = as_weights(orientation_cost, 3, "orientation_cost")
         # everything the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*)
         self._parameters = np.zeros(kernels.FRAME_PARAMETERS)
         self._target_rotation = self._parameters[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
         self._target_position = self._parameters[kernels.FRAME_TARGET_POSITION]
         self._weights = self._parameters[kernels.FRAME_WEIGHTS]
-        self._weights[:] = np.sqrt(np.concatenate([self.position_cost, self.orientation_cost]))
+        self.position_cost, self.orientation_cost = position_cost, orientation_cost
         self._target_rotation[...] = np.eye(3)
         self.gain, self.max_speed, self.max_angular_speed = gain, max_speed, max_angular_speed
         self._has_target = False

@@ -10,7 +10,7 @@ from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
 from ..robot import Robot
-from ..validation import as_gain, as_positive
+from ..validation import as_gain, as_positive, as_weights
 from .task import Task
 
 
@@ -51,17 +51,49 @@ class ManipulabilityTask(Task):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
         super().__init__(name)
-        self.cost = float(cost)
-        if not math.isfinite(self.cost) or self.cost < 0.0:
-            raise InvalidInputError(f"cost must be finite and >= 0, got {cost!r}")
-        self.gain = as_gain(gain)
-        self.target = as_positive(target, "target")
+        self.cost, self.gain, self.target = cost, gain, target
         row_selection(rows)
         self.rows = rows
-        self._weight = math.sqrt(self.cost)
-        self._floor = 1e-9 * self.target
-        self.value = float("nan")  #: m at the last tick
-        self.error = float("nan")  #: ln(m* / m) at the last tick
+        self._value = self._error = float("nan")
+
+    @property
+    def cost(self) -> float:
+        """[cost] / [1/s]^2; may be changed between ticks (validated)."""
+        return self._cost
+
+    @cost.setter
+    def cost(self, value) -> None:
+        self._cost = float(as_weights(value, 1, "cost")[0])
+        self._weight = math.sqrt(self._cost)
+
+    @property
+    def gain(self) -> float:
+        """Fraction of ``ln(m*/m)`` removed per tick, (0, 1]; may be changed between ticks."""
+        return self._gain
+
+    @gain.setter
+    def gain(self, value) -> None:
+        self._gain = as_gain(value)
+
+    @property
+    def target(self) -> float:
+        """``m*`` > 0; may be changed between ticks."""
+        return self._target
+
+    @target.setter
+    def target(self, value) -> None:
+        self._target = as_positive(value, "target")
+        self._floor = 1e-9 * self._target
+
+    @property
+    def value(self) -> float:
+        """m at the last tick."""
+        return self._value
+
+    @property
+    def error(self) -> float:
+        """ln(m* / m) at the last tick."""
+        return self._error
 
     def default_name(self) -> str:
         return f"ManipulabilityTask({self.frame})"
@@ -71,11 +103,11 @@ class ManipulabilityTask(Task):
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         manipulability = self._manipulability
-        self.value = manipulability.compute(kin)
-        m = max(self.value, self._floor)
-        self.error = math.log(self.target / m)
+        self._value = manipulability.compute(kin)
+        m = max(self._value, self._floor)
+        self._error = math.log(self._target / m)
         np.multiply(manipulability.gradient, self._weight / m, out=jacobian[0])
-        target[0] = self._weight * self.gain / dt * self.error
+        target[0] = self._weight * self._gain / dt * self._error
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = abs(self.error)

@@ -7,9 +7,9 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import Operand, TickProgram
+from ..program import Cost, Operand, TickProgram
 from ..robot import Robot
-from ..validation import as_gain, as_speed_limit, as_vector, as_weights
+from ..validation import as_gain, as_speed_limit, as_vector
 from .task import Task, _norm
 
 
@@ -33,18 +33,18 @@ class PositionTask(Task):
     #: settings that may be changed between ticks (validated; they live in the compiled operands)
     gain = Operand("_parameters", kernels.POSITION_GAIN, as_gain)
     max_speed = Operand("_parameters", kernels.POSITION_MAX_SPEED, as_speed_limit)
+    cost = Cost("_weights", slice(0, 3))
 
     def __init__(self, frame: str, cost=1.0, gain: float = 1.0, max_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        self.cost = as_weights(cost, 3, "cost")
         # everything the compiled kernel reads, in one vector (layout: wbc.kernels.POSITION_*)
         self._parameters = np.zeros(kernels.POSITION_PARAMETERS)
         self._weights = self._parameters[kernels.POSITION_WEIGHTS]
         self._target = self._parameters[kernels.POSITION_TARGET]
         self._feedforward = self._parameters[kernels.POSITION_FEEDFORWARD]
-        self._weights[:] = np.sqrt(self.cost)
+        self.cost = cost
         self.gain, self.max_speed = gain, max_speed
         self._has_target = False
         self.error = np.zeros(3)  #: last error p* - p [m], world

@@ -32,6 +32,9 @@ class PostureTask(Task):
     def __init__(self, cost, target=None, gain: float = 1.0, joints: list[str] | None = None,
                  name: str | None = None) -> None:
         super().__init__(name)
+        if joints is not None and (isinstance(joints, str) or not all(isinstance(j, str) for j in joints)):
+            raise InvalidInputError(f"joints must be a list of joint names, got {joints!r}"
+                                    + (f"; write joints=[{joints!r}]" if isinstance(joints, str) else ""))
         self._cost_spec = cost
         self._target_spec = target
         self._joint_spec = joints

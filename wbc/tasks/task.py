@@ -19,13 +19,14 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
+from ..item import Item
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
 
 
-class Task(ABC):
-    """Base class of all tasks."""
+class Task(Item, ABC):
+    """Base class of all tasks (bound and shared as described in :class:`~wbc.item.Item`)."""
 
     #: number of task rows
     dim: int
@@ -38,9 +39,6 @@ class Task(ABC):
 
     def default_name(self) -> str:
         return type(self).__name__
-
-    def bind(self, robot: Robot) -> None:
-        """Resolve names against ``robot`` and allocate buffers (called once by the controller)."""
 
     def write_static(self, jacobian: np.ndarray) -> None:
         """Write rows that never change, once after allocation (e.g. a constant ``W J``)."""
