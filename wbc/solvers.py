@@ -22,6 +22,7 @@ import scipy.sparse as sp
 
 from .errors import UnknownSolverError
 from .qp import QP
+from .solver_options import BUDGET_KEYS, validate_options
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict] = {
@@ -68,9 +69,21 @@ class QPSolver(ABC):
     """A QP backend."""
 
     name: str
+    settings: dict
 
     @abstractmethod
     def solve(self, qp: QP) -> QPSolution: ...
+
+    @property
+    def fallback_budget(self) -> dict:
+        """DAQP settings (``time_limit`` [s], ``iter_limit``) for the elastic fallback solve:
+        this backend's time budget whatever the backend; its iteration budget only when it
+        is DAQP (iterations of other algorithms do not count the same work)."""
+        own = BUDGET_KEYS.get(self.name, {})
+        budget = {"time_limit": self.settings.get(own.get("time_limit", ""))}
+        if self.name == "daqp":
+            budget["iter_limit"] = self.settings.get("iter_limit")
+        return {key: value for key, value in budget.items() if value is not None}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
@@ -82,7 +95,11 @@ def available_solvers() -> list[str]:
 
 
 def make_solver(name: str, options: dict | None = None) -> QPSolver:
-    """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise."""
+    """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise.
+
+    ``options`` are checked by the backend's constructor
+    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises :class:`~wbc.solver_options.InvalidSolverOptionError`.
+    """
     if not isinstance(name, str) or name not in qpsolvers.available_solvers:
         raise UnknownSolverError(
             f"unknown or uninstalled QP solver {name!r}; installed: {', '.join(available_solvers())}"
@@ -101,7 +118,7 @@ class QpsolversBackend(QPSolver):
 
     def __init__(self, name: str, options: dict | None = None) -> None:
         self.name = name
-        settings = {**DEFAULT_SETTINGS.get(name, {}), **(options or {})}
+        settings = {**DEFAULT_SETTINGS.get(name, {}), **validate_options(name, options)}
         self.warm_start = bool(settings.pop("warm_start", True)) and name in WARM_START_SOLVERS
         self.settings = settings
         self._sparse = name in _SPARSE_SOLVERS
@@ -161,7 +178,7 @@ class DaqpBackend(QPSolver):
         import daqp
 
         self._daqp = daqp
-        settings = dict(options or {})
+        settings = validate_options(self.name, options)
         self.warm_start = bool(settings.pop("warm_start", True))
         self.settings = settings
         self._model = None
