@@ -6,6 +6,7 @@ import pytest
 import wbc
 from conftest import TASKS
 from wbc.scenario import load_scenario
+from wbc.qp import QP
 from wbc.solvers import make_solver
 
 AGREEMENT = 1e-6
@@ -82,3 +83,25 @@ def test_every_installed_solver_runs_the_controller_by_name(youbot, name):
         q = youbot.integrate(q, controller.step(q), controller.dt)
     assert controller.last.solver == name
     assert controller.last.task_errors["FrameTask(ee).position"] < 1e-4
+
+
+def _quiet_qps():
+    """Unconstrained optimum (nothing active), an active row, and an infeasible QP."""
+    free, active, infeasible = QP(3, 1, 0), QP(3, 1, 0), QP(3, 1, 0)
+    for qp, c, h in ((free, [0.1, -0.2, 0.05], 5.0), (active, [1.0, -2.0, 0.5], 0.2), (infeasible, [0.0] * 3, -9.0)):
+        qp.H[:] = np.eye(3)
+        qp.c[:] = c
+        qp.lb[:], qp.ub[:] = -1.0, 1.0
+        qp.G[:], qp.h[:] = [[1.0, 1.0, 1.0]], h
+    return free, active, infeasible
+
+
+@pytest.mark.parametrize("name", wbc.available_solvers())
+def test_solvers_print_nothing(capfd, name):
+    """A library in a control loop is silent, down to the file descriptors (C printf)."""
+    solver = make_solver(name)
+    for _ in range(3):
+        for qp in _quiet_qps():
+            solver.solve(qp)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
