@@ -40,7 +40,11 @@ DEFAULT_SETTINGS: dict[str, dict] = {
     "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12, "check_duality_gap": True,
              "eps_duality_gap_abs": 1e-12, "eps_duality_gap_rel": 1e-12},
     # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks;
-    # its QP solver can cycle forever on degenerate ticks (tests/test_reliability.py): cap it
+    # its QP solver can cycle forever on degenerate ticks (tests/test_reliability.py): cap it.
+    # An abort (malloc(): invalid size) was reported with regularisation 0.0; not reproduced
+    # with highspy 1.15.1 on ~40 000 ill-conditioned / degenerate QPs and random ticks
+    # (H up to 1e11 : 1e-3, zero diagonals, duplicated rows through one vertex, cost
+    # ratios 1e12..1e-12); a set of those runs in a child process in tests/test_solvers.py
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
               "qp_regularization_value": 0.0, "qp_iteration_limit": 10_000, "time_limit": 0.1},
     "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
