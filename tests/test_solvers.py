@@ -1,11 +1,15 @@
 """Every installed QP solver returns the same command on QPs recorded from real ticks."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
 import wbc
 from conftest import TASKS
 from wbc.scenario import load_scenario
+from wbc.qp import QP
 from wbc.solvers import make_solver
 
 AGREEMENT = 1e-6
@@ -82,3 +86,61 @@ def test_every_installed_solver_runs_the_controller_by_name(youbot, name):
         q = youbot.integrate(q, controller.step(q), controller.dt)
     assert controller.last.solver == name
     assert controller.last.task_errors["FrameTask(ee).position"] < 1e-4
+
+
+def _quiet_qps():
+    """Unconstrained optimum (nothing active), an active row, and an infeasible QP."""
+    free, active, infeasible = QP(3, 1, 0), QP(3, 1, 0), QP(3, 1, 0)
+    for qp, c, h in ((free, [0.1, -0.2, 0.05], 5.0), (active, [1.0, -2.0, 0.5], 0.2), (infeasible, [0.0] * 3, -9.0)):
+        qp.H[:] = np.eye(3)
+        qp.c[:] = c
+        qp.lb[:], qp.ub[:] = -1.0, 1.0
+        qp.G[:], qp.h[:] = [[1.0, 1.0, 1.0]], h
+    return free, active, infeasible
+
+
+@pytest.mark.parametrize("name", wbc.available_solvers())
+def test_solvers_print_nothing(capfd, name):
+    """A library in a control loop is silent, down to the file descriptors (C printf)."""
+    solver = make_solver(name)
+    for _ in range(3):
+        for qp in _quiet_qps():
+            solver.solve(qp)
+    out, err = capfd.readouterr()
+    assert out == "" and err == ""
+
+
+CRASH_PROBE = r"""
+import sys
+import subprocess
+import sys
+
+import numpy as np
+from wbc.qp import QP
+from wbc.solvers import make_solver
+
+solver = make_solver(sys.argv[1])
+rng = np.random.default_rng(0)
+for ratio in 10.0 ** np.arange(12, -13, -3):
+    for rows in (0, 3, 12):
+        qp = QP(8, rows, 0)
+        qp.H[:] = np.diag([1e11, 1e-3, 1.0, 1.0, 1.0, 1.0, 0.0, 1e-12])  # singular, condition 1e23
+        qp.c[:] = ratio * rng.normal(size=8)
+        qp.lb[:], qp.ub[:] = -1.0, 1.0
+        qp.lb[6] = qp.ub[6] = 0.0  # a fixed variable
+        if rows:
+            G = rng.normal(size=(rows, 8))
+            G[rows // 2:] = G[: rows - rows // 2]  # duplicated rows: degenerate
+            qp.G[:], qp.h[:] = G, G @ rng.choice([-1.0, 1.0], 8)  # many rows through one vertex
+        solver.solve(qp)
+print("survived")
+"""
+
+
+@pytest.mark.parametrize("name", wbc.available_solvers())
+def test_no_backend_kills_the_process_on_ill_conditioned_qps(name):
+    """Backends abort in C (HiGHS has been reported to abort with malloc(): invalid size):
+    run ill-conditioned / degenerate QPs in a child process with wbc's default settings."""
+    child = subprocess.run([sys.executable, "-c", CRASH_PROBE, name], capture_output=True, text=True, timeout=300)
+    assert child.returncode == 0, f"{name} killed the process ({child.returncode}): {child.stderr[-2000:]}"
+    assert child.stdout.strip().endswith("survived")

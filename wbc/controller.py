@@ -98,9 +98,8 @@ class Controller:
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
         self.solver: QPSolver = make_solver(solver, solver_options)
-        # the elastic fallback honours a DAQP per-tick budget given to the primary solver
-        self._fallback_settings = {key: value for key, value in (solver_options or {}).items()
-                                   if solver == "daqp" and key in ("iter_limit", "time_limit")}
+        # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
+        self._fallback_settings = self.solver.fallback_budget
         self.kinematics = Kinematics(robot)
         self._tick = 0
         self._q_shape = (robot.nq,)

@@ -22,12 +22,16 @@ import scipy.sparse as sp
 
 from .errors import UnknownSolverError
 from .qp import QP
+from .solver_options import BUDGET_KEYS, validate_options
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict] = {
     # time_limit [s]: a safety cap per solve (a hung backend would hang the control loop);
     # tighten it to your period with solver_options
-    "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": True, "max_iter": 200_000, "verbose": False,
+    # polishing off: OSQP >= 1.0 prints "Polishing not needed - no active set detected" to
+    # fd 1 (C printf, whatever `verbose`) on every solve without active constraints; at
+    # eps 1e-9 the unpolished answer still meets the 1e-6 agreement on recorded ticks
+    "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False, "max_iter": 200_000, "verbose": False,
              "raise_error": False, "time_limit": 0.1},
     "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
     "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
@@ -36,7 +40,11 @@ DEFAULT_SETTINGS: dict[str, dict] = {
     "piqp": {"eps_abs": 1e-12, "eps_rel": 1e-12, "check_duality_gap": True,
              "eps_duality_gap_abs": 1e-12, "eps_duality_gap_rel": 1e-12},
     # HiGHS regularises QPs by default, which moved solutions by up to 7e-6 on recorded ticks;
-    # its QP solver can cycle forever on degenerate ticks (tests/test_reliability.py): cap it
+    # its QP solver can cycle forever on degenerate ticks (tests/test_reliability.py): cap it.
+    # An abort (malloc(): invalid size) was reported with regularisation 0.0; not reproduced
+    # with highspy 1.15.1 on ~40 000 ill-conditioned / degenerate QPs and random ticks
+    # (H up to 1e11 : 1e-3, zero diagonals, duplicated rows through one vertex, cost
+    # ratios 1e12..1e-12); a set of those runs in a child process in tests/test_solvers.py
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
               "qp_regularization_value": 0.0, "qp_iteration_limit": 10_000, "time_limit": 0.1},
     "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
@@ -68,12 +76,24 @@ class QPSolver(ABC):
     """A QP backend."""
 
     name: str
+    settings: dict
 
     @abstractmethod
     def solve(self, qp: QP) -> QPSolution: ...
 
     def reset(self) -> None:
         """Forget any warm start (the next solve starts cold)."""
+
+    @property
+    def fallback_budget(self) -> dict:
+        """DAQP settings (``time_limit`` [s], ``iter_limit``) for the elastic fallback solve:
+        this backend's time budget whatever the backend; its iteration budget only when it
+        is DAQP (iterations of other algorithms do not count the same work)."""
+        own = BUDGET_KEYS.get(self.name, {})
+        budget = {"time_limit": self.settings.get(own.get("time_limit", ""))}
+        if self.name == "daqp":
+            budget["iter_limit"] = self.settings.get("iter_limit")
+        return {key: value for key, value in budget.items() if value is not None}
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.name!r})"
@@ -85,7 +105,11 @@ def available_solvers() -> list[str]:
 
 
 def make_solver(name: str, options: dict | None = None) -> QPSolver:
-    """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise."""
+    """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise.
+
+    ``options`` are checked by the backend's constructor
+    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises :class:`~wbc.solver_options.InvalidSolverOptionError`.
+    """
     if not isinstance(name, str) or name not in qpsolvers.available_solvers:
         raise UnknownSolverError(
             f"unknown or uninstalled QP solver {name!r}; installed: {', '.join(available_solvers())}"
@@ -104,7 +128,7 @@ class QpsolversBackend(QPSolver):
 
     def __init__(self, name: str, options: dict | None = None) -> None:
         self.name = name
-        settings = {**DEFAULT_SETTINGS.get(name, {}), **(options or {})}
+        settings = {**DEFAULT_SETTINGS.get(name, {}), **validate_options(name, options)}
         self.warm_start = bool(settings.pop("warm_start", True)) and name in WARM_START_SOLVERS
         self.settings = settings
         self._sparse = name in _SPARSE_SOLVERS
@@ -167,7 +191,7 @@ class DaqpBackend(QPSolver):
         import daqp
 
         self._daqp = daqp
-        settings = dict(options or {})
+        settings = validate_options(self.name, options)
         self.warm_start = bool(settings.pop("warm_start", True))
         self.settings = settings
         self._model = None
