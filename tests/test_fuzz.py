@@ -623,23 +623,38 @@ def test_fuzz_highs_in_subprocess(worker, case):
         event(f"highs: {_label(status)}")
 
 
+def compatible_robots(case: dict) -> list[str]:
+    """Robots a second controller on the same task/constraint objects can use: the case's own,
+    and any other one with its frames when the items need no particular base."""
+    portable = {"FrameTask", "PositionTask", "PostureTask", "ManipulabilityTask", "JointPositionLimits",
+                "JointVelocityLimits", "ManipulabilityBarrier"}
+    items = case["tasks"] + case["constraints"]
+    if case["reduced"] or any(item["kind"] not in portable for item in items):
+        return [case["robot"]]
+    frames = {item["frame"] for item in items if "frame" in item}
+    return [name for name in ROBOT_NAMES if frames <= set(ROBOTS[name].frame_names)
+            and not (ROBOTS[name].base.is_nonholonomic)]
+
+
 @settings(max_examples=_examples(CI_COUNTS["shared"]), **FUZZ_SETTINGS)
-@given(case=cases(), other_q=st.data())
-def test_fuzz_shared_objects(case, other_q):
+@given(case=cases(), data=st.data())
+def test_fuzz_shared_objects(case, data):
     """Two controllers built on the *same* task and constraint objects (documented as
-    supported: "the instance may serve several controllers") command what two controllers
-    on fresh copies command, ticks interleaved at different configurations."""
+    supported: "the instance may serve several controllers"), possibly on different robots,
+    command what controllers on fresh copies command, ticks interleaved."""
     note(json.dumps(case))
+    other = dict(case, robot=data.draw(st.sampled_from(compatible_robots(case)), label="second robot"))
     try:
         robot, reference_a = build(case)
-        _, reference_b = build(case)
+        other_robot, reference_b = build(other)
     except Rejected:
         return
     tasks = [make_task(spec, robot) for spec in case["tasks"]]
     constraints = [make_constraint(spec) for spec in case["constraints"]]
-    shared = [wbc.Controller(robot, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
-              for _ in range(2)]
-    qs = [np.array(case["q"]), np.array(other_q.draw(configurations(robot)))]
+    robots = (robot, other_robot)
+    shared = [wbc.Controller(r, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
+              for r in robots]
+    qs = [np.array(case["q"]), np.array(data.draw(configurations(other_robot), label="second q"))]
     for tick in range(case["ticks"]):
         for k, reference in enumerate((reference_a, reference_b)):
             try:
@@ -648,11 +663,12 @@ def test_fuzz_shared_objects(case, other_q):
                 assume(False)
             got = shared[k].step(qs[k])
             assert shared[k].last.status == reference.last.status, (
-                f"tick {tick}, controller {k}: status {shared[k].last.status!r} with shared objects, "
-                f"{reference.last.status!r} with fresh copies")
+                f"tick {tick}, controller {k} ({robots[k].name}): status {shared[k].last.status!r} with shared "
+                f"objects, {reference.last.status!r} with fresh copies")
             np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9,
-                                       err_msg=f"tick {tick}, controller {k}: shared objects change the command")
-            qs[k] = robot.integrate(qs[k], expected, case["dt"])
+                                       err_msg=f"tick {tick}, controller {k} ({robots[k].name}): shared objects "
+                                               "change the command")
+            qs[k] = robots[k].integrate(qs[k], expected, case["dt"])
 
 
 # ------------------------------------------------------------ the checks checked by hand
