@@ -488,7 +488,7 @@ def check_optimum(robot, case, q, v):
         event("optimum not compared: cond(H) > 1e7")
         return
     # a different backend from the one under test, bounds passed natively; the next one if it fails
-    oracles = [name for name in ("daqp", "quadprog", "proxqp") if name != case["solver"] and name in SOLVERS]
+    oracles = [name for name in ("daqp", "quadprog", "clarabel") if name != case["solver"] and name in SOLVERS]
     problem = qpsolvers.Problem(H, c, G if len(G) else None, h if len(h) else None,
                                 A if len(A) else None, b if len(b) else None)
     for oracle_solver in oracles:
