@@ -10,7 +10,12 @@ import wbc
 # CI replays the same examples every run (a red CI must be reproducible); locally
 # hypothesis explores new ones (that is how the HiGHS cycling case was found)
 settings.register_profile("ci", derandomize=True)
-if os.environ.get("CI"):
+# the fuzz campaign (tests/test_fuzz.py): `pytest tests/test_fuzz.py --hypothesis-profile=nightly`
+# or `WBC_FUZZ_EXAMPLES=5000 pytest tests/test_fuzz.py` (the count is split over the fuzz tests)
+settings.register_profile("nightly", max_examples=int(os.environ.get("WBC_FUZZ_EXAMPLES") or 3000), deadline=None)
+if os.environ.get("WBC_FUZZ_EXAMPLES"):
+    settings.load_profile("nightly")
+elif os.environ.get("CI"):
     settings.load_profile("ci")
 
 ROOT = Path(__file__).resolve().parents[1]
