@@ -440,13 +440,9 @@ def independent_qp(robot: wbc.Robot, case: dict, q: np.ndarray):
                 low, high = robot.lower[i], robot.upper[i]
                 if not (np.isfinite(low) or np.isfinite(high)):
                     continue
-                gain = spec["gain"]
-                soft_low = (low - q[i]) / dt * (1.0 if q[i] < low else gain)  # full margin from outside
-                soft_high = (high - q[i]) / dt * (1.0 if q[i] > high else gain)
-                if soft_low > soft_high:
-                    # q outside one limit and gain * (margin to the other) < (distance outside): the
-                    # documented bounds are empty; the library meets halfway or fails (property 6)
-                    raise NotComparable("JointPositionLimits bounds cross")
+                # README: the fraction gain of each margin inside the limits, the full margins outside
+                scale = spec["gain"] if low <= q[i] <= high else 1.0
+                soft_low, soft_high = scale * (low - q[i]) / dt, scale * (high - q[i]) / dt
                 lb[k] = min(max(soft_low, hard_lb[k]), hard_ub[k])
                 ub[k] = min(max(soft_high, hard_lb[k]), hard_ub[k])
         elif spec["kind"] == "ManipulabilityBarrier":
@@ -509,8 +505,22 @@ def check_optimum(robot, case, q, v):
     tolerance = max(floor, kappa * eps) * (1.0 + np.max(np.abs(reference)))
     error = np.max(np.abs(v - reference))
     event("optimum compared")
-    assert error <= tolerance, (f"status 'optimal' but v differs from the independent optimum by {error:.3e} "
-                                f"(tolerance {tolerance:.1e}, cond(H) {kappa:.1e})\n v   = {v}\n v*  = {reference}")
+    if error <= tolerance:
+        return
+    # Where the optimum is degenerate (a coordinate on its bound with a zero multiplier, the
+    # cost nearly flat along it), an interior-point answer may sit ~sqrt(gap / lambda_min)
+    # away from the vertex and still be optimal to the solver's tolerance: then the cost,
+    # not the point, is what must agree -- to 1e-9 of the cost's scale -- and v must satisfy
+    # the independent rows.
+    def cost(x):
+        return 0.5 * x @ H @ x + c @ x
+
+    gap = (cost(v) - cost(reference)) / (eigenvalues[-1] * (1.0 + np.max(np.abs(reference))) ** 2)
+    slack = max(np.max(G @ v - h, initial=0.0), np.max(np.abs(A @ v - b), initial=0.0))
+    event("optimum compared by cost")
+    assert gap <= 1e-9 and slack <= 1e-6, (
+        f"status 'optimal' but v differs from the independent optimum by {error:.3e} (tolerance {tolerance:.1e}, "
+        f"cond(H) {kappa:.1e}), its cost by {gap:.1e} (relative), rows by {slack:.1e}\n v   = {v}\n v*  = {reference}")
 
 
 # -------------------------------------------------------------------------------- a case
@@ -541,27 +551,12 @@ def run_case(case: dict, compare_optimum: bool = True) -> dict:
         # top speed instead of hitting an infeasible QP" -- never the zero command
         if not any(c["kind"] == "ManipulabilityBarrier" for c in case["constraints"]):
             assert not status.startswith("fallback: zero command"), (
-                f"{where}: feasible QP (no soft rows) answered by {status!r}{crossing_note(robot, case, q)}")
+                f"{where}: feasible QP (no soft rows) answered by {status!r}")
         if success and compare_optimum:  # property 5
             check_optimum(robot, case, q, v)
         statuses.append(status)
         q = robot.integrate(q, v, case["dt"])
     return {"statuses": statuses}
-
-
-def crossing_note(robot, case, q) -> str:
-    """Joints whose documented JointPositionLimits bounds are empty at ``q`` (diagnosis aid)."""
-    joints = []
-    for spec in case["constraints"]:
-        if spec["kind"] == "JointPositionLimits":
-            for i in range(robot.nq):
-                low, high, gain = robot.lower[i], robot.upper[i], spec["gain"]
-                if np.isfinite(low) and np.isfinite(high):
-                    soft_low = (low - q[i]) * (1.0 if q[i] < low else gain)
-                    soft_high = (high - q[i]) * (1.0 if q[i] > high else gain)
-                    if soft_low > soft_high:
-                        joints.append(i)
-    return f" (JointPositionLimits bounds cross at joints {joints})" if joints else " (no crossing bounds)"
 
 
 def _label(status: str) -> str:
@@ -639,22 +634,23 @@ def compatible_robots(case: dict) -> list[str]:
 @settings(max_examples=_examples(CI_COUNTS["shared"]), **FUZZ_SETTINGS)
 @given(case=cases(), data=st.data())
 def test_fuzz_shared_objects(case, data):
-    """Two controllers built on the *same* task and constraint objects (documented as
-    supported: "the instance may serve several controllers"), possibly on different robots,
-    command what controllers on fresh copies command, ticks interleaved."""
+    """Two controllers of one robot built on the *same* task and constraint objects command
+    what controllers on fresh copies command, ticks interleaved; a controller of another
+    robot object refuses the objects (README "Sharing")."""
     note(json.dumps(case))
-    other = dict(case, robot=data.draw(st.sampled_from(compatible_robots(case)), label="second robot"))
     try:
         robot, reference_a = build(case)
-        other_robot, reference_b = build(other)
+        _, reference_b = build(case)
     except Rejected:
         return
     tasks = [make_task(spec, robot) for spec in case["tasks"]]
     constraints = [make_constraint(spec) for spec in case["constraints"]]
-    robots = (robot, other_robot)
-    shared = [wbc.Controller(r, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
-              for r in robots]
-    qs = [np.array(case["q"]), np.array(data.draw(configurations(other_robot), label="second q"))]
+    shared = [wbc.Controller(robot, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
+              for _ in range(2)]
+    other_robot = wbc.load_robot(data.draw(st.sampled_from(compatible_robots(case)), label="other robot"))
+    with pytest.raises(wbc.InvalidInputError, match="another robot object"):
+        wbc.Controller(other_robot, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
+    qs = [np.array(case["q"]), np.array(data.draw(configurations(robot), label="second q"))]
     for tick in range(case["ticks"]):
         for k, reference in enumerate((reference_a, reference_b)):
             try:
@@ -663,12 +659,15 @@ def test_fuzz_shared_objects(case, data):
                 assume(False)
             got = shared[k].step(qs[k])
             assert shared[k].last.status == reference.last.status, (
-                f"tick {tick}, controller {k} ({robots[k].name}): status {shared[k].last.status!r} with shared "
+                f"tick {tick}, controller {k}: status {shared[k].last.status!r} with shared "
                 f"objects, {reference.last.status!r} with fresh copies")
             np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9,
-                                       err_msg=f"tick {tick}, controller {k} ({robots[k].name}): shared objects "
-                                               "change the command")
-            qs[k] = robots[k].integrate(qs[k], expected, case["dt"])
+                                       err_msg=f"tick {tick}, controller {k}: shared objects change the command")
+            qs[k] = robot.integrate(qs[k], expected, case["dt"])
+        errors = [controller.last.task_errors for controller in (*shared, reference_a, reference_b)]
+        for own, fresh in ((errors[0], errors[2]), (errors[1], errors[3])):
+            assert own.keys() == fresh.keys()
+            np.testing.assert_allclose([own[key] for key in own], [fresh[key] for key in own], rtol=1e-9, atol=1e-12)
 
 
 # ------------------------------------------------------------ the checks checked by hand

@@ -284,3 +284,33 @@ def test_invalid_or_ineffective_assignments_raise(youbot, assign, match):
     controller = wbc.Controller(youbot, [task, manipulability])
     with pytest.raises(wbc.InvalidInputError, match=match):
         assign(task, manipulability, controller)
+
+
+def test_the_elastic_fallback_keeps_bounds_that_daqp_soft_mode_misses(youbot):
+    """A fuzz-found tick (cond(H) ~ 1e9, damper boxes ~1e-9 wide, an infeasible barrier row):
+    DAQP's elastic answer was 4e-6 outside the hard bounds, so the zero command answered;
+    the elastic answer is now projected onto the bounds and its rows checked."""
+    q = np.array([-1.3587796317364305, 5.0, -0.4378818720638966, 2.949606435870417, -0.361027618541753,
+                  -0.08746027016836289, 1.829923566571769, -2.9234266162997917])
+    target = np.array([[-0.34281887285774415, 0.16273211684005742, -0.9251991561611478, 0.20340380444739026],
+                       [-0.23278542491117304, 0.939447698719269, 0.2514934737125279, 5.008118370703418],
+                       [0.910102283461299, 0.30158958788363893, -0.284178736218434, 3.596698748278864],
+                       [0.0, 0.0, 0.0, 1.0]])
+    task = wbc.FrameTask("ee", 1e-12, 1e-12, gain=1.0, max_speed=0.003572457911839863,
+                         max_angular_speed=0.03941324628936638)
+    task.set_target(target)
+    limits = wbc.JointPositionLimits(gain=2.8608077615635767e-12)
+    controller = wbc.Controller(
+        youbot, [task, wbc.ManipulabilityTask("ee", cost=277021.57814671274, gain=1e-12, target=3.1358218617635436e-05)],
+        [wbc.ManipulabilityBarrier("ee", min_value=0.007262418412154669, gain=1e-12), limits,
+         wbc.MecanumWheelLimits(), wbc.JointVelocityLimits()])
+    v = controller.step(q)
+    assert controller.last.status == "fallback: elastic soft rows after daqp: infeasible"
+    assert youbot_within_hard_limits(youbot, q, v)
+    assert np.all(np.abs(youbot.wheel_speeds(q, v)) <= youbot.base.wheels.max_speed)
+    margin_low, margin_high = (youbot.lower - q) / controller.dt, (youbot.upper - q) / controller.dt
+    inside = (q >= youbot.lower) & (q <= youbot.upper)
+    scale = np.where(inside, limits.gain, 1.0)[3:]
+    limit = youbot.velocity_limit[3:]  # soft damper bounds clipped into the hard speed limits
+    assert np.all(v[3:] >= np.clip(scale * margin_low[3:], -limit, limit))
+    assert np.all(v[3:] <= np.clip(scale * margin_high[3:], -limit, limit))
