@@ -121,10 +121,47 @@ def test_normalise_cost_keeps_the_minimiser():
     rng = np.random.default_rng(3)
     M = rng.standard_normal((5, 5))
     Hc = np.vstack([M @ M.T * 1e9, rng.standard_normal(5) * 1e9])
+    Hc[:5] += 1e-3 * np.eye(5)  # the damping
     x = np.linalg.solve(Hc[:5], -Hc[5])
-    kernels.normalise_cost(Hc)
+    kernels.normalise_cost(Hc, 1e-3, 1e-15)  # damping / scale ~ 1e-13: above the floor, unchanged
     assert np.max(np.diag(Hc[:5])) == pytest.approx(1.0)
     np.testing.assert_allclose(np.linalg.solve(Hc[:5], -Hc[5]), x, rtol=1e-9)
+
+
+def test_the_damping_is_floored_relative_to_the_cost_scale():
+    Hc = np.zeros((4, 3))
+    Hc[:3] = np.diag([1e12, 1e12, 0.0])  # one direction without cost and no damping: singular
+    Hc[3] = [-1e12, 2e12, 0.0]
+    kernels.normalise_cost(Hc, 0.0, 1e-10)
+    np.testing.assert_allclose(np.diag(Hc[:3]), [1.0 + 1e-10, 1.0 + 1e-10, 1e-10], rtol=1e-12)
+    np.testing.assert_allclose(Hc[3], [-1.0, 2.0, 0.0])
+    Hc[:3], Hc[3] = np.diag([1e3, 1e3, 1e-3]), 0.0  # damping 1e-3 over a scale of 1e3: above the floor
+    kernels.normalise_cost(Hc, 1e-3, 1e-10)
+    np.testing.assert_allclose(np.diag(Hc[:3]), [1.0, 1.0, 1e-6], rtol=1e-12)
+
+
+def test_a_cost_1e15_times_the_damping_leaves_the_elastic_fallback_solvable():
+    """Fuzz-found: orientation cost 1e12 over the default damping on the Scorbot with an
+    infeasible barrier row: H is singular in double precision, the elastic DAQP solve
+    failed (exitflag -1) and the zero command answered; with the damping floor the elastic
+    fallback answers."""
+    scorbot = wbc.load_robot("scorbot_er4pc")
+    q = np.array([-2.705260340591211, 2.7454191709428537, 2.339118079588274, 2.2689280275926285,
+                  -0.7352533540128374])
+    target = np.array([[0.8732026140370689, 0.21991762820628447, -0.4349177297408686, 0.04772200181984958],
+                       [0.22449622688035767, -0.9735879938604116, -0.04156756340395866, 0.0119945456666557],
+                       [-0.4325721199468502, -0.06134048430670783, -0.8995102589908057, 0.35616895246621705],
+                       [0.0, 0.0, 0.0, 1.0]])
+    task = wbc.FrameTask("ee", 500.6766687274403, 1e12, gain=0.009657440113009449)
+    task.set_target(target)
+    controller = wbc.Controller(scorbot, [task], [wbc.ManipulabilityBarrier("ee", min_value=0.1, gain=1.0),
+                                                  wbc.JointPositionLimits(gain=1e-12)])
+    statuses = []
+    for _ in range(3):
+        v = controller.step(q)
+        statuses.append(controller.last.status)
+        q = scorbot.integrate(q, v, controller.dt)
+    assert statuses == ["optimal"] + ["fallback: elastic soft rows after daqp: infeasible"] * 2
 
 
 # ------------------------------------------------------------- position limits, any gain

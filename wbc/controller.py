@@ -310,7 +310,7 @@ class Controller:
         if has_nan:
             solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
         else:
-            kernels.normalise_cost(self.qp.Hc)
+            kernels.normalise_cost(self.qp.Hc, self._damping, DAMPING_FLOOR)
             solution = self._checked(self.solver.solve(self.qp))
         self._tick += 1
         if not solution.success:
@@ -466,6 +466,9 @@ _FLOAT64 = np.dtype(np.float64)
 #: largest relative violation of its own constraints accepted in a backend's answer
 #: (:func:`wbc.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
 ANSWER_TOLERANCE = 1e-6
+#: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
+#: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
+DAMPING_FLOOR = 1e-10
 
 
 def _intersect(bounds: np.ndarray, out: np.ndarray) -> None:

@@ -355,12 +355,16 @@ def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.n
         lower[i] = min(max(soft_lower[i], hard_lower[i]), hard_upper[i])
 
 
-@njit("void(float64[:, :])", cache=True, nogil=True)
-def normalise_cost(Hc: np.ndarray) -> None:
-    """Scale ``[H; c]`` so that ``max_i H_ii = 1`` (the minimiser is unchanged).
+@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
+    """Scale ``[H; c]`` so that ``max_i H_ii = 1`` (the minimiser is unchanged), then raise the
+    damping to at least ``damping_floor`` of that scale.
 
     Costs far from 1 (a weight of 1e11, or 1e-12 everywhere) otherwise meet absolute
-    tolerances inside the solvers: DAQP then returned answers violating hard rows by O(1)."""
+    tolerances inside the solvers: DAQP then returned answers violating hard rows by O(1).
+    ``damping`` is the part of ``H_ii`` that is damping: where it is below ``damping_floor``
+    times the scale, ``H`` is numerically singular in double precision (costs 1e12 over a
+    damping of 1e-3) and the floor is added, a regularisation below every solver's tolerance."""
     n = Hc.shape[1]
     scale = 0.0
     for i in range(n):
@@ -370,6 +374,10 @@ def normalise_cost(Hc: np.ndarray) -> None:
         for i in range(n + 1):
             for j in range(n):
                 Hc[i, j] *= inverse
+        missing = damping_floor - damping * inverse
+        if missing > 0.0:
+            for i in range(n):
+                Hc[i, i] += missing
 
 
 @njit("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=True, nogil=True)

@@ -33,7 +33,8 @@ DEFAULT_SETTINGS: dict[str, dict] = {
     # eps 1e-9 the unpolished answer still meets the 1e-6 agreement on recorded ticks
     "osqp": {"eps_abs": 1e-9, "eps_rel": 1e-9, "polishing": False, "max_iter": 200_000, "verbose": False,
              "raise_error": False, "time_limit": 0.1},
-    "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0},
+    # no time budget in ProxQP: an iteration cap instead (without one a fuzz campaign hung in it)
+    "proxqp": {"eps_abs": 1e-10, "eps_rel": 0.0, "max_iter": 10_000},
     "clarabel": {"tol_gap_abs": 1e-12, "tol_gap_rel": 1e-12, "tol_feas": 1e-12, "tol_ktratio": 1e-10,
                  "time_limit": 0.1},
     # without the duality-gap check PIQP stops on small residuals alone (seen 1e-4 off)

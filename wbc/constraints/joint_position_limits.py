@@ -25,9 +25,10 @@ class JointPositionLimits(Constraint):
     The constraint is *soft* with respect to the speed limits: a configuration outside
     its limits (after a collision, an encoder offset) asks for ``v`` beyond the speed
     limit; the controller then clips the bound to the speed limit, so the joint moves
-    back at top speed instead of making the QP infeasible. Outside the limits the full
-    margin is used (``gain = 1``), so the joint lands on its limit as soon as the speed
-    limit allows, instead of approaching it geometrically from outside.
+    back at top speed instead of making the QP infeasible. Outside the limits both full
+    margins are used (``gain = 1``): the joint lands on its limit as soon as the speed
+    limit allows, instead of approaching it geometrically from outside, and the bounds
+    never exclude each other, whatever the gain.
 
     Args:
         gain: fraction of the remaining margin that may be consumed per tick, (0, 1].
