@@ -314,7 +314,10 @@ def _manipulability(robot, q, frame, rows):
 
 def _manipulability_gradient(robot, q, frame, rows):
     """Central differences along the tangent directions (pin.integrate, as the README defines
-    dm/dt = grad m . v); None where m is not smooth enough for them (near the singular set)."""
+    dm/dt = grad m . v); None where m is not smooth enough for them (near the singular set;
+    on it, m = sqrt(det J J^T) = 0 has no gradient and its rounding noise ~1e-16 none either)."""
+    if _manipulability(robot, q, frame, rows) < 1e-12:
+        return None
     gradients = []
     for h in (1e-5, 1e-6):
         gradient = np.zeros(robot.nv)
