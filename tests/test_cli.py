@@ -44,3 +44,128 @@ def test_errors_exit_with_status_2(tmp_path, capsys):
 def test_solvers_command(capsys):
     assert main(["solvers"]) == 0
     assert "daqp" in capsys.readouterr().out
+
+
+# ---------------------------------------------------------------- errors before the run
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import textwrap  # noqa: E402
+
+from conftest import ROOT  # noqa: E402
+
+CIRCLE = str(TASKS / "youbot_circle.toml")
+
+
+def wbc_process(*args: str, cwd=None, **kwargs) -> subprocess.CompletedProcess:
+    """``wbc ARGS`` as a separate process (its stdout/stderr/exit status as a user sees them)."""
+    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, capture_output=True, text=True,
+                          timeout=300, **kwargs)
+
+
+def test_bad_scenario_file_exits_2_without_traceback(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text((TASKS / "youbot_circle.toml").read_text().replace("duration = 20.0", "durration = 20.0"))
+    result = wbc_process("run", str(bad))
+    assert result.returncode == 2
+    assert result.stderr.startswith(f"wbc: error: {bad}:") and "did you mean 'duration'?" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("value", ["-1", "0", "nan", "inf"])
+def test_duration_must_be_positive_and_finite(capsys, value):
+    assert main(["run", CIRCLE, "--no-progress", f"--duration={value}"]) == 2
+    assert capsys.readouterr().err.startswith("wbc: error: --duration must be a finite number of seconds > 0")
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--noise", "1e-4"], "add --sim mujoco"),
+    (["--delay", "1"], "add --sim mujoco"),
+    (["--sim", "mujoco", "--noise=-1e-4"], "--noise is a standard deviation"),
+    (["--sim", "mujoco", "--noise", "nan"], "--noise is a standard deviation"),
+])
+def test_noise_and_delay_options_are_checked(capsys, options, message):
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress", *options]) == 2
+    assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("module, options, extra", [
+    ("matplotlib", ["--plot", "out.png"], 'pip install "wbc[plot]"'),
+    ("mujoco", ["--sim", "mujoco"], 'pip install "wbc[sim]"'),
+])
+def test_missing_extra_fails_before_the_run(monkeypatch, tmp_path, capsys, module, options, extra):
+    import wbc.closed_loop
+
+    def no_run(*args, **kwargs):
+        raise AssertionError("the run started")
+
+    monkeypatch.setattr(wbc.closed_loop, "run", no_run)
+    monkeypatch.setitem(sys.modules, module, None)  # import matplotlib / mujoco -> ImportError
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", CIRCLE, "--no-progress", *options]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("wbc: error:") and extra in err
+
+
+def test_plot_into_a_missing_folder_creates_it(tmp_path, capsys):
+    plot = tmp_path / "new" / "deeper" / "circle.png"
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress", "--plot", str(plot)]) == 0
+    assert plot.stat().st_size > 10_000
+
+
+def test_plot_folder_that_cannot_be_made_fails_before_the_run(tmp_path, capsys):
+    (tmp_path / "file").write_text("")
+    assert main(["run", CIRCLE, "--no-progress", "--plot", str(tmp_path / "file" / "x.png")]) == 2
+    assert "cannot create the folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args", [["run", CIRCLE, "--duration", "0.2", "--no-progress", "--json"], ["solvers"]])
+def test_broken_pipe_exits_quietly(args):
+    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    process.stdout.close()  # the reader is gone before wbc writes (like `| head -0`)
+    stderr = process.stderr.read()
+    assert process.wait(timeout=300) in (0, 1)
+    assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr
+
+
+# ---------------------------------------------------------------- wbc bench
+PLANTED = textwrap.dedent("""
+    from pathlib import Path
+    Path({marker!r}).write_text("planted code ran")
+    def main(options):
+        return 0
+""")
+
+
+def plant_benchmarks(folder, marker):
+    """A ``benchmarks`` package (and tasks/, pyproject naming wbc) whose import writes ``marker``."""
+    (folder / "benchmarks").mkdir(parents=True)
+    (folder / "tasks").mkdir()
+    (folder / "pyproject.toml").write_text('[project]\nname = "wbc"\n')
+    for name in ("__init__.py", "solvers.py"):
+        (folder / "benchmarks" / name).write_text(PLANTED.format(marker=str(marker)))
+
+
+def test_bench_never_imports_benchmarks_from_the_working_directory(tmp_path, monkeypatch):
+    from wbc.cli import find_benchmarks
+
+    marker = tmp_path / "marker"
+    plant_benchmarks(tmp_path / "parent", marker)
+    cwd = tmp_path / "parent" / "child"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)
+    assert find_benchmarks() == ROOT
+    result = wbc_process("bench", "solvers", "--help", cwd=cwd)
+    assert result.returncode == 0 and "usage" in result.stdout
+    assert not marker.exists()
+
+
+def test_bench_checkout_option(tmp_path):
+    marker = tmp_path / "marker"
+    plant_benchmarks(tmp_path / "checkout", marker)
+    assert wbc_process("bench", "--checkout", str(tmp_path / "checkout"), "solvers").returncode == 0
+    assert marker.read_text() == "planted code ran"
+    result = wbc_process("bench", "--checkout", str(tmp_path), "solvers")
+    assert result.returncode == 2 and "is not a wbc source checkout" in result.stderr and "Traceback" not in result.stderr

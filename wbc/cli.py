@@ -4,17 +4,30 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
+import math
+import os
 import sys
 from pathlib import Path
 
 from .errors import WbcError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class CommandLineError(WbcError, ValueError):
+    """An option of the command line is invalid or needs something not installed."""
 
 
 def _run(args: argparse.Namespace) -> int:
     from .closed_loop import run
     from .scenario import load_scenario
 
+    _check_run_options(args)
     scenarios = [load_scenario(path) for path in args.scenario]
     runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
                            simulation=_simulation(args, scenario)))
@@ -35,13 +48,41 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _check_run_options(args: argparse.Namespace) -> None:
+    """Everything that can be refused or prepared before the (possibly long) runs."""
+    if args.duration is not None and not 0.0 < args.duration < math.inf:
+        raise CommandLineError(f"--duration must be a finite number of seconds > 0, got {args.duration}")
+    if args.sim != "mujoco" and (args.noise is not None or args.delay is not None):
+        raise CommandLineError("--noise and --delay act on the MuJoCo loop only; add --sim mujoco")
+    if args.noise is not None and not 0.0 <= args.noise < math.inf:
+        raise CommandLineError(f"--noise is a standard deviation [rad, m]: finite and >= 0, got {args.noise}")
+    if args.sim == "mujoco":
+        _require("mujoco", "--sim mujoco", "sim")
+    if args.plot:
+        _require("matplotlib", "--plot", "plot")
+        folder = Path(args.plot).parent
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise CommandLineError(f"--plot: cannot create the folder {folder}: {exc}") from exc
+
+
+def _require(module: str, option: str, extra: str) -> None:
+    """Import ``module`` now, or say which extra of wbc installs it."""
+    try:
+        importlib.import_module(module)
+    except ImportError as exc:
+        raise CommandLineError(f"{option} needs {module}, which is not installed: "
+                               f'pip install "wbc[{extra}]"') from exc
+
+
 def _simulation(args: argparse.Namespace, scenario):
     """The MuJoCo loop asked for by ``--sim mujoco``, or None for the kinematic loop."""
     if args.sim != "mujoco":
         return None
     from .simulation import MujocoSimulation
 
-    return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise, delay=args.delay)
+    return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise or 0.0, delay=args.delay or 0)
 
 
 def format_summary(name: str, solver: str, s: dict) -> str:
@@ -95,28 +136,45 @@ def _singularities(args: argparse.Namespace) -> int:
 BENCH_SUITES = ("solvers", "peers", "scaling", "dataset")
 
 
-def find_benchmarks() -> Path | None:
+def is_checkout(root: Path) -> bool:
+    """Whether ``root`` is a source checkout of wbc: ``benchmarks/__init__.py`` next to a
+    pyproject.toml of the project named "wbc"."""
+    try:
+        with open(root / "pyproject.toml", "rb") as stream:
+            project = tomllib.load(stream).get("project", {})
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+    return project.get("name") == "wbc" and (root / "benchmarks" / "__init__.py").is_file()
+
+
+def find_benchmarks(checkout: Path | None = None) -> Path | None:
     """The source checkout holding ``benchmarks/`` (not part of the installed package):
-    the current directory or one of its parents, else the checkout of an editable install."""
-    here = Path.cwd().resolve()
-    for candidate in (here, *here.parents, Path(__file__).resolve().parents[1]):
-        if (candidate / "benchmarks" / "__init__.py").is_file() and (candidate / "tasks").is_dir():
-            return candidate
-    return None
+    ``checkout`` if given, else the checkout of an editable install (the folder above the
+    ``wbc`` package). The current directory is never searched: code found there would run."""
+    root = Path(checkout) if checkout is not None else Path(__file__).resolve().parents[1]
+    return root.resolve() if is_checkout(root) else None
 
 
 def _bench(args: argparse.Namespace) -> int:
-    import importlib
-
-    root = find_benchmarks()
+    root = find_benchmarks(args.checkout)
     if root is None:
-        print("wbc: error: the benchmarks live in the source repository, not in the installed package; "
-              "run `wbc bench` from a checkout (or use an editable install: pip install -e .)", file=sys.stderr)
-        return 2
-    if str(root) not in sys.path:
-        sys.path.insert(0, str(root))
-    module = importlib.import_module(f"benchmarks.{args.suite}")
+        where = (f"--checkout {args.checkout} is not a wbc source checkout (benchmarks/ and a pyproject.toml "
+                 "naming project wbc)" if args.checkout else
+                 "the benchmarks live in the source repository, not in the installed package")
+        raise CommandLineError(f"{where}; use an editable install (pip install -e .) or --checkout PATH")
+    module = _import_suite(root, args.suite)
     return module.main(args.options)
+
+
+def _import_suite(root: Path, suite: str):
+    """``benchmarks.<suite>`` of ``root``, whatever else a ``benchmarks`` on sys.path holds."""
+    loaded = sys.modules.get("benchmarks")
+    if loaded is not None and Path(getattr(loaded, "__file__", "") or "").resolve().parent != root / "benchmarks":
+        for name in [n for n in sys.modules if n == "benchmarks" or n.startswith("benchmarks.")]:
+            del sys.modules[name]
+    if sys.path[:1] != [str(root)]:
+        sys.path.insert(0, str(root))
+    return importlib.import_module(f"benchmarks.{suite}")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -131,10 +189,10 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     run_parser.add_argument("--sim", choices=["kinematic", "mujoco"], default="kinematic",
                             help="close the loop by integrating v (default) or through MuJoCo velocity servos")
-    run_parser.add_argument("--noise", type=float, default=0.0,
-                            help="with --sim mujoco: std of the position measurement noise [rad, m]")
-    run_parser.add_argument("--delay", type=int, choices=[0, 1], default=0,
-                            help="with --sim mujoco: ticks between command and actuation")
+    run_parser.add_argument("--noise", type=float,
+                            help="with --sim mujoco: std of the position measurement noise [rad, m] (default 0)")
+    run_parser.add_argument("--delay", type=int, choices=[0, 1],
+                            help="with --sim mujoco: ticks between command and actuation (default 0)")
     run_parser.set_defaults(handler=_run)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
     solvers_parser.set_defaults(handler=_solvers)
@@ -147,6 +205,9 @@ def build_parser() -> argparse.ArgumentParser:
     bench_parser = sub.add_parser("bench", help="run a benchmark suite of benchmarks/ (needs a source checkout)",
                                   description="Runs python -m benchmarks.SUITE; options after SUITE go to it "
                                               "(e.g. wbc bench solvers --ticks 50; wbc bench peers --help).")
+    bench_parser.add_argument("--checkout", type=Path, metavar="PATH",
+                              help="the wbc source checkout to take benchmarks/ from (default: the checkout of "
+                                   "an editable install; the current directory is never searched)")
     bench_parser.add_argument("suite", choices=BENCH_SUITES)
     bench_parser.add_argument("options", nargs=argparse.REMAINDER, help="options of the suite")
     bench_parser.set_defaults(handler=_bench)
@@ -154,12 +215,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``wbc``: 0 on success, 2 with ``wbc: error: ...`` on stderr for a wbc
+    error, 1 (quietly) when the reader of stdout goes away (``wbc ... | head``)."""
     args = build_parser().parse_args(argv)
     try:
-        return args.handler(args)
+        status = args.handler(args)
+        sys.stdout.flush()
+        return status
     except WbcError as exc:
         print(f"wbc: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # Python's recipe: point stdout at devnull so the flush at exit does not fail again
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
 
 
 if __name__ == "__main__":

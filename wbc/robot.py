@@ -16,15 +16,18 @@ from __future__ import annotations
 
 import difflib
 import sys
+from typing import Annotated, Literal, Union
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from pydantic import Field, ValidationError
 
 from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .errors import InvalidInputError, ModelError, UnknownFrameError
+from .schema import Positive, Table, explain, suggest
 from .validation import as_positive, as_vector
 
 if sys.version_info >= (3, 11):
@@ -67,6 +70,7 @@ class Robot:
             self.upper[[x, y, yaw]] = np.inf
             self.velocity_limit[[x, y]] = self.base.max_linear_speed
             self.velocity_limit[yaw] = self.base.max_yaw_rate
+        self._check_velocity_limits()
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
@@ -74,6 +78,17 @@ class Robot:
         self._frame_ids: dict[str, int] = {}
         for index, frame in enumerate(model.frames):
             self._frame_ids.setdefault(frame.name, index)
+
+    def _check_velocity_limits(self) -> None:
+        """A zero, negative or NaN speed limit would freeze (or break) a joint: refuse it.
+        A missing one (inf, e.g. a continuous joint without <limit>) means unbounded."""
+        for joint_id in range(1, self.model.njoints):
+            joint = self.model.joints[joint_id]
+            limits = self.velocity_limit[joint.idx_v:joint.idx_v + joint.nv]
+            if np.any(~(limits > 0.0)):
+                raise ModelError(
+                    f"{self.source or self.name}: joint {self.model.names[joint_id]!r} has velocity limit "
+                    f"{limits.tolist()}; give it <limit ... velocity=\"...\"/> > 0 [rad/s or m/s] in the URDF")
 
     # ------------------------------------------------------------------ sizes
     @property
@@ -205,8 +220,8 @@ def model_path(name: str, kind: str = "urdf") -> Path:
     if name not in shipped_models():
         raise ModelError(f"no shipped model {name!r}; available: {shipped_models()}")
     folder = Path(str(resources.files("wbc.models") / name))
-    params = _read_toml(folder / f"{name}.toml")
-    filename = {"toml": f"{name}.toml", "urdf": params.get("urdf"), "mjcf": params.get("mjcf")}.get(kind)
+    spec, _ = _read_sidecar(folder / f"{name}.toml")
+    filename = {"toml": f"{name}.toml", "urdf": spec.urdf, "mjcf": spec.mjcf}.get(kind)
     if filename is None:
         raise ModelError(f"model {name!r} has no {kind} description")
     return folder / filename
@@ -237,12 +252,71 @@ def load_robot(name_or_path: str | Path) -> Robot:
     return Robot(name=model.name or path.stem, model=model, base=_detect_planar_base(model), source=path)
 
 
+# ------------------------------------------------------------------ sidecar schema
+class MecanumWheelsTable(Table):
+    radius: Positive
+    half_length: Positive
+    half_width: Positive
+    max_speed: Positive | None = None
+
+
+class DifferentialWheelsTable(Table):
+    radius: Positive
+    half_track: Positive
+    max_speed: Positive | None = None
+
+
+class FixedBaseTable(Table):
+    kind: Literal["fixed"]
+
+
+class MobileBaseTable(Table):
+    joints: Annotated[list[str], Field(min_length=3, max_length=3)]
+    max_linear_speed: Positive | None = None
+    max_yaw_rate: Positive | None = None
+
+
+class PlanarBaseTable(MobileBaseTable):
+    kind: Literal["planar", "synchro"]
+
+
+class MecanumBaseTable(MobileBaseTable):
+    kind: Literal["mecanum"]
+    wheels: MecanumWheelsTable | None = None
+
+
+class UnicycleBaseTable(MobileBaseTable):
+    kind: Literal["unicycle"]
+    wheels: DifferentialWheelsTable | None = None
+
+
+class Sidecar(Table):
+    """``<name>.toml`` next to a URDF (see models/youbot/youbot.toml)."""
+
+    name: str | None = None
+    urdf: str | None = None
+    mjcf: str | None = None
+    end_effector: str | None = None
+    base: Annotated[Union[FixedBaseTable, PlanarBaseTable, MecanumBaseTable, UnicycleBaseTable],
+                    Field(discriminator="kind")] = FixedBaseTable(kind="fixed")
+    geometry: dict[str, float] = {}
+
+
 def _read_toml(path: Path) -> dict:
     try:
         with open(path, "rb") as stream:
             return tomllib.load(stream)
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise ModelError(f"cannot read {path}: {exc}") from exc
+
+
+def _read_sidecar(path: Path) -> tuple[Sidecar, dict]:
+    """The validated sidecar and its raw table."""
+    params = _read_toml(path)
+    try:
+        return Sidecar.model_validate(params), params
+    except ValidationError as exc:
+        raise ModelError(f"{path}: {explain(exc, Sidecar)}") from None
 
 
 def _build_model(urdf: Path) -> pin.Model:
@@ -253,56 +327,48 @@ def _build_model(urdf: Path) -> pin.Model:
 
 
 def _load_from_sidecar(sidecar: Path) -> Robot:
-    params = _read_toml(sidecar)
-    urdf = sidecar.parent / params.get("urdf", sidecar.with_suffix(".urdf").name)
+    spec, params = _read_sidecar(sidecar)
+    urdf = sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
     model = _build_model(urdf)
-    return Robot(
-        name=params.get("name", sidecar.stem),
-        model=model,
-        base=_base_from_params(model, params.get("base", {"kind": "fixed"})),
-        end_effector=params.get("end_effector"),
-        parameters=params,
-        source=urdf,
-    )
-
-
-def _base_from_params(model: pin.Model, spec: dict) -> MobileBase:
     try:
-        kind = BaseKind(spec.get("kind", "fixed"))
-    except ValueError as exc:
-        raise ModelError(f"unknown base kind {spec.get('kind')!r}; known: {[k.value for k in BaseKind]}") from exc
-    if kind is BaseKind.FIXED:
+        base = _base_from_spec(model, spec.base)
+    except ModelError as exc:
+        raise ModelError(f"{sidecar}: {exc}") from exc
+    return Robot(name=spec.name or sidecar.stem, model=model, base=base, end_effector=spec.end_effector,
+                 parameters=params, source=urdf)
+
+
+def _base_from_spec(model: pin.Model, spec: FixedBaseTable | MobileBaseTable) -> MobileBase:
+    if isinstance(spec, FixedBaseTable):
         return FIXED_BASE
-    names = spec.get("joints")
-    if not names or len(names) != 3:
-        raise ModelError("a mobile base needs joints = [x, y, yaw] in its sidecar")
     indices = []
-    for joint_name in names:
+    for joint_name in spec.joints:
         if not model.existJointName(joint_name):
-            raise ModelError(f"base joint {joint_name!r} is not in the model")
+            raise ModelError(f"[base] joints: {joint_name!r} is not a joint of the URDF"
+                             f"{suggest(joint_name, model.names[1:])}")
         joint = model.joints[model.getJointId(joint_name)]
         if joint.nq != 1 or joint.nv != 1:
-            raise ModelError(f"base joint {joint_name!r} must be a 1-DOF joint")
+            raise ModelError(f"[base] joints: {joint_name!r} must be a 1-DOF joint")
         indices.append(joint.idx_v)
     return MobileBase(
-        kind=kind,
+        kind=BaseKind(spec.kind),
         indices=tuple(indices),
-        max_linear_speed=float(spec.get("max_linear_speed", np.inf)),
-        max_yaw_rate=float(spec.get("max_yaw_rate", np.inf)),
-        wheels=_wheels_from_params(kind, spec.get("wheels")),
+        max_linear_speed=_or_inf(spec.max_linear_speed),
+        max_yaw_rate=_or_inf(spec.max_yaw_rate),
+        wheels=_wheels(getattr(spec, "wheels", None)),
     )
 
 
-def _wheels_from_params(kind: BaseKind, spec: dict | None) -> MecanumWheels | DifferentialWheels | None:
-    if not spec:
+def _or_inf(value: float | None) -> float:
+    """An optional speed limit: None (not given) means unbounded."""
+    return np.inf if value is None else value
+
+
+def _wheels(spec: MecanumWheelsTable | DifferentialWheelsTable | None) -> MecanumWheels | DifferentialWheels | None:
+    if spec is None:
         return None
-    wheel_type = {BaseKind.MECANUM: MecanumWheels, BaseKind.UNICYCLE: DifferentialWheels}.get(kind)
-    if wheel_type is None:
-        raise ModelError(f"a {kind.value} base has no wheel model in wbc; remove [base.wheels]")
-    try:
-        return wheel_type(**spec)
-    except TypeError as exc:
-        raise ModelError(f"[base.wheels] of a {kind.value} base: {exc}") from exc
+    wheel_type = MecanumWheels if isinstance(spec, MecanumWheelsTable) else DifferentialWheels
+    return wheel_type(**(spec.model_dump() | {"max_speed": _or_inf(spec.max_speed)}))
 
 
 def _detect_planar_base(model: pin.Model) -> MobileBase:

@@ -1,26 +1,45 @@
 """Declarative scenarios (``tasks/*.toml``): robot, task stack, constraints, solver, reference.
 
-Schema (see ``tasks/youbot_circle.toml`` for a commented example)::
+Schema (see ``tasks/youbot_circle.toml`` for a commented example); every key is checked,
+strictly, by the pydantic models below (:mod:`wbc.schema`): unknown sections or keys,
+wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are a
+:class:`~wbc.errors.ScenarioError` naming the file, the key and the fix::
 
-    [robot]       name = "youbot" | path, initial_configuration = [...]
-    [controller]  solver, dt [s], duration [s], damping
-    [controller]  ... reduced = true|false (solve over the real inputs of a nonholonomic base)
-    [[tasks]]     type = any name in TASK_TYPES, + constructor arguments
-    [[constraints]] type = any name in CONSTRAINT_TYPES, + constructor arguments
-    [reference]   type = "circle" | "pose" | "line" for the first FrameTask, "point" for the
-                  first PositionTask (or ``task = name``); the goal of "pose" and "line" is the
-                  start pose with ``configuration`` (the frame's pose there), ``position`` and/or
-                  ``rpy`` applied in that order; "planned" (same goal keys) is the singular-region-
-                  aware plan of wbc.trajectory.scenario_spec
+    name = "..."      optional, default: the file name
+    [robot]           name = shipped model ("youbot") or URDF / sidecar path (relative to the file)
+                      initial_configuration = [nq numbers] (default: the model's neutral pose)
+    [controller]      solver = "daqp", dt = 0.01 [s] (> 0, <= duration), duration = 10.0 [s]
+                      (> 0, at most 10^7 ticks), damping = 1e-3 (>= 0), reduced = false (a boolean:
+                      solve over the real inputs of a nonholonomic base)
+    [[tasks]]         type = a name in TASK_TYPES; the other keys are arguments of its constructor
+    [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise
+                      (``target = "initial"`` in a PostureTask means initial_configuration)
+    [reference]       type = "circle" (radius, period [s], normal, start_axis, ramp_time [s])
+                      | "pose" | "line" (speed [m/s], ramp_time [s]) for the first FrameTask,
+                      "point" (position) for the first PositionTask (or ``task = name``); the goal
+                      of "pose", "line" and "planned" is the start pose with ``configuration`` (the
+                      frame's pose there), ``position`` and/or ``rpy`` applied in that order;
+                      "planned" (+ path, centre, duration, threshold, reroute, margin, wrist) is
+                      the singular-region-aware plan of wbc.trajectory.scenario_spec
+
+Constructor arguments are checked against the constructor's signature and type hints
+(strictly: a quoted number is refused); unannotated ones must be numbers or arrays of numbers.
 """
 
 from __future__ import annotations
 
+import functools
+import inspect
+import math
 import sys
+import types
+import typing
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated, Any, Literal, Union
 
 import numpy as np
+from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from . import constraints as constraint_module
 from . import tasks as task_module
@@ -28,6 +47,7 @@ from .controller import Controller
 from .errors import ScenarioError, WbcError
 from .references import Circle, ConstantPoint, ConstantPose, Line, rpy_matrix
 from .robot import Robot, load_robot
+from .schema import NonNegative, Positive, Table, Vector3, explain, suggest
 from .tasks import FrameTask, PositionTask, PostureTask
 from .trajectory.scenario_spec import plan_from_spec
 
@@ -39,6 +59,105 @@ else:  # pragma: no cover
 TASK_TYPES = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
 CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in constraint_module.__all__
                     if name not in ("Constraint", "ConstraintRows")}
+MAX_TICKS = 10**7  #: longest run a scenario may ask for (duration / dt)
+
+
+# ------------------------------------------------------------------------------ schema
+class RobotTable(Table):
+    name: str
+    initial_configuration: list[float] | None = None
+
+
+class ControllerTable(Table):
+    solver: str = "daqp"
+    dt: Positive = 0.01
+    duration: Positive = 10.0
+    damping: NonNegative = 1e-3
+    reduced: bool = False
+
+    @model_validator(mode="after")
+    def _ticks(self) -> ControllerTable:
+        if self.dt > self.duration:
+            raise ValueError(f"dt = {self.dt} s is longer than duration = {self.duration} s; "
+                             "make dt smaller or duration longer")
+        if self.duration / self.dt > MAX_TICKS:
+            raise ValueError(f"duration / dt = {self.duration / self.dt:.3g} ticks, more than {MAX_TICKS:.0e}; "
+                             "shorten duration or lengthen dt")
+        return self
+
+
+class Entry(Table):
+    """A ``[[tasks]]`` / ``[[constraints]]`` entry: ``type`` + constructor arguments (checked later)."""
+
+    model_config = ConfigDict(extra="allow")
+    type: str
+
+
+class CircleReference(Table):
+    type: Literal["circle"]
+    task: str | None = None
+    radius: Positive
+    period: Positive
+    normal: Vector3 = [0.0, 0.0, 1.0]
+    start_axis: Vector3 = [1.0, 0.0, 0.0]
+    ramp_time: NonNegative = 1.0
+
+
+class PointReference(Table):
+    type: Literal["point"]
+    task: str | None = None
+    position: Vector3
+
+
+class GoalKeys(Table):
+    """The goal of "pose", "line" and "planned": the start pose with these applied in order."""
+
+    task: str | None = None
+    configuration: list[float] | None = None
+    position: Vector3 | None = None
+    rpy: Vector3 | None = None
+
+
+class PoseReference(GoalKeys):
+    type: Literal["pose"]
+
+
+class LineReference(GoalKeys):
+    type: Literal["line"]
+    speed: Positive
+    ramp_time: NonNegative = 0.5
+
+
+class PlannedReference(GoalKeys):
+    type: Literal["planned"]
+    path: Literal["line", "arc"] = "line"
+    centre: Vector3 | None = None
+    duration: Positive
+    threshold: Positive
+    reroute: bool = True
+    margin: Positive | None = None
+    wrist: list[str] | None = None
+
+    @model_validator(mode="after")
+    def _centre(self) -> PlannedReference:
+        if (self.path == "arc") != (self.centre is not None):
+            raise ValueError("path = \"arc\" needs centre = [x, y, z]; path = \"line\" takes no centre")
+        return self
+
+
+Reference = Annotated[Union[CircleReference, PoseReference, LineReference, PointReference, PlannedReference],
+                      Field(discriminator="type")]
+
+
+class ScenarioFile(Table):
+    """The whole file."""
+
+    name: str | None = None
+    robot: RobotTable
+    controller: ControllerTable = ControllerTable()
+    tasks: list[Entry] = []
+    constraints: list[Entry] = []
+    reference: Reference | None = None
 
 
 @dataclass
@@ -60,6 +179,14 @@ class Scenario:
     source: Path | None = None
     spec: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if type(self.reduced) is not bool:
+            raise ScenarioError(f"reduced must be True or False, got {self.reduced!r}")
+        for name in ("dt", "duration"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value < math.inf):
+                raise ScenarioError(f"{name} must be a finite number > 0 [s], got {value!r}")
+
     def make_controller(self, solver: str | None = None) -> Controller:
         return Controller(self.robot, self.tasks, self.constraints, solver=solver or self.solver,
                           dt=self.dt, damping=self.damping, reduced=self.reduced)
@@ -70,7 +197,7 @@ class Scenario:
 
 
 def load_scenario(path: str | Path) -> Scenario:
-    """Parse a scenario file; raises ScenarioError with the offending key on any mistake."""
+    """Parse and validate a scenario file; any mistake is a ScenarioError naming the file and key."""
     path = Path(path)
     try:
         with open(path, "rb") as stream:
@@ -78,98 +205,139 @@ def load_scenario(path: str | Path) -> Scenario:
     except (OSError, tomllib.TOMLDecodeError) as exc:
         raise ScenarioError(f"cannot read scenario {path}: {exc}") from exc
     try:
-        return _build(spec, path)
-    except ScenarioError:
-        raise
-    except (WbcError, TypeError, ValueError, KeyError) as exc:
+        return _build(ScenarioFile.model_validate(spec), spec, path)
+    except ValidationError as exc:
+        raise ScenarioError(f"{path}: {explain(exc, ScenarioFile)}") from None
+    except ScenarioError as exc:
         raise ScenarioError(f"{path}: {exc}") from exc
 
 
-def _build(spec: dict, path: Path) -> Scenario:
-    robot_spec = _section(spec, "robot")
-    name = robot_spec.get("name")
-    if name is None:
-        raise ScenarioError(f"{path}: [robot] needs a name")
-    model_ref = name if not str(name).endswith((".urdf", ".toml")) else (path.parent / name)
-    robot = load_robot(model_ref)
-    q0 = robot.check_configuration(robot_spec.get("initial_configuration", robot.neutral()))
-
-    control = _section(spec, "controller")
-    tasks = [_instantiate(entry, TASK_TYPES, "tasks", robot, q0) for entry in spec.get("tasks", [])]
-    constraints = [_instantiate(entry, CONSTRAINT_TYPES, "constraints", robot, q0)
-                   for entry in spec.get("constraints", [])]
+def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
+    robot = _robot(checked.robot, path)
+    q0 = _initial_configuration(checked.robot, robot)
+    tasks = [_instantiate(entry, TASK_TYPES, f"[[tasks]] #{i + 1}", q0) for i, entry in enumerate(checked.tasks)]
+    constraints = [_instantiate(entry, CONSTRAINT_TYPES, f"[[constraints]] #{i + 1}", q0)
+                   for i, entry in enumerate(checked.constraints)]
+    control = checked.controller
     scenario = Scenario(
-        name=spec.get("name", path.stem), robot=robot, q0=q0, tasks=tasks, constraints=constraints,
-        solver=control.get("solver", "daqp"), dt=float(control.get("dt", 0.01)),
-        duration=float(control.get("duration", 10.0)), damping=float(control.get("damping", 1e-3)),
-        reduced=bool(control.get("reduced", False)), source=path, spec=spec,
+        name=checked.name or path.stem, robot=robot, q0=q0, tasks=tasks, constraints=constraints,
+        solver=control.solver, dt=control.dt, duration=control.duration, damping=control.damping,
+        reduced=control.reduced, source=path, spec=spec,
     )
-    if "reference" in spec:
-        scenario.reference_task, scenario.reference = _reference(spec["reference"], tasks, robot, q0)
+    if checked.reference is not None:
+        scenario.reference_task, scenario.reference = _reference(checked.reference, tasks, robot, q0)
     return scenario
 
 
-def _section(spec: dict, key: str) -> dict:
-    value = spec.get(key, {})
-    if not isinstance(value, dict):
-        raise ScenarioError(f"[{key}] must be a table")
-    return value
-
-
-def _instantiate(entry: dict, registry: dict, section: str, robot: Robot, q0: np.ndarray):
-    entry = dict(entry)
-    kind = entry.pop("type", None)
-    if kind not in registry:
-        raise ScenarioError(f"[[{section}]] type {kind!r} unknown; known: {sorted(registry)}")
-    if registry[kind] is PostureTask and entry.get("target") == "initial":
-        entry["target"] = q0
+def _robot(table: RobotTable, path: Path) -> Robot:
+    name = table.name
     try:
-        return registry[kind](**entry)
-    except TypeError as exc:
-        raise ScenarioError(f"[[{section}]] {kind}: {exc}") from exc
+        return load_robot(path.parent / name if name.endswith((".urdf", ".toml")) else name)
+    except WbcError as exc:
+        raise ScenarioError(f"[robot] name = {name!r}: {exc}") from exc
 
 
-def _reference(spec: dict, tasks: list, robot: Robot, q0: np.ndarray):
-    spec = dict(spec)
-    kind = spec.pop("type", None)
-    task_type = PositionTask if kind == "point" else FrameTask
-    wanted = spec.pop("task", None)
-    matches = [t for t in tasks if isinstance(t, task_type) and (wanted is None or t.name == wanted)]
+def _initial_configuration(table: RobotTable, robot: Robot) -> np.ndarray:
+    if table.initial_configuration is None:
+        return robot.neutral()
+    try:
+        return robot.check_configuration(table.initial_configuration)
+    except WbcError as exc:
+        raise ScenarioError(f"[robot] initial_configuration: {exc}; give the {robot.nq} coordinates of "
+                            f"{robot.name} ({', '.join(robot.joint_names)})") from exc
+
+
+def _instantiate(entry: Entry, registry: dict, label: str, q0: np.ndarray):
+    """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry."""
+    if entry.type not in registry:
+        raise ScenarioError(f"{label}: type {entry.type!r} unknown{suggest(entry.type, registry)} "
+                            f"(known: {', '.join(sorted(registry))})")
+    cls, label = registry[entry.type], f"{label} ({entry.type})"
+    arguments = dict(entry.model_extra or {})
+    _check_arguments(cls, arguments, label)
+    if cls is PostureTask and arguments.get("target") == "initial":
+        arguments["target"] = q0
+    try:
+        return cls(**arguments)
+    except (WbcError, TypeError, ValueError) as exc:
+        raise ScenarioError(f"{label}: {exc}") from exc
+
+
+def _check_arguments(cls: type, arguments: dict, label: str) -> None:
+    """Keys must be constructor parameters, values must fit their type hints (strictly)."""
+    parameters = {name: p for name, p in inspect.signature(cls).parameters.items()
+                  if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
+    for key in arguments:
+        if key not in parameters:
+            raise ScenarioError(f"{label}: unknown key {key!r}{suggest(key, parameters)} "
+                                f"(parameters: type, {', '.join(parameters)})")
+    missing = [n for n, p in parameters.items() if p.default is p.empty and n not in arguments]
+    if missing:
+        raise ScenarioError(f"{label}: required key {missing[0]!r} missing; add `{missing[0]} = ...`")
+    hints = typing.get_type_hints(cls.__init__)
+    for key, value in arguments.items():
+        hint = hints.get(key, Literal["initial"] | _Numbers if cls is PostureTask and key == "target" else _Numbers)
+        try:
+            _adapter(hint).validate_python(value)
+        except ValidationError as exc:
+            raise ScenarioError(f"{label} {key} = {value!r}: expected {_describe(hint)}"
+                                f"{' (numbers without quotes)' if isinstance(value, str) else ''}") from None
+
+
+_Numbers = Union[float, list[float]]  # unannotated constructor arguments: costs, targets
+
+
+@functools.lru_cache(maxsize=None)
+def _adapter(hint: Any) -> TypeAdapter:
+    return TypeAdapter(hint, config=ConfigDict(strict=True, allow_inf_nan=False))
+
+
+def _describe(hint: Any) -> str:
+    names = {float: "a finite number", int: "an integer", str: "a string", bool: "true or false",
+             type(None): "nothing", list[float]: "an array of numbers", list[str]: "an array of strings"}
+    options = typing.get_args(hint) if typing.get_origin(hint) in (Union, types.UnionType) else (hint,)
+    return " or ".join(names.get(o) or " or ".join(map(repr, typing.get_args(o))) for o in options
+                       if o is not type(None))
+
+
+def _reference(spec, tasks: list, robot: Robot, q0: np.ndarray):
+    """(task, reference) of the validated ``[reference]`` table."""
+    task_type = PositionTask if spec.type == "point" else FrameTask
+    matches = [t for t in tasks if isinstance(t, task_type) and spec.task in (None, t.name)]
     if not matches:
-        raise ScenarioError(f"[reference] of type {kind!r} needs a {task_type.__name__}"
-                            f"{'' if wanted is None else f' named {wanted!r}'}")
+        raise ScenarioError(f"[reference] of type {spec.type!r} needs a {task_type.__name__}"
+                            f"{'' if spec.task is None else f' named {spec.task!r}'} in [[tasks]]")
     task = matches[0]
-    start = robot.frame_pose(q0, task.frame)
-    if kind == "circle":
-        reference = Circle(start=start, radius=spec.pop("radius"), period=spec.pop("period"),
-                           normal=spec.pop("normal", [0.0, 0.0, 1.0]),
-                           start_axis=spec.pop("start_axis", [1.0, 0.0, 0.0]),
-                           ramp_time=spec.pop("ramp_time", 1.0))
-    elif kind == "pose":
-        reference = ConstantPose(_goal_pose(spec, start, robot, task.frame))
-    elif kind == "line":
-        reference = Line(start=start, end=_goal_pose(spec, start, robot, task.frame), speed=spec.pop("speed"),
-                         ramp_time=spec.pop("ramp_time", 0.5))
-    elif kind == "point":
-        reference = ConstantPoint(spec.pop("position"))
-    elif kind == "planned":
-        goal = _goal_pose(spec, start, robot, task.frame)
-        reference = plan_from_spec(spec, robot, task.frame, q0, start, goal).reference
-    else:
-        raise ScenarioError(f"[reference] type {kind!r} unknown; known: circle, pose, line, point, planned")
-    if spec:
-        raise ScenarioError(f"[reference] unknown keys for type {kind!r}: {sorted(spec)}")
-    return task, reference
+    try:
+        return task, _make_reference(spec, robot, task.frame, q0)
+    except WbcError as exc:
+        raise ScenarioError(f"[reference] ({spec.type}): {exc}") from exc
 
 
-def _goal_pose(spec: dict, start: np.ndarray, robot: Robot, frame: str) -> np.ndarray:
+def _make_reference(spec, robot: Robot, frame: str, q0: np.ndarray):
+    start = robot.frame_pose(q0, frame)
+    if isinstance(spec, CircleReference):
+        return Circle(start=start, radius=spec.radius, period=spec.period, normal=spec.normal,
+                      start_axis=spec.start_axis, ramp_time=spec.ramp_time)
+    if isinstance(spec, PointReference):
+        return ConstantPoint(spec.position)
+    goal = _goal_pose(spec, start, robot, frame)
+    if isinstance(spec, PoseReference):
+        return ConstantPose(goal)
+    if isinstance(spec, LineReference):
+        return Line(start=start, end=goal, speed=spec.speed, ramp_time=spec.ramp_time)
+    plan_keys = spec.model_dump(exclude_unset=True, exclude=set(GoalKeys.model_fields) | {"type"})
+    return plan_from_spec(plan_keys, robot, frame, q0, start, goal).reference
+
+
+def _goal_pose(spec: GoalKeys, start: np.ndarray, robot: Robot, frame: str) -> np.ndarray:
     """The start pose, replaced by the frame's pose at ``configuration`` if given, then
-    with ``position`` and/or ``rpy`` overridden (keys are consumed from ``spec``)."""
+    with ``position`` and/or ``rpy`` overridden."""
     pose = start.copy()
-    if "configuration" in spec:
-        pose = robot.frame_pose(spec.pop("configuration"), frame).copy()
-    if "position" in spec:
-        pose[:3, 3] = spec.pop("position")
-    if "rpy" in spec:
-        pose[:3, :3] = rpy_matrix(*spec.pop("rpy"))
+    if spec.configuration is not None:
+        pose = robot.frame_pose(spec.configuration, frame).copy()
+    if spec.position is not None:
+        pose[:3, 3] = spec.position
+    if spec.rpy is not None:
+        pose[:3, :3] = rpy_matrix(*spec.rpy)
     return pose
