@@ -36,6 +36,7 @@ def test_every_shipped_scenario_loads():
 @pytest.mark.parametrize("old, new, expected", [
     # unknown sections and keys, with a did-you-mean
     ("[[constraints]]\ntype", "[[constraint]]\ntype", ["'constraint'", "did you mean 'constraints'?"]),
+    ('frame = "ee"', 'frame = "eee"', ["[[tasks]] #1 (FrameTask)", "no frame 'eee'", "did you mean ee?"]),
     ("duration = 20.0", "durration = 20.0", ["[controller]", "'durration'", "did you mean 'duration'?"]),
     ("initial_configuration", "initial_configuraton", ["[robot]", "did you mean 'initial_configuration'?"]),
     ("radius = 0.2 ", "radiu = 0.2 ", ["[reference]", "'radiu'", "did you mean 'radius'?"]),

@@ -215,8 +215,8 @@ def load_scenario(path: str | Path) -> Scenario:
 def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
     robot = _robot(checked.robot, path)
     q0 = _initial_configuration(checked.robot, robot)
-    tasks = [_instantiate(entry, TASK_TYPES, f"[[tasks]] #{i + 1}", q0) for i, entry in enumerate(checked.tasks)]
-    constraints = [_instantiate(entry, CONSTRAINT_TYPES, f"[[constraints]] #{i + 1}", q0)
+    tasks = [_instantiate(entry, TASK_TYPES, f"[[tasks]] #{i + 1}", robot, q0) for i, entry in enumerate(checked.tasks)]
+    constraints = [_instantiate(entry, CONSTRAINT_TYPES, f"[[constraints]] #{i + 1}", robot, q0)
                    for i, entry in enumerate(checked.constraints)]
     control = checked.controller
     scenario = Scenario(
@@ -247,8 +247,9 @@ def _initial_configuration(table: RobotTable, robot: Robot) -> np.ndarray:
                             f"{robot.name} ({', '.join(robot.joint_names)})") from exc
 
 
-def _instantiate(entry: Entry, registry: dict, label: str, q0: np.ndarray):
-    """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry."""
+def _instantiate(entry: Entry, registry: dict, label: str, robot: Robot, q0: np.ndarray):
+    """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry (its frame, if
+    it has one, checked against the robot here, so the error names this entry)."""
     if entry.type not in registry:
         raise ScenarioError(f"{label}: type {entry.type!r} unknown{suggest(entry.type, registry)} "
                             f"(known: {', '.join(sorted(registry))})")
@@ -258,7 +259,10 @@ def _instantiate(entry: Entry, registry: dict, label: str, q0: np.ndarray):
     if cls is PostureTask and arguments.get("target") == "initial":
         arguments["target"] = q0
     try:
-        return cls(**arguments)
+        item = cls(**arguments)
+        if "frame" in arguments:
+            robot.frame_id(arguments["frame"])
+        return item
     except (WbcError, TypeError, ValueError) as exc:
         raise ScenarioError(f"{label}: {exc}") from exc
 
