@@ -34,6 +34,7 @@ from wbc.kinematics import Kinematics
 from wbc.robot import Robot
 from wbc.scenario import Scenario
 from wbc.tasks import FrameTask, PostureTask
+from wbc.tasks.frame_task import FrameTaskData
 
 from .common import MODELS
 
@@ -97,8 +98,9 @@ class WorldVelocityLimits(Constraint):
     has_bounds = True
     dynamic_bounds = False
 
-    def bind(self, robot: Robot) -> None:
+    def bind(self, robot: Robot) -> "WorldVelocityLimits":
         self._limit = robot.velocity_limit.copy()
+        return super().bind(robot)  # its own data: serves one robot object
 
     def write_static(self, rows: ConstraintRows) -> None:
         np.negative(self._limit, out=rows.lower)
@@ -115,22 +117,34 @@ class Log6FrameTask(FrameTask):
     """A wbc FrameTask with Pink's and mink's error convention (for the agreement check).
 
     Error: the body twist ``e = log6(T_b^-1 T*)``; rows ``W (Jlog6(T*^-1 T_b) J_body v - gain/dt e)``.
-    ``self.error`` keeps wbc's world-aligned error for reporting. Costs must be isotropic
+    The data's ``error`` keeps wbc's world-aligned error for reporting. Costs must be isotropic
     (wbc's weights are applied in the body frame here).
     """
 
+    def bind(self, robot: Robot) -> "Log6FrameTaskData":
+        return Log6FrameTaskData(self, robot)
+
+
+class Log6FrameTaskData(FrameTaskData):
+    """Rows of :class:`Log6FrameTask` (in Python: no compiled op, ``compute`` overrides the parent's)."""
+
+    def __init__(self, task: Log6FrameTask, robot: Robot) -> None:
+        super().__init__(task, robot)
+        self._frame_id = robot.frame_id(task.frame)
+
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        task = self.task
         placement = kin.frame_placement(self._frame_id)
-        goal = pin.SE3(self._target_rotation, self._target_position)
+        goal = pin.SE3(task._target_rotation, task._target_position)
         body_to_target = placement.actInv(goal)
         twist = pin.log6(body_to_target).vector
         local = pin.getFrameJacobian(kin.model, kin.data, self._frame_id, _LOCAL)
         np.matmul(pin.Jlog6(body_to_target.inverse()), local, out=jacobian)
-        jacobian *= self._weights[:, None]
-        np.multiply(twist, self.gain / dt, out=target)
-        target *= self._weights
-        self.error[:3] = self._target_position - placement.translation
-        self.error[3:] = pin.log3(self._target_rotation @ placement.rotation.T)
+        jacobian *= task._weights[:, None]
+        np.multiply(twist, task.gain / dt, out=target)
+        target *= task._weights
+        self.error[:3] = task._target_position - placement.translation
+        self.error[3:] = pin.log3(task._target_rotation @ placement.rotation.T)
 
 
 class WbcSetup:

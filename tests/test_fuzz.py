@@ -631,8 +631,9 @@ def compatible_robots(case: dict) -> list[str]:
     portable = {"FrameTask", "PositionTask", "PostureTask", "ManipulabilityTask", "JointPositionLimits",
                 "JointVelocityLimits", "ManipulabilityBarrier"}
     items = case["tasks"] + case["constraints"]
-    if case["reduced"] or any(item["kind"] not in portable for item in items):
-        return [case["robot"]]
+    explicit_posture = any(item["kind"] == "PostureTask" and item["target"] is not None for item in items)
+    if case["reduced"] or explicit_posture or any(item["kind"] not in portable for item in items):
+        return [case["robot"]]  # (a posture target is a configuration of one model)
     frames = {item["frame"] for item in items if "frame" in item}
     return [name for name in ROBOT_NAMES if frames <= set(ROBOTS[name].frame_names)
             and not (ROBOTS[name].base.is_nonholonomic)]
@@ -641,40 +642,43 @@ def compatible_robots(case: dict) -> list[str]:
 @settings(max_examples=_examples(CI_COUNTS["shared"]), **FUZZ_SETTINGS)
 @given(case=cases(), data=st.data())
 def test_fuzz_shared_objects(case, data):
-    """Two controllers of one robot built on the *same* task and constraint objects command
-    what controllers on fresh copies command, ticks interleaved; a controller of another
-    robot object refuses the objects (README "Sharing")."""
+    """Three controllers built on the *same* task and constraint objects -- two of the case's
+    robot, one of another robot object (possibly another model) -- command what controllers
+    on fresh copies command, with the same task errors, ticks interleaved (README "Sharing")."""
     note(json.dumps(case))
+    other = dict(case, robot=data.draw(st.sampled_from(compatible_robots(case)), label="other robot"))
     try:
-        robot, reference_a = build(case)
-        _, reference_b = build(case)
+        robot, fresh_a = build(case)
+        _, fresh_b = build(case)
+        _, fresh_c = build(other)
     except Rejected:
         return
+    other_robot = wbc.load_robot(other["robot"])  # another robot object, whatever the model
     tasks = [make_task(spec, robot) for spec in case["tasks"]]
     constraints = [make_constraint(spec) for spec in case["constraints"]]
-    shared = [wbc.Controller(robot, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
-              for _ in range(2)]
-    other_robot = wbc.load_robot(data.draw(st.sampled_from(compatible_robots(case)), label="other robot"))
-    with pytest.raises(wbc.InvalidInputError, match="another robot object"):
-        wbc.Controller(other_robot, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
-    qs = [np.array(case["q"]), np.array(data.draw(configurations(robot), label="second q"))]
+    robots = (robot, robot, other_robot)
+    shared = [wbc.Controller(r, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
+              for r in robots]
+    qs = [np.array(case["q"]), np.array(data.draw(configurations(robot), label="second q")),
+          np.array(data.draw(configurations(other_robot), label="third q"))]
     for tick in range(case["ticks"]):
-        for k, reference in enumerate((reference_a, reference_b)):
+        for k, fresh in enumerate((fresh_a, fresh_b, fresh_c)):
             try:
-                expected = reference.step(qs[k])
+                expected = fresh.step(qs[k])
             except Exception:  # noqa: BLE001 -- test_fuzz_every_tick reports escapes
                 assume(False)
             got = shared[k].step(qs[k])
-            assert shared[k].last.status == reference.last.status, (
-                f"tick {tick}, controller {k}: status {shared[k].last.status!r} with shared "
-                f"objects, {reference.last.status!r} with fresh copies")
+            assert shared[k].last.status == fresh.last.status, (
+                f"tick {tick}, controller {k} ({robots[k].name}): status {shared[k].last.status!r} with shared "
+                f"objects, {fresh.last.status!r} with fresh copies")
             np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-9,
-                                       err_msg=f"tick {tick}, controller {k}: shared objects change the command")
-            qs[k] = robot.integrate(qs[k], expected, case["dt"])
-        errors = [controller.last.task_errors for controller in (*shared, reference_a, reference_b)]
-        for own, fresh in ((errors[0], errors[2]), (errors[1], errors[3])):
-            assert own.keys() == fresh.keys()
-            np.testing.assert_allclose([own[key] for key in own], [fresh[key] for key in own], rtol=1e-9, atol=1e-12)
+                                       err_msg=f"tick {tick}, controller {k} ({robots[k].name}): shared objects "
+                                               "change the command")
+            qs[k] = robots[k].integrate(qs[k], expected, case["dt"])
+        for controller, fresh in zip(shared, (fresh_a, fresh_b, fresh_c), strict=True):
+            own, alone = controller.last.task_errors, fresh.last.task_errors
+            assert own.keys() == alone.keys()
+            np.testing.assert_allclose([own[key] for key in own], [alone[key] for key in own], rtol=1e-9, atol=1e-12)
 
 
 # ------------------------------------------------------------ the checks checked by hand

@@ -96,7 +96,7 @@ def test_heading_rows_are_the_base_frame_limits(youbot, rng):
     """Base speed rows bound the base-frame twist and wheel rows give the wheel speeds, at any heading."""
     speed, wheels = wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()
     controller = wbc.Controller(youbot, [wbc.PostureTask(1.0)], [speed, wheels])
-    blocks = {type(c): rows for c, rows in controller._constraint_blocks}
+    blocks = {type(c.constraint): rows for c, rows in controller._constraint_blocks}
     for q in random_youbot_configurations(rng, 10):
         controller.step(q)
         v = rng.standard_normal(8)

@@ -11,11 +11,12 @@ from conftest import TASKS
 
 import wbc
 from wbc import kernels
-from wbc.constraints.constraint import Constraint
+from wbc.constraints.constraint import ConstraintData
 from wbc.kinematics import Kinematics
 from wbc.program import TickProgram
 from wbc.scenario import load_scenario
-from wbc.tasks.task import Task
+from wbc.tasks.frame_task import FrameTaskData
+from wbc.tasks.task import TaskData
 
 importlib.import_module("wbc.manipulability")
 manipulability_module = sys.modules["wbc.manipulability"]  # wbc.manipulability is the function
@@ -48,7 +49,7 @@ def test_log3_inverts_exp3_over_the_whole_angle_range(rng):
 def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
     robot = wbc.load_robot(name)
     task = wbc.FrameTask(frame, [1.0, 2.0, 3.0], [0.5, 0.25, 4.0], gain=0.3, max_speed=0.2, max_angular_speed=0.5)
-    task.bind(robot)
+    rows_of = task.bind(robot)  # the task's data for one controller
     kin = Kinematics(robot)
     W = np.sqrt([1.0, 2.0, 3.0, 0.5, 0.25, 4.0])
     dt = 0.01
@@ -66,7 +67,7 @@ def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
         task.set_target(target.homogeneous, twist)
         kin.update(q)
         jacobian, rows = np.zeros((6, robot.nv)), np.zeros(6)
-        task.compute(kin, dt, jacobian, rows)
+        rows_of.compute(kin, dt, jacobian, rows)
 
         J = pin.getFrameJacobian(robot.model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
         error = np.concatenate([target.translation - placement.translation,
@@ -76,7 +77,7 @@ def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
             norm = np.linalg.norm(feedback[part])
             if norm > limit:
                 feedback[part] *= limit / norm
-        np.testing.assert_allclose(task.error, error, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rows_of.error, error, rtol=0, atol=1e-12)
         np.testing.assert_allclose(jacobian, W[:, None] * J, rtol=0, atol=1e-12)
         np.testing.assert_allclose(rows, W * (feedback + twist), rtol=0, atol=1e-10)
 
@@ -85,7 +86,7 @@ def test_frame_task_rows_are_pinocchios_jacobian_and_error(name, frame, rng):
 def test_position_task_rows_are_pinocchios(name, frame, rng):
     robot = wbc.load_robot(name)
     task = wbc.PositionTask(frame, [1.0, 4.0, 9.0], gain=0.2, max_speed=0.3)
-    task.bind(robot)
+    rows_of = task.bind(robot)  # the task's data for one controller
     kin = Kinematics(robot)
     dt = 0.01
     for _ in range(20):
@@ -94,12 +95,12 @@ def test_position_task_rows_are_pinocchios(name, frame, rng):
         task.set_target(goal, velocity)
         kin.update(q)
         jacobian, rows = np.zeros((3, robot.nv)), np.zeros(3)
-        task.compute(kin, dt, jacobian, rows)
+        rows_of.compute(kin, dt, jacobian, rows)
         J = robot.frame_jacobian(q, frame)[:3]
         error = goal - robot.frame_pose(q, frame)[:3, 3]
         feedback = 0.2 / dt * error
         feedback *= min(1.0, 0.3 / np.linalg.norm(feedback))
-        np.testing.assert_allclose(task.error, error, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rows_of.error, error, rtol=0, atol=1e-12)
         np.testing.assert_allclose(jacobian, np.array([1.0, 2.0, 3.0])[:, None] * J, rtol=0, atol=1e-12)
         np.testing.assert_allclose(rows, [1.0, 2.0, 3.0] * (feedback + velocity), rtol=0, atol=1e-10)
 
@@ -129,7 +130,7 @@ def test_compiled_manipulability_is_the_kinematic_hessian_form(name, frame, rows
 
 def _python_only(monkeypatch):
     """Every task and constraint computed by its Python compute (no compiled ops)."""
-    classes = {Task, Constraint}
+    classes = {TaskData, ConstraintData}
     while True:
         more = {sub for cls in classes for sub in cls.__subclasses__()} - classes
         if not more:
@@ -168,10 +169,14 @@ def test_the_program_computes_what_the_python_path_computes(path: Path, monkeypa
 
 
 def test_a_subclass_with_its_own_compute_is_not_compiled(youbot):
-    class Halved(wbc.FrameTask):
+    class HalvedData(FrameTaskData):
         def compute(self, kin, dt, jacobian, target):
             super().compute(kin, dt, jacobian, target)
             target *= 0.5
+
+    class Halved(wbc.FrameTask):
+        def bind(self, robot):
+            return HalvedData(self, robot)
 
     task, halved = wbc.FrameTask("ee"), Halved("ee")
     for t in (task, halved):
@@ -184,34 +189,58 @@ def test_a_subclass_with_its_own_compute_is_not_compiled(youbot):
     np.testing.assert_allclose(half, 0.5 * full, rtol=1e-6, atol=1e-9)
 
 
+def test_a_specification_that_overrides_its_datas_methods_is_refused(youbot):
+    """Rows of a built-in item are computed by its data (FrameTaskData): a subclass of the
+    specification overriding compute would be silently ignored, so it is refused."""
+    class Halved(wbc.FrameTask):
+        def compute(self, kin, dt, jacobian, target):
+            pass
+
+    task = Halved("ee")
+    task.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+    with pytest.raises(wbc.InvalidInputError, match="FrameTaskData"):
+        wbc.Controller(youbot, [task])
+
+
 def test_inherited_ops_never_replace_an_overridden_compute():
     """The rule behind the subclass test above, for constraints and preview tasks too."""
+    from wbc.constraints.joint_position_limits import JointPositionLimitsData
     from wbc.program import ops_follow_compute
+    from wbc.tasks.steering_task import SteeringTaskData
 
-    class Limits(wbc.JointPositionLimits):
+    class LimitsData(JointPositionLimitsData):
         def compute(self, kin, dt, rows):
             super().compute(kin, dt, rows)
 
-    class Steering(wbc.SteeringTask):
+    class Limits(wbc.JointPositionLimits):
+        def bind(self, robot):
+            return LimitsData(self, robot)
+
+    class SteeringData(SteeringTaskData):
         def compute_preview(self, kin, dt, jacobian, target, preview):
             super().compute_preview(kin, dt, jacobian, target, preview)
 
-    class OwnOps(wbc.JointPositionLimits):  # overrides both: its own ops stand
+    class Steering(wbc.SteeringTask):
+        def bind(self, robot):
+            return SteeringData(self, robot)
+
+    class OwnOps(JointPositionLimitsData):  # overrides both: its own ops stand
         def compute(self, kin, dt, rows):
             super().compute(kin, dt, rows)
 
         def add_ops(self, program, kin, rows):
             return super().add_ops(program, kin, rows)
 
-    assert ops_follow_compute(wbc.JointPositionLimits()) and ops_follow_compute(OwnOps())
-    assert not ops_follow_compute(Limits())
-    assert not ops_follow_compute(Steering(), "compute_preview", "add_preview_ops")
     robot = wbc.load_robot("deluca_mm")
+    limits = wbc.JointPositionLimits()
+    assert ops_follow_compute(limits.bind(robot)) and ops_follow_compute(OwnOps(limits, robot))
+    assert not ops_follow_compute(LimitsData(limits, robot))
+    assert not ops_follow_compute(Steering().bind(robot), "compute_preview", "add_preview_ops")
     task = wbc.PositionTask("wrist_center")
     task.set_target([1.0, 0.5, 0.5])
     controller = wbc.Controller(robot, [task, Steering()], [wbc.NonholonomicBase(), Limits()])
     assert not controller._preview_in_program
-    assert [type(c) for c, _ in controller._python_constraints] == [Limits]
+    assert [type(c) for c, _ in controller._python_constraints] == [LimitsData]
     assert np.all(np.isfinite(controller.step(robot.neutral())))
 
 
@@ -273,7 +302,7 @@ def test_steering_preview_without_damping_is_a_safe_zero_preview(compiled, monke
     v = controller.step(robot.neutral())
     assert np.all(np.isfinite(v))
     np.testing.assert_array_equal(controller._preview, 0.0)
-    assert steering.error[0] == 0.0
+    assert controller.data(steering).error[0] == 0.0
 
 
 def test_settings_changed_between_ticks_reach_the_compiled_ops(youbot):

@@ -19,7 +19,7 @@ def test_barrier_row_is_the_discrete_cbf(youbot):
     m = manipulability(youbot, q, "ee")
     np.testing.assert_allclose(controller.qp.G[0], -fd_gradient(youbot, q, "ee", "all"), rtol=0, atol=1e-8)
     assert controller.qp.h[0] == pytest.approx(0.4 * (m - 0.05) / DT, rel=1e-12)
-    assert barrier.value == pytest.approx(m, rel=1e-12)
+    assert controller.data(barrier).value == pytest.approx(m, rel=1e-12)
     assert repr(barrier) == "ManipulabilityBarrier(frame='ee', min_value=0.05, gain=0.4, rows='all')"
 
 
@@ -157,7 +157,7 @@ def test_task_stays_finite_at_an_exact_singularity(youbot):
     controller = wbc.Controller(youbot, [task, wbc.PostureTask(1e-3)], dt=DT)
     v = controller.step(youbot.neutral())  # theta = 0: the arm straight up, m = 0
     assert np.all(np.isfinite(v))
-    assert np.isfinite(task.error)
+    assert np.isfinite(controller.data(task).error)
 
 
 @pytest.mark.parametrize("kwargs, message", [

@@ -220,19 +220,43 @@ def test_options_that_are_not_booleans_are_refused(youbot, option, value):
 
 
 # ----------------------------------------------------------------------------- sharing
-def test_an_item_bound_to_one_robot_is_refused_by_another(youbot):
+def test_items_shared_by_controllers_of_different_robots_give_each_its_own_command(youbot):
+    """A FrameTask and limits shared by a youBot and a PUMA controller (the youBot's command
+    moved by ~3 rad/s when the task's frame data was the PUMA's): each controller has its
+    own data, so each commands what it commands alone, with its own task errors."""
     puma = wbc.load_robot("puma560")
-    task = hold(youbot, HOME)
-    first = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()])
-    alone = first.step(HOME).copy()
-    with pytest.raises(wbc.InvalidInputError, match="puma560"):
-        wbc.Controller(puma, [task])
-    np.testing.assert_array_equal(first.step(HOME), alone)  # the youBot's command is untouched
-    other_youbot = wbc.load_robot("youbot")
+    q_puma = np.array([0.0, -0.6, 0.4, 0.2, 0.8, 0.1])
+    task = reach(youbot, HOME, [0.1, 0.05, 0.0])
     posture = wbc.PostureTask(1e-3, gain=0.1)
-    wbc.Controller(youbot, [task, posture])
+    limits = [wbc.JointPositionLimits(), wbc.JointVelocityLimits()]
+    first = wbc.Controller(youbot, [task, posture], limits)
+    second = wbc.Controller(puma, [task, posture], limits)
+    for _ in range(3):
+        v1, v2 = first.step(HOME), second.step(q_puma)
+        for robot, q, v, controller in ((youbot, HOME, v1, first), (puma, q_puma, v2, second)):
+            own_task = wbc.FrameTask("ee", 1.0, 0.5, gain=0.5)
+            own_task.set_target(task.target)
+            alone = wbc.Controller(robot, [own_task, wbc.PostureTask(1e-3, gain=posture.gain)],
+                                   [wbc.JointPositionLimits(), wbc.JointVelocityLimits()])
+            np.testing.assert_allclose(v, alone.step(q), rtol=0, atol=1e-9)
+            position = robot.frame_pose(q, "ee")[:3, 3]
+            assert controller.last.task_errors["FrameTask(ee).position"] == pytest.approx(
+                np.linalg.norm(task.target[:3, 3] - position))
+        posture.gain = 0.3  # a setting changed on the shared task reaches both controllers
+
+
+def test_a_custom_item_that_is_its_own_data_serves_one_robot(youbot):
+    class Hold(wbc.Task):
+        dim = 1
+
+        def compute(self, kin, dt, jacobian, target):
+            jacobian[0, 3], target[0] = 1.0, 0.0
+
+    hold_joint = Hold()
+    wbc.Controller(youbot, [hold_joint])
+    wbc.Controller(youbot, [hold_joint])  # the same robot object: shared
     with pytest.raises(wbc.InvalidInputError, match="another robot object"):
-        wbc.Controller(other_youbot, [hold(other_youbot, HOME), posture])
+        wbc.Controller(wbc.load_robot("youbot"), [hold_joint])
 
 
 def test_items_shared_on_one_robot_give_each_controller_its_own_command_and_errors(youbot, rng):
@@ -311,7 +335,7 @@ def test_settings_assigned_after_construction_act_on_the_next_tick(youbot):
     (lambda t, m, c: setattr(m, "cost", -1.0), "cost"),
     (lambda t, m, c: setattr(t, "position_cost", "a"), "position_cost"),
     (lambda t, m, c: setattr(t, "frame", "base_link"), "frame cannot change"),
-    (lambda t, m, c: setattr(m, "value", 1.0), "read-only"),
+    (lambda t, m, c: setattr(t, "target", np.eye(4)), "read-only"),
     (lambda t, m, c: setattr(c, "dt", 0.0), "dt"),
     (lambda t, m, c: setattr(c, "damping", -1e-3), "damping"),
 ])

@@ -80,6 +80,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     solve_t, tick_t = np.zeros(ticks), np.zeros(ticks)
     qs[0] = q
     task, reference = scenario.reference_task, scenario.reference
+    task_data = controller.data(task) if task is not None else None
     fallbacks = 0
     iterator = range(ticks)
     if progress:
@@ -93,7 +94,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         last = controller.last
         fallbacks += not last.success
         if task is not None:
-            error = task.error if simulation is None else _true_error(robot, task, q, reference(k * dt)[0])
+            error = task_data.error if simulation is None else _true_error(robot, task, q, reference(k * dt)[0])
             pos_err[k] = np.linalg.norm(error[:3])
             ori_err[k] = np.linalg.norm(error[3:])  # 0 for a PositionTask
         solve_t[k], tick_t[k] = last.solve_time, last.tick_time

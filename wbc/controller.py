@@ -24,13 +24,12 @@ from __future__ import annotations
 
 import math
 import time
-import weakref
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 
 from . import kernels
-from .constraints.constraint import Constraint, ConstraintRows
+from .constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError, SolverError
 from .kinematics import Kinematics
@@ -38,7 +37,7 @@ from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
-from .tasks.task import Task
+from .tasks.task import Task, TaskData
 from .validation import as_flag, as_items, as_nonnegative, as_positive
 
 
@@ -104,7 +103,6 @@ class Controller:
         self._tick = 0
         self._q_shape = (robot.nq,)
         self.last: TickDiagnostics | None = None
-        self._eager_task_errors = False  # set when a task or constraint is shared (see _bind)
         self._allocate()
 
     # --------------------------------------------------------------- settings
@@ -130,16 +128,17 @@ class Controller:
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
         robot, nv = self.robot, self.robot.nv
-        for item in self.tasks + self.constraints:
-            self._bind(item)
+        # each item's data for this controller (Model/Data: the items stay specifications)
+        self._task_data = [self._bind(task) for task in self.tasks]
+        self._constraint_data = [self._bind(constraint) for constraint in self.constraints]
 
         # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
         # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
         # A^T [W J] = [H; r^T J]: H and -c in one pass (kernels.normal_equations), written
         # straight into the QP buffer. Stored transposed (C-contiguous A^T), so that every
         # column of A the kernel sums over is contiguous.
-        plain = [t for t in self.tasks if not t.uses_preview]
-        preview = [t for t in self.tasks if t.uses_preview]
+        plain = [t for t in self._task_data if not t.uses_preview]
+        preview = [t for t in self._task_data if t.uses_preview]
         n_plain = sum(t.dim for t in plain) + nv
         self._stack_t = np.zeros((nv + 1, n_plain + sum(t.dim for t in preview)))
         self._stack = self._stack_t.T  # (rows, nv + 1) view: [W J | W r]
@@ -157,11 +156,11 @@ class Controller:
             start = stop
         self._n_plain = n_plain
 
-        n_ineq = sum(c.n_inequalities for c in self.constraints)
-        n_eq = sum(c.n_equalities for c in self.constraints)
+        n_ineq = sum(c.n_inequalities for c in self._constraint_data)
+        n_eq = sum(c.n_equalities for c in self._constraint_data)
         self._qp_v = QP(nv, n_ineq, n_eq)
-        bounded = ([c for c in self.constraints if c.has_bounds and c.hard]
-                   + [c for c in self.constraints if c.has_bounds and not c.hard])
+        bounded = ([c for c in self._constraint_data if c.has_bounds and c.hard]
+                   + [c for c in self._constraint_data if c.has_bounds and not c.hard])
         self._n_hard_bounds = sum(c.hard for c in bounded)
         # each bounded constraint k writes (upper; lower) = self._bounds[k], the row order of
         # the QP buffer; hard constraints first, then soft ones
@@ -180,7 +179,7 @@ class Controller:
         soft_rows: list[int] = []
         i_ineq = i_eq = 0
         qp = self._qp_v
-        for constraint in self.constraints:
+        for constraint in self._constraint_data:
             k = bounded.index(constraint) if constraint.has_bounds else None
             lower = self._bounds[k, 1] if k is not None else np.full(nv, -np.inf)
             upper = self._bounds[k, 0] if k is not None else np.full(nv, np.inf)
@@ -194,7 +193,7 @@ class Controller:
             constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
         self._intersect_hard_bounds()
-        for constraint in self.constraints:
+        for constraint in self._constraint_data:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
         names = _velocity_names(robot)
@@ -220,17 +219,21 @@ class Controller:
         else:
             self.qp = qp
 
-    def _bind(self, item: Task | Constraint) -> None:
-        """Bind ``item`` (once for its life, :meth:`wbc.item.Item.attach`) and note who shares it:
-        a shared task's error buffer is rewritten by each controller's tick, so controllers
-        sharing an item read their task errors eagerly at the end of each tick."""
-        item.attach(self.robot)
-        if not hasattr(item, "_controllers"):
-            item._controllers = weakref.WeakSet()
-        item._controllers.add(self)
-        if len(item._controllers) > 1:
-            for controller in item._controllers:
-                controller._eager_task_errors = True
+    def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
+        """``item``'s data for this controller (:meth:`wbc.item.Item.bind`); from now on only
+        the item's settings may change."""
+        data = item.bind(self.robot)
+        if data is not item:
+            _refuse_ignored_overrides(item, data)
+        item._in_use = True
+        return data
+
+    def data(self, item: Task | Constraint) -> TaskData | ConstraintData:
+        """This controller's data of ``item`` (e.g. ``controller.data(task).error``)."""
+        for spec, data in zip(self.tasks + self.constraints, self._task_data + self._constraint_data):
+            if spec is item:
+                return data
+        raise InvalidInputError(f"{item!r} is not used by this controller")
 
     def _build_program(self, n_soft: int) -> None:
         """The compiled part of the tick (wbc.program): tasks and constraints that have ops,
@@ -270,7 +273,7 @@ class Controller:
         if self._nan_in_program:
             program.add(kernels.OP_HAS_NAN, program.array(qp.data), qp.data.size)
         self._program = program
-        self._unready = list(self.tasks)  # checked every tick until each one is ready
+        self._unready = list(self._task_data)  # checked every tick until each one is ready
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
@@ -325,8 +328,6 @@ class Controller:
             v = u = solution.x
         self.last = TickDiagnostics(self, self._tick, solution.status, solution.status == "optimal",
                                     solution.solve_time, time.perf_counter() - start, v, u)
-        if self._eager_task_errors:  # a shared task's error buffer is rewritten by the other controller
-            self.last.task_errors
         return v
 
     def _checked(self, solution: QPSolution) -> QPSolution:
@@ -469,6 +470,23 @@ ANSWER_TOLERANCE = 1e-6
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
 DAMPING_FLOOR = 1e-10
+
+
+#: what a task's or constraint's data computes (TaskData / ConstraintData)
+_DATA_METHODS = ("compute", "compute_preview", "add_ops", "add_preview_ops", "report", "write_static",
+                 "row_labels")
+
+
+def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | ConstraintData) -> None:
+    """A specification subclass overriding what its (separate) data computes would be
+    silently ignored: refuse it, naming the data class to subclass instead."""
+    bases = (Task, Constraint, TaskData, ConstraintData)
+    for name in _DATA_METHODS:
+        owner = next((cls for cls in type(item).__mro__ if name in vars(cls)), None)
+        if owner is not None and owner not in bases:
+            raise InvalidInputError(
+                f"{type(item).__name__} overrides {name}(), but its rows are computed by {type(data).__name__}: "
+                f"subclass {type(data).__name__} and return it from bind() (docs/extending.md)")
 
 
 def _intersect(bounds: np.ndarray, out: np.ndarray) -> None:

@@ -66,7 +66,7 @@ class TickDiagnostics:
             controller = self._source()
             self._task_errors = {}
             if self.v is not None:
-                for task in controller.tasks:
+                for task in controller._task_data:
                     task.report(self.v, self._task_errors)
         return self._task_errors
 

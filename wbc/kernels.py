@@ -124,45 +124,48 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
         jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
 
 
-#: layout of the FrameTask parameter vector (one float64 vector per task)
+#: layout of the FrameTask settings vector (owned by the task, shared by its controllers)
+FRAME_TARGET_ROTATION = slice(0, 9)  # target orientation R* (row-major)
+FRAME_TARGET_POSITION = slice(9, 12)  # target position p* [m]
+FRAME_WEIGHTS = slice(12, 18)  # W = sqrt(cost), (linear; angular)
+FRAME_WEIGHTED_FEEDFORWARD = slice(18, 24)  # W xi* (zero without feed-forward)
+FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 24, 25, 26  # gain in (0, 1], [m/s], [rad/s]
+FRAME_SETTINGS = 27
+#: layout of a frame's placement data (one vector per controller and frame, see frame_in_joint)
 FRAME_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation [m]
-FRAME_TARGET_ROTATION = slice(12, 21)  # target orientation R* (row-major)
-FRAME_TARGET_POSITION = slice(21, 24)  # target position p* [m]
-FRAME_WEIGHTS = slice(24, 30)  # W = sqrt(cost), (linear; angular)
-FRAME_WEIGHTED_FEEDFORWARD = slice(30, 36)  # W xi* (zero without feed-forward)
-FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 36, 37, 38  # gain in (0, 1], [m/s], [rad/s]
-FRAME_PARAMETERS = 51  # 39:51 is the kernel's scratch (R* R^T, then the frame origin)
+FRAME_DATA = 24  # 12:24 is the kernels' scratch (R* R^T, then the frame origin)
 
 
 @njit("void(float64[:, :], float64[:], float64[:])", cache=True, nogil=True)
-def set_frame_target(pose: np.ndarray, twist: np.ndarray, parameters: np.ndarray) -> None:
+def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray) -> None:
     """FrameTask target: R* and p* from the (validated) ``pose``, ``W twist`` (``twist`` of
-    length 6, or empty for none) into the parameter vector."""
+    length 6, or empty for none) into the settings vector (layout ``FRAME_*``)."""
     for a in range(3):
         for b in range(3):
-            parameters[12 + 3 * a + b] = pose[a, b]
-        parameters[21 + a] = pose[a, 3]
+            settings[3 * a + b] = pose[a, b]
+        settings[9 + a] = pose[a, 3]
     for a in range(6):
-        parameters[30 + a] = parameters[24 + a] * twist[a] if len(twist) == 6 else 0.0
+        settings[18 + a] = settings[12 + a] * twist[a] if len(twist) == 6 else 0.0
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64, float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
+      "float64[:, :], float64[:])", cache=True, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
-                    support: np.ndarray, parameters: np.ndarray, dt: float, error: np.ndarray, jacobian: np.ndarray,
-                    target: np.ndarray) -> None:
+                    support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
+                    jacobian: np.ndarray, target: np.ndarray) -> None:
     """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
 
     Frame placement ``R = R_i R_f``, ``p = R_i p_f + p_i`` (``R_i, p_i``: parent joint;
     ``R_f, p_f``: frame in the joint); the Jacobian is :func:`frame_jacobian`'s. Writes ``error = (p* - p, log3(R* R^T))``,
-    ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (parameter layout:
-    the ``FRAME_*`` slices of this module).
+    ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (layouts: the
+    ``FRAME_*`` settings and the frame data of this module).
     """
-    Rf, Rt, pt = parameters[0:9], parameters[12:21], parameters[21:24]
-    weights, feedforward = parameters[24:30], parameters[30:36]
-    gain, max_speed, max_angular_speed = parameters[36] / dt, parameters[37], parameters[38]
-    relative, origin = parameters[39:48], parameters[48:51]
+    Rt, pt = settings[0:9], settings[9:12]
+    weights, feedforward = settings[12:18], settings[18:24]
+    gain, max_speed, max_angular_speed = settings[24] / dt, settings[25], settings[26]
+    Rf, relative, origin = frame[0:9], frame[12:21], frame[21:24]
     Ri = joint_rotation
-    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, parameters[0:12], support, jacobian, origin)
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[0:12], support, jacobian, origin)
     for a in range(6):
         for k in range(jacobian.shape[1]):
             jacobian[a, k] *= weights[a]
@@ -184,30 +187,29 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
             target[a] = weights[a] * (scale * error[a]) + feedforward[a]
 
 
-#: layout of the PositionTask parameter vector
-POSITION_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation
-POSITION_TARGET = slice(12, 15)  # p* [m]
-POSITION_WEIGHTS = slice(15, 18)  # W = sqrt(cost)
-POSITION_FEEDFORWARD = slice(18, 21)  # pdot* [m/s]
-POSITION_GAIN, POSITION_MAX_SPEED = 21, 22  # gain in (0, 1], [m/s]
-POSITION_PARAMETERS = 23
+#: layout of the PositionTask settings vector (owned by the task, shared by its controllers)
+POSITION_TARGET = slice(0, 3)  # p* [m]
+POSITION_WEIGHTS = slice(3, 6)  # W = sqrt(cost)
+POSITION_FEEDFORWARD = slice(6, 9)  # pdot* [m/s]
+POSITION_GAIN, POSITION_MAX_SPEED = 9, 10  # gain in (0, 1], [m/s]
+POSITION_SETTINGS = 11
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
+      "float64[:, :], float64[:], float64[:, :])", cache=True, nogil=True)
 def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
-                       support: np.ndarray, parameters: np.ndarray, dt: float, error: np.ndarray,
-                       jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray,
-                       origin: np.ndarray) -> None:
+                       support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
+                       jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray) -> None:
     """Rows of :class:`~wbc.PositionTask`: ``error = p* - p``, ``jacobian = W J_lin``,
-    ``target = W (sat(gain/dt * error) + pdot*)`` (parameter layout: ``POSITION_*``)."""
-    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, parameters[0:12], support,
+    ``target = W (sat(gain/dt * error) + pdot*)`` (layouts: ``POSITION_*`` settings, frame data)."""
+    origin = frame[21:24]
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[0:12], support,
                    frame_jacobian_scratch, origin)
-    weights, feedforward = parameters[15:18], parameters[18:21]
-    gain, max_speed = parameters[21] / dt, parameters[22]
+    weights, feedforward = settings[3:6], settings[6:9]
+    gain, max_speed = settings[9] / dt, settings[10]
     norm = 0.0
     for a in range(3):
-        error[a] = parameters[12 + a] - origin[a]
+        error[a] = settings[a] - origin[a]
         norm += error[a] * error[a]
     norm = math.sqrt(norm) * gain
     scale = gain if norm <= max_speed else max_speed / norm * gain
@@ -217,14 +219,16 @@ def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, 
         target[a] = weights[a] * (scale * error[a] + feedforward[a])
 
 
-@njit("void(float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True, nogil=True)
-def posture_rows(q: np.ndarray, reference: np.ndarray, gain_weights: np.ndarray, dt: float, error: np.ndarray,
-                 target: np.ndarray) -> None:
+@njit("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True,
+      nogil=True)
+def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, dt: float,
+                 error: np.ndarray, target: np.ndarray) -> None:
     """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
-    (``gain_weights = W gain``)."""
+    (``settings = (gain,)``)."""
+    scale = settings[0] / dt
     for i in range(len(q)):
         error[i] = reference[i] - q[i]
-        target[i] = gain_weights[i] / dt * error[i]
+        target[i] = weights[i] * scale * error[i]
 
 
 @njit("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
@@ -621,20 +625,22 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
     return value
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], "
+      "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)",
+      cache=True, nogil=True)
 def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                 local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
-                origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, state: np.ndarray,
-                first_row: int, last_row: int, dt: float) -> None:
+                origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, settings: np.ndarray,
+                value: np.ndarray, first_row: int, last_row: int, dt: float) -> None:
     """Row of :class:`~wbc.ManipulabilityBarrier`: ``-grad m . v <= gain (m - m_min) / dt``;
-    ``state = (m out, gain, m_min)``."""
+    ``settings = (gain, m_min)``, ``m`` written to ``value[0]``."""
     frame_jacobian(joint_jacobians, joint_rotation, joint_translation, local, support, jacobian, origin)
-    value = manipulability_gradient(joint_jacobians, jacobian, origin, support, ancestor, first_row, last_row,
-                                    gradient)
-    state[0] = value
+    m = manipulability_gradient(joint_jacobians, jacobian, origin, support, ancestor, first_row, last_row,
+                                gradient)
+    value[0] = m
     for i in range(len(gradient)):
         G[i] = -gradient[i]
-    h[0] = state[1] * (value - state[2]) / dt
+    h[0] = settings[0] * (m - settings[1]) / dt
 
 
 @njit("boolean(float64[:])", cache=True, nogil=True)
@@ -685,9 +691,9 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
 
     Rows (array operands by index into ``addresses``):
 
-    * FRAME_TASK: J^T (nv x 6), R^T (3 x 3), p (3), support (nv), parameters, error (6),
+    * FRAME_TASK: J^T (nv x 6), R^T (3 x 3), p (3), support (nv), settings, frame data, error (6),
       stack A^T ((nv + 1) x rows), first row, nv, rows
-    * POSTURE: q (dim), reference (dim), W gain (dim), error (dim), stack, first row, dim, nv, rows
+    * POSTURE: q (dim), reference (dim), W (dim), settings (gain), error (dim), stack, first row, dim, nv, rows
     * POSITION_LIMITS: q (k), lower limit, upper limit, gain (1), lower out, upper out, k
     * NORMAL_EQUATIONS: stack, nv, rows, first row, last row, reset (0/1), Hc ((nv + 1) x nv)
     * PREVIEW: Hc, factor scratch (nv x nv), preview (nv), nv
@@ -696,29 +702,29 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
     * HAS_NAN: data, size
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
-    * POSITION_TASK: J^T, R^T, p, support (nv), parameters, error (3), stack, first row, nv, rows,
-      Jacobian scratch (6 x nv), origin scratch (3)
+    * POSITION_TASK: J^T, R^T, p, support (nv), settings, frame data, error (3), stack, first row, nv,
+      rows, Jacobian scratch (6 x nv)
     * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
       Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
-      state (value out, gain, min value), first row, last row, nv
+      settings (gain, min value), value out (1), first row, last row, nv
     """
     found_nan = False
     for r in range(program.shape[0]):
         op = program[r]
         code = op[0]
         if code == OP_FRAME_TASK:
-            nv, rows, start = op[9], op[10], op[8]
-            stack_t = _matrix(addresses, op[7], nv + 1, rows)
+            nv, rows, start = op[10], op[11], op[9]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
             frame_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
                             _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
-                            _vector(addresses, op[5], FRAME_PARAMETERS), dt, _vector(addresses, op[6], 6),
-                            stack_t[:nv, start:start + 6].T, stack_t[nv, start:start + 6])
+                            _vector(addresses, op[5], FRAME_SETTINGS), _vector(addresses, op[6], FRAME_DATA), dt,
+                            _vector(addresses, op[7], 6), stack_t[:nv, start:start + 6].T, stack_t[nv, start:start + 6])
         elif code == OP_POSTURE:
-            start, dim, nv, rows = op[6], op[7], op[8], op[9]
-            stack_t = _matrix(addresses, op[5], nv + 1, rows)
+            start, dim, nv, rows = op[7], op[8], op[9], op[10]
+            stack_t = _matrix(addresses, op[6], nv + 1, rows)
             posture_rows(_vector(addresses, op[1], dim), _vector(addresses, op[2], dim),
-                         _vector(addresses, op[3], dim), dt, _vector(addresses, op[4], dim),
-                         stack_t[nv, start:start + dim])
+                         _vector(addresses, op[3], dim), _vector(addresses, op[4], 1), dt,
+                         _vector(addresses, op[5], dim), stack_t[nv, start:start + dim])
         elif code == OP_POSITION_LIMITS:
             k = op[7]
             position_limit_bounds(_vector(addresses, op[1], k), _vector(addresses, op[2], k),
@@ -749,18 +755,19 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             heading_rows(_matrix(addresses, op[1], rows, 2), _matrix(addresses, op[2], rows, 2),
                          _vector(addresses, op[3], nq), op[4], _matrix(addresses, op[5], rows, nv), op[9], op[10])
         elif code == OP_POSITION_TASK:
-            nv, rows, start = op[9], op[10], op[8]
-            stack_t = _matrix(addresses, op[7], nv + 1, rows)
+            nv, rows, start = op[10], op[11], op[9]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
             position_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
                                _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
-                               _vector(addresses, op[5], POSITION_PARAMETERS), dt, _vector(addresses, op[6], 3),
-                               stack_t[:nv, start:start + 3].T, stack_t[nv, start:start + 3],
-                               _matrix(addresses, op[11], 6, nv), _vector(addresses, op[12], 3))
+                               _vector(addresses, op[5], POSITION_SETTINGS), _vector(addresses, op[6], FRAME_DATA),
+                               dt, _vector(addresses, op[7], 3), stack_t[:nv, start:start + 3].T,
+                               stack_t[nv, start:start + 3], _matrix(addresses, op[12], 6, nv))
         elif code == OP_MANIPULABILITY_BARRIER:
-            nv = op[15]
+            nv = op[16]
             barrier_row(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
                         _vector(addresses, op[3], 3), _vector(addresses, op[4], 12), _vector(addresses, op[5], nv),
                         _matrix(addresses, op[6], nv, nv), _matrix(addresses, op[7], 6, nv),
                         _vector(addresses, op[8], 3), _vector(addresses, op[9], nv), _vector(addresses, op[10], nv),
-                        _vector(addresses, op[11], 1), _vector(addresses, op[12], 3), op[13], op[14], dt)
+                        _vector(addresses, op[11], 1), _vector(addresses, op[12], 2), _vector(addresses, op[13], 1),
+                        op[14], op[15], dt)
     return found_nan

@@ -20,7 +20,7 @@ import numpy as np
 from . import kernels
 from .validation import as_weights
 
-_WIDTH = 16  # opcode + the longest operand list
+_WIDTH = 17  # opcode + the longest operand list (the barrier)
 
 
 class TickProgram:

@@ -167,8 +167,33 @@ class QpsolversBackend(QPSolver):
             self._previous = None
             return QPSolution(None, False, "not found", elapsed)
         x = np.array(x, dtype=np.float64)  # an owned, writable copy (PIQP's is read-only)
+        defect = _optimality_defect(solution, qp)
+        if defect > OPTIMALITY_TOLERANCE:
+            self._previous = None
+            return QPSolution(None, False, f"not optimal (dual residual / duality gap {defect:.1e}, relative)",
+                              elapsed)
         self._previous = x
         return QPSolution(x, True, "optimal", elapsed)
+
+
+#: largest relative dual residual or duality gap accepted from a qpsolvers backend's answer
+#: (:func:`_optimality_defect`); HiGHS 1.15 was seen to report "optimal" with a dual
+#: residual of 2 on an unconstrained 6-variable QP
+OPTIMALITY_TOLERANCE = 1e-6
+
+
+def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
+    """Dual residual ``|H x + c + G^T z + A^T y + z_box|_inf`` and duality gap of ``solution``
+    (qpsolvers' own residuals) relative to the size of their terms (``s = 1 + |c|_inf +
+    |H x|_inf``; the gap, a cost, over ``s (1 + |x|_inf)``): the check of optimality that the
+    controller's feasibility check cannot make. 0 where the backend returned no multipliers
+    (qpsolvers then reports inf: nothing to check)."""
+    x = solution.x
+    scale = 1.0 + float(np.max(np.abs(qp.c))) + float(np.max(np.abs(qp.H @ x)))
+    dual, gap = solution.dual_residual(), solution.duality_gap()
+    dual = dual / scale if math.isfinite(dual) else 0.0
+    gap = gap / (scale * (1.0 + float(np.max(np.abs(x))))) if math.isfinite(gap) else 0.0
+    return max(dual, gap)
 
 
 class DaqpBackend(QPSolver):

@@ -14,7 +14,6 @@ The controller hands each constraint views into its preallocated QP buffers
 
 from __future__ import annotations
 
-from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,8 +36,10 @@ class ConstraintRows:
     b: np.ndarray  #: (n_equalities,)
 
 
-class Constraint(Item, ABC):
-    """Base class of all constraints (bound and shared as described in :class:`~wbc.item.Item`)."""
+class ConstraintData:
+    """A constraint's data in one controller (:meth:`Constraint.bind`): what the controller
+    calls each tick. Built-in constraints return a data object of their own (robot-resolved
+    limits and indices); it reads the constraint's settings from ``self.constraint``."""
 
     has_bounds: bool = False
     n_inequalities: int = 0
@@ -52,15 +53,16 @@ class Constraint(Item, ABC):
     #: ``write_static``), so the controller can intersect them once instead of every tick
     dynamic_bounds: bool = True
 
-    def __init__(self, name: str | None = None) -> None:
-        self.name = name or type(self).__name__
+    def __init__(self, constraint: "Constraint") -> None:
+        self.constraint, self.name = constraint, constraint.name
+        self.hard = constraint.hard
 
     def write_static(self, rows: ConstraintRows) -> None:
         """Write the parts that never change (called once after allocation)."""
 
-    @abstractmethod
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         """Write this tick's bounds / rows."""
+        raise NotImplementedError(f"{type(self).__name__} computes no rows")
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         """Register this constraint's per-tick work as compiled ops and return True, or return
@@ -72,6 +74,26 @@ class Constraint(Item, ABC):
     def row_labels(self) -> list[str]:
         """Human-readable names of the inequality rows, then of the equality rows."""
         return [f"row {i}" for i in range(self.n_inequalities + self.n_equalities)]
+
+
+class Constraint(Item, ConstraintData):
+    """Base class of all constraints: a specification that :meth:`bind` turns into
+    per-controller :class:`ConstraintData` (see :class:`~wbc.item.Item`). A simple custom
+    constraint is its own data: set its row counts, implement :meth:`compute`."""
+
+    #: True for the no-slip rows, which the reduced form (``reduced=True``) satisfies by construction
+    satisfied_by_input_map: bool = False
+
+    def __init__(self, name: str | None = None) -> None:
+        self.name = name or type(self).__name__
+
+    @property
+    def constraint(self) -> "Constraint":
+        return self
+
+    def bind(self, robot: Robot) -> ConstraintData:
+        """This constraint's data for a controller of ``robot`` (default: the constraint itself)."""
+        return Item.bind(self, robot)
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"

@@ -9,7 +9,7 @@ from ..kinematics import Kinematics
 from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain
-from .constraint import Constraint, ConstraintRows
+from .constraint import Constraint, ConstraintData, ConstraintRows
 
 
 class JointPositionLimits(Constraint):
@@ -34,21 +34,31 @@ class JointPositionLimits(Constraint):
         gain: fraction of the remaining margin that may be consumed per tick, (0, 1].
     """
 
-    has_bounds = True
     #: may be changed between ticks (validated; it lives in the compiled operand)
     gain = Operand("_gain", 0, as_gain)
     hard = False  # yields to the speed limits: from outside the limits, return at top speed
 
     def __init__(self, gain: float = 0.5, name: str | None = None) -> None:
         super().__init__(name)
-        self._gain = np.zeros(1)  # operand of the compiled op
+        self._gain = np.zeros(1)  # operand of the compiled op, shared by the controllers using it
         self.gain = gain
 
-    def bind(self, robot: Robot) -> None:
-        self._robot = robot
-        model = robot.model
+    def bind(self, robot: Robot) -> "JointPositionLimitsData":
+        return JointPositionLimitsData(self, robot)
+
+    def __repr__(self) -> str:
+        return f"JointPositionLimits(gain={self.gain})"
+
+
+class JointPositionLimitsData(ConstraintData):
+    """:class:`JointPositionLimits` in one controller: the robot's bounded 1-DOF joints."""
+
+    has_bounds = True
+
+    def __init__(self, limits: JointPositionLimits, robot: Robot) -> None:
+        super().__init__(limits)
         q_index, v_index = [], []
-        for joint in model.joints[1:]:
+        for joint in robot.model.joints[1:]:
             if joint.nq == 1 and joint.nv == 1:
                 i = joint.idx_q
                 if np.isfinite(robot.lower[i]) or np.isfinite(robot.upper[i]):
@@ -65,10 +75,6 @@ class JointPositionLimits(Constraint):
             self._slices = (slice(q_index[0], q_index[-1] + 1), slice(v_index[0], v_index[-1] + 1))
 
     def write_static(self, rows: ConstraintRows) -> None:
-        self._attach(rows)
-
-    def _attach(self, rows: ConstraintRows) -> None:
-        self._rows = rows  # the instance may serve several controllers: views follow ``rows``
         if self._slices is not None:
             self._out = (rows.lower[self._slices[1]], rows.upper[self._slices[1]])
         else:
@@ -79,13 +85,11 @@ class JointPositionLimits(Constraint):
             return False
         q_slice, v_slice = self._slices
         program.add(kernels.OP_POSITION_LIMITS, program.array(kin.q[q_slice]), program.array(self._lower_limit),
-                    program.array(self._upper_limit), program.array(self._gain), program.array(rows.lower[v_slice]),
-                    program.array(rows.upper[v_slice]), len(self._q_index))
+                    program.array(self._upper_limit), program.array(self.constraint._gain),
+                    program.array(rows.lower[v_slice]), program.array(rows.upper[v_slice]), len(self._q_index))
         return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        if rows is not self._rows:
-            self._attach(rows)
         if self._slices is not None:
             if self._q_view is None or self._q_view.base is not kin.q:
                 self._q_view = kin.q[self._slices[0]]  # kin.q is updated in place every tick
@@ -93,10 +97,8 @@ class JointPositionLimits(Constraint):
         else:
             q = np.take(kin.q, self._q_index, out=self._q)
         lower, upper = self._out
-        kernels.position_limit_bounds(q, self._lower_limit, self._upper_limit, self.gain, dt, lower, upper)
+        kernels.position_limit_bounds(q, self._lower_limit, self._upper_limit, self.constraint.gain, dt, lower,
+                                      upper)
         if self._slices is None:
             rows.lower[self._v_index] = lower
             rows.upper[self._v_index] = upper
-
-    def __repr__(self) -> str:
-        return f"JointPositionLimits(gain={self.gain})"

@@ -7,7 +7,7 @@ import numpy as np
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
-from .constraint import Constraint, ConstraintRows
+from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 
 
@@ -20,10 +20,18 @@ class JointVelocityLimits(Constraint):
     ``(c, s) = (cos yaw, sin yaw)``; the yaw rate is a plain bound.
     """
 
+    def bind(self, robot: Robot) -> "JointVelocityLimitsData":
+        return JointVelocityLimitsData(self, robot)
+
+
+class JointVelocityLimitsData(ConstraintData):
+    """:class:`JointVelocityLimits` in one controller: the robot's limits and base rows."""
+
     has_bounds = True
     dynamic_bounds = False
 
-    def bind(self, robot: Robot) -> None:
+    def __init__(self, limits: JointVelocityLimits, robot: Robot) -> None:
+        super().__init__(limits)
         limit = robot.velocity_limit.copy()
         base = robot.base
         self._base_rows = base.is_mobile and np.isfinite(base.max_linear_speed)

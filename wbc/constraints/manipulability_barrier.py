@@ -11,7 +11,7 @@ from ..manipulability import Manipulability, row_selection
 from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
-from .constraint import Constraint, ConstraintRows
+from .constraint import Constraint, ConstraintData, ConstraintRows
 
 
 class ManipulabilityBarrier(Constraint):
@@ -45,10 +45,9 @@ class ManipulabilityBarrier(Constraint):
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
     """
 
-    n_inequalities = 1
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
-    gain = Operand("_state", 1, as_gain)
-    min_value = Operand("_state", 2, as_positive)
+    gain = Operand("_settings", 0, as_gain)
+    min_value = Operand("_settings", 1, as_positive)
     hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: str = "all",
@@ -59,35 +58,48 @@ class ManipulabilityBarrier(Constraint):
         row_selection(rows)
         self.rows = rows
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self._state = np.array([np.nan, 0.0, 0.0])  # (m at the last tick, gain, m_min): compiled operand
+        self._settings = np.zeros(2)  # (gain, m_min): compiled operand, shared by the controllers using it
         self.gain, self.min_value = gain, min_value
 
-    @property
-    def value(self) -> float:
-        """``m`` at the last tick (NaN before the first)."""
-        return float(self._state[0])
-
-    def bind(self, robot: Robot) -> None:
-        self._manipulability = Manipulability(robot, self.frame, self.rows)
-
-    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
-        if not self._manipulability.compiled:
-            return False  # multi-DOF joints on the chain: the Hessian path, in Python
-        selected = row_selection(self.rows)
-        program.add(kernels.OP_MANIPULABILITY_BARRIER, *self._manipulability.operands(program, kin),
-                    program.array(rows.G[0]), program.array(rows.h[0:1]), program.array(self._state),
-                    selected.start, selected.stop, kin.model.nv)
-        return True
-
-    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        manipulability = self._manipulability
-        self._state[0] = manipulability.compute(kin)
-        np.negative(manipulability.gradient, out=rows.G[0])
-        rows.h[0] = self.gain * (self.value - self.min_value) / dt
-
-    def row_labels(self) -> list[str]:
-        return [f"m >= {self.min_value:g}"]
+    def bind(self, robot: Robot) -> "ManipulabilityBarrierData":
+        return ManipulabilityBarrierData(self, robot)
 
     def __repr__(self) -> str:
         return (f"ManipulabilityBarrier(frame={self.frame!r}, min_value={self.min_value}, "
                 f"gain={self.gain}, rows={self.rows!r})")
+
+
+class ManipulabilityBarrierData(ConstraintData):
+    """:class:`ManipulabilityBarrier` in one controller: ``m`` of the robot's frame and its
+    value at the last tick."""
+
+    n_inequalities = 1
+
+    def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:
+        super().__init__(barrier)
+        self._manipulability = Manipulability(robot, barrier.frame, barrier.rows)
+        self._value = np.array([np.nan])  # compiled operand: m at the last tick
+
+    @property
+    def value(self) -> float:
+        """``m`` at the last tick (NaN before the first)."""
+        return float(self._value[0])
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        if not self._manipulability.compiled:
+            return False  # multi-DOF joints on the chain: the Hessian path, in Python
+        selected = row_selection(self.constraint.rows)
+        program.add(kernels.OP_MANIPULABILITY_BARRIER, *self._manipulability.operands(program, kin),
+                    program.array(rows.G[0]), program.array(rows.h[0:1]),
+                    program.array(self.constraint._settings), program.array(self._value),
+                    selected.start, selected.stop, kin.model.nv)
+        return True
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        manipulability, barrier = self._manipulability, self.constraint
+        self._value[0] = manipulability.compute(kin)
+        np.negative(manipulability.gradient, out=rows.G[0])
+        rows.h[0] = barrier.gain * (self.value - barrier.min_value) / dt
+
+    def row_labels(self) -> list[str]:
+        return [f"m >= {self.constraint.min_value:g}"]

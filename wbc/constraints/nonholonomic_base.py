@@ -8,7 +8,7 @@ from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
-from .constraint import Constraint, ConstraintRows
+from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 
 
@@ -22,13 +22,22 @@ class NonholonomicBase(Constraint):
     construction there).
     """
 
-    n_equalities = 1
     satisfied_by_input_map = True
 
-    def bind(self, robot: Robot) -> None:
+    def bind(self, robot: Robot) -> "NonholonomicBaseData":
         if not robot.base.is_nonholonomic:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base, "
                                     "not a nonholonomic one")
+        return NonholonomicBaseData(self, robot)
+
+
+class NonholonomicBaseData(ConstraintData):
+    """:class:`NonholonomicBase` in one controller: the robot's base coordinates."""
+
+    n_equalities = 1
+
+    def __init__(self, constraint: NonholonomicBase, robot: Robot) -> None:
+        super().__init__(constraint)
         x, y, heading = robot.base.indices
         # the row (-sin, cos) on (xdot, ydot): cos (0, 1) + sin (-1, 0)
         self._heading_rows = HeadingRows(np.array([[0.0, 1.0]]), np.array([[-1.0, 0.0]]), heading, x, y)

@@ -10,7 +10,7 @@ from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_positive
-from .constraint import Constraint, ConstraintRows
+from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 
 
@@ -32,14 +32,26 @@ class WheelSpeedLimits(Constraint):
         super().__init__(name)
         self._max_speed = None if max_speed is None else as_positive(max_speed, "max_speed")
 
-    def bind(self, robot: Robot) -> None:
+    def bind(self, robot: Robot) -> "WheelSpeedLimitsData":
         base = robot.base
         if base.wheels is None or (self.required_kind is not None and base.kind is not self.required_kind):
             wanted = self.required_kind.value if self.required_kind else "wheeled"
             raise InvalidInputError(f"{self.name} needs a {wanted} base with wheel geometry; "
                                     f"robot '{robot.name}' has a {base.kind.value} base")
+        return WheelSpeedLimitsData(self, robot)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(max_speed={self._max_speed})"
+
+
+class WheelSpeedLimitsData(ConstraintData):
+    """:class:`WheelSpeedLimits` in one controller: the robot's wheel model and limit."""
+
+    def __init__(self, limits: WheelSpeedLimits, robot: Robot) -> None:
+        super().__init__(limits)
+        base = robot.base
         self._H0 = base.wheels.inverse_matrix()
-        self.max_speed = self._max_speed if self._max_speed is not None else base.wheels.max_speed
+        self.max_speed = limits._max_speed if limits._max_speed is not None else base.wheels.max_speed
         if not np.isfinite(self.max_speed):
             raise InvalidInputError(f"{self.name}: no wheel speed limit given or declared by the model")
         self._x, self._y, self._heading = base.indices
@@ -67,9 +79,6 @@ class WheelSpeedLimits(Constraint):
 
     def row_labels(self) -> list[str]:
         return [f"wheel {i} {side}" for side in ("forward", "backward") for i in range(self.n_wheels)]
-
-    def __repr__(self) -> str:
-        return f"{type(self).__name__}(max_speed={self._max_speed})"
 
 
 class MecanumWheelLimits(WheelSpeedLimits):

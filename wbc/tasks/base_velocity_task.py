@@ -9,7 +9,7 @@ from ..kinematics import Kinematics
 from ..program import Cost
 from ..robot import Robot
 from ..validation import as_vector
-from .task import Task, _norm
+from .task import Task, TaskData, _norm
 
 
 class BaseVelocityTask(Task):
@@ -23,41 +23,56 @@ class BaseVelocityTask(Task):
         cost: [cost] / [m/s]^2 (and [rad/s]^2 for the yaw row), scalar or one per row.
     """
 
-    dim = 3
     cost = Cost("_weights", slice(0, 3))  #: may be changed between ticks
 
     def __init__(self, cost, name: str | None = None) -> None:
         super().__init__(name)
         self._weights = np.zeros(3)
         self.cost = cost
-        self.twist = np.zeros(3)  #: commanded (v_x [m/s], v_y [m/s], omega [rad/s]), base frame
-        self._achieved = np.zeros(3)
+        self._twist = np.zeros(3)
+
+    @property
+    def twist(self) -> np.ndarray:
+        """Commanded (v_x [m/s], v_y [m/s], omega [rad/s]), base frame."""
+        return self._twist.copy()
 
     def set_target(self, twist) -> None:
         """Command a base-frame twist ``(v_x, v_y, omega)``."""
-        self.twist[...] = as_vector(twist, 3, "base twist")
+        self._twist[...] = as_vector(twist, 3, "base twist")
 
-    def bind(self, robot: Robot) -> None:
+    def bind(self, robot: Robot) -> "BaseVelocityTaskData":
         if not robot.base.is_mobile:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a fixed base")
+        return BaseVelocityTaskData(self, robot)
+
+    def __repr__(self) -> str:
+        return f"BaseVelocityTask(cost={self.cost.tolist()})"
+
+
+class BaseVelocityTaskData(TaskData):
+    """A :class:`BaseVelocityTask` in one controller: the base coordinates of the robot."""
+
+    dim = 3
+
+    def __init__(self, task: BaseVelocityTask, robot: Robot) -> None:
+        super().__init__(task)
         self._x, self._y, self._yaw = robot.base.indices
+        self._cos_sin = (1.0, 0.0)
+        self._achieved = np.zeros(3)
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         yaw = kin.q[self._yaw]
         cos, sin = np.cos(yaw), np.sin(yaw)
-        w = self._weights
+        w = self.task._weights
         jacobian.fill(0.0)
         jacobian[0, self._x], jacobian[0, self._y] = w[0] * cos, w[0] * sin
         jacobian[1, self._x], jacobian[1, self._y] = -w[1] * sin, w[1] * cos
         jacobian[2, self._yaw] = w[2]
-        np.multiply(self.twist, w, out=target)
+        np.multiply(self.task._twist, w, out=target)
         self._cos_sin = (cos, sin)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         cos, sin = self._cos_sin
         xdot, ydot, yawdot = v[self._x], v[self._y], v[self._yaw]
         self._achieved[:] = (cos * xdot + sin * ydot, -sin * xdot + cos * ydot, yawdot)
-        errors[self.name] = _norm(self._achieved - self.twist)
-
-    def __repr__(self) -> str:
-        return f"BaseVelocityTask(cost={self.cost.tolist()})"
+        errors[self.name] = _norm(self._achieved - self.task._twist)

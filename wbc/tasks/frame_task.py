@@ -10,7 +10,7 @@ from ..kinematics import Kinematics, frame_in_joint
 from ..program import Cost, Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_pose, as_speed_limit, as_vector
-from .task import Task, _norm
+from .task import Task, TaskData, _norm
 
 _NO_TWIST = np.zeros(0)
 
@@ -41,11 +41,10 @@ class FrameTask(Task):
         max_angular_speed: [rad/s] bound on the angular feedback velocity; ``None`` = unbounded.
     """
 
-    dim = 6
     #: settings that may be changed between ticks (validated; they live in the compiled operands)
-    gain = Operand("_parameters", kernels.FRAME_GAIN, as_gain)
-    max_speed = Operand("_parameters", kernels.FRAME_MAX_SPEED, as_speed_limit)
-    max_angular_speed = Operand("_parameters", kernels.FRAME_MAX_ANGULAR_SPEED, as_speed_limit)
+    gain = Operand("_settings", kernels.FRAME_GAIN, as_gain)
+    max_speed = Operand("_settings", kernels.FRAME_MAX_SPEED, as_speed_limit)
+    max_angular_speed = Operand("_settings", kernels.FRAME_MAX_ANGULAR_SPEED, as_speed_limit)
     position_cost = Cost("_weights", slice(0, 3))
     orientation_cost = Cost("_weights", slice(3, 6))
 
@@ -54,18 +53,16 @@ class FrameTask(Task):
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        # everything the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*)
-        self._parameters = np.zeros(kernels.FRAME_PARAMETERS)
-        self._target_rotation = self._parameters[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
-        self._target_position = self._parameters[kernels.FRAME_TARGET_POSITION]
-        self._weights = self._parameters[kernels.FRAME_WEIGHTS]
+        # every setting the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*),
+        # shared by the controllers using the task
+        self._settings = np.zeros(kernels.FRAME_SETTINGS)
+        self._target_rotation = self._settings[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)
+        self._target_position = self._settings[kernels.FRAME_TARGET_POSITION]
+        self._weights = self._settings[kernels.FRAME_WEIGHTS]
         self.position_cost, self.orientation_cost = position_cost, orientation_cost
         self._target_rotation[...] = np.eye(3)
         self.gain, self.max_speed, self.max_angular_speed = gain, max_speed, max_angular_speed
         self._has_target = False
-        self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
-        self._position_error, self._orientation_error = self.error[:3], self.error[3:]
-        self._frame_id = -1
 
     def default_name(self) -> str:
         return f"FrameTask({self.frame})"
@@ -74,7 +71,7 @@ class FrameTask(Task):
         """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
         pose = as_pose(pose, "target pose")
         twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
-        kernels.set_frame_target(pose, twist, self._parameters)
+        kernels.set_frame_target(pose, twist, self._settings)
         self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
@@ -87,37 +84,51 @@ class FrameTask(Task):
         pose[:3, :3], pose[:3, 3] = self._target_rotation, self._target_position
         return pose
 
-    def bind(self, robot: Robot) -> None:
-        self._robot = robot
-        self._frame_id = robot.frame_id(self.frame)
-        self._keys = (f"{self.name}.position", f"{self.name}.orientation")
-        self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
-        self._parameters[kernels.FRAME_LOCAL] = local
+    def bind(self, robot: Robot) -> "FrameTaskData":
+        return FrameTaskData(self, robot)
 
     def check_ready(self) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
+
+    def __repr__(self) -> str:
+        return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "
+                f"orientation_cost={self.orientation_cost.tolist()}, gain={self.gain}, "
+                f"max_speed={self.max_speed}, max_angular_speed={self.max_angular_speed})")
+
+
+class FrameTaskData(TaskData):
+    """A :class:`FrameTask` in one controller: its frame resolved against the robot, and the
+    error ``e = (position; orientation)`` of the last tick."""
+
+    dim = 6
+
+    def __init__(self, task: FrameTask, robot: Robot) -> None:
+        super().__init__(task)
+        frame_id = robot.frame_id(task.frame)
+        self._keys = (f"{self.name}.position", f"{self.name}.orientation")
+        self._joint_id, local, self._support = frame_in_joint(robot.model, frame_id)
+        self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
+        self._frame[kernels.FRAME_LOCAL] = local
+        self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
+        self._position_error, self._orientation_error = self.error[:3], self.error[3:]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         nv = stack_t.shape[0] - 1
         # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views
         program.add(kernels.OP_FRAME_TASK, program.array(joint_jacobians.T), program.array(rotation.T),
-                    program.array(translation), program.array(self._support), program.array(self._parameters),
-                    program.array(self.error), program.array(stack_t), start, nv, stack_t.shape[1])
+                    program.array(translation), program.array(self._support),
+                    program.array(self.task._settings), program.array(self._frame), program.array(self.error),
+                    program.array(stack_t), start, nv, stack_t.shape[1])
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
         joint_jacobians, joint_rotation, joint_translation = kin.joint_views(self._joint_id)
         kernels.frame_task_rows(joint_jacobians, joint_rotation, joint_translation, self._support,
-                                self._parameters, dt, self.error, jacobian, target)
+                                self.task._settings, self._frame, dt, self.error, jacobian, target)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self._keys[0]] = _norm(self._position_error)
         errors[self._keys[1]] = _norm(self._orientation_error)
-
-    def __repr__(self) -> str:
-        return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "
-                f"orientation_cost={self.orientation_cost.tolist()}, gain={self.gain}, "
-                f"max_speed={self.max_speed}, max_angular_speed={self.max_angular_speed})")

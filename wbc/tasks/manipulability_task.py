@@ -11,7 +11,7 @@ from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
 from ..robot import Robot
 from ..validation import as_gain, as_positive, as_weights
-from .task import Task
+from .task import Task, TaskData
 
 
 class ManipulabilityTask(Task):
@@ -43,8 +43,6 @@ class ManipulabilityTask(Task):
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
     """
 
-    dim = 1
-
     def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: str = "all",
                  name: str | None = None) -> None:
         if not isinstance(frame, str):
@@ -54,7 +52,6 @@ class ManipulabilityTask(Task):
         self.cost, self.gain, self.target = cost, gain, target
         row_selection(rows)
         self.rows = rows
-        self._value = self._error = float("nan")
 
     @property
     def cost(self) -> float:
@@ -85,33 +82,36 @@ class ManipulabilityTask(Task):
         self._target = as_positive(value, "target")
         self._floor = 1e-9 * self._target
 
-    @property
-    def value(self) -> float:
-        """m at the last tick."""
-        return self._value
-
-    @property
-    def error(self) -> float:
-        """ln(m* / m) at the last tick."""
-        return self._error
-
     def default_name(self) -> str:
         return f"ManipulabilityTask({self.frame})"
 
-    def bind(self, robot: Robot) -> None:
-        self._manipulability = Manipulability(robot, self.frame, self.rows)
-
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        manipulability = self._manipulability
-        self._value = manipulability.compute(kin)
-        m = max(self._value, self._floor)
-        self._error = math.log(self._target / m)
-        np.multiply(manipulability.gradient, self._weight / m, out=jacobian[0])
-        target[0] = self._weight * self._gain / dt * self._error
-
-    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self.name] = abs(self.error)
+    def bind(self, robot: Robot) -> "ManipulabilityTaskData":
+        return ManipulabilityTaskData(self, robot)
 
     def __repr__(self) -> str:
         return (f"ManipulabilityTask(frame={self.frame!r}, cost={self.cost}, gain={self.gain}, "
                 f"target={self.target}, rows={self.rows!r})")
+
+
+class ManipulabilityTaskData(TaskData):
+    """A :class:`ManipulabilityTask` in one controller: ``m`` of the robot's frame, and its
+    value and log-ratio error at the last tick."""
+
+    dim = 1
+
+    def __init__(self, task: ManipulabilityTask, robot: Robot) -> None:
+        super().__init__(task)
+        self._manipulability = Manipulability(robot, task.frame, task.rows)
+        self.value = float("nan")  #: m at the last tick
+        self.error = float("nan")  #: ln(m* / m) at the last tick
+
+    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+        task, manipulability = self.task, self._manipulability
+        self.value = manipulability.compute(kin)
+        m = max(self.value, task._floor)
+        self.error = math.log(task._target / m)
+        np.multiply(manipulability.gradient, task._weight / m, out=jacobian[0])
+        target[0] = task._weight * task._gain / dt * self.error
+
+    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
+        errors[self.name] = abs(self.error)

@@ -10,7 +10,7 @@ from ..kinematics import Kinematics, frame_in_joint
 from ..program import Cost, Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_speed_limit, as_vector
-from .task import Task, _norm
+from .task import Task, TaskData, _norm
 
 
 class PositionTask(Task):
@@ -29,26 +29,24 @@ class PositionTask(Task):
         max_speed: [m/s] bound on the feedback velocity; ``None`` = unbounded.
     """
 
-    dim = 3
     #: settings that may be changed between ticks (validated; they live in the compiled operands)
-    gain = Operand("_parameters", kernels.POSITION_GAIN, as_gain)
-    max_speed = Operand("_parameters", kernels.POSITION_MAX_SPEED, as_speed_limit)
+    gain = Operand("_settings", kernels.POSITION_GAIN, as_gain)
+    max_speed = Operand("_settings", kernels.POSITION_MAX_SPEED, as_speed_limit)
     cost = Cost("_weights", slice(0, 3))
 
     def __init__(self, frame: str, cost=1.0, gain: float = 1.0, max_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        # everything the compiled kernel reads, in one vector (layout: wbc.kernels.POSITION_*)
-        self._parameters = np.zeros(kernels.POSITION_PARAMETERS)
-        self._weights = self._parameters[kernels.POSITION_WEIGHTS]
-        self._target = self._parameters[kernels.POSITION_TARGET]
-        self._feedforward = self._parameters[kernels.POSITION_FEEDFORWARD]
+        # every setting the compiled kernel reads, in one vector (layout: wbc.kernels.POSITION_*),
+        # shared by the controllers using the task
+        self._settings = np.zeros(kernels.POSITION_SETTINGS)
+        self._weights = self._settings[kernels.POSITION_WEIGHTS]
+        self._target = self._settings[kernels.POSITION_TARGET]
+        self._feedforward = self._settings[kernels.POSITION_FEEDFORWARD]
         self.cost = cost
         self.gain, self.max_speed = gain, max_speed
         self._has_target = False
-        self.error = np.zeros(3)  #: last error p* - p [m], world
-        self._robot: Robot | None = None
 
     def default_name(self) -> str:
         return f"PositionTask({self.frame})"
@@ -63,36 +61,45 @@ class PositionTask(Task):
     def target(self) -> np.ndarray:
         return self._target.copy()
 
-    def bind(self, robot: Robot) -> None:
-        self._robot = robot
-        self._frame_id = robot.frame_id(self.frame)
-        self._key = self.name
-        self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
-        self._parameters[kernels.POSITION_LOCAL] = local
-        self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
-        self._origin = np.zeros(3)
+    def bind(self, robot: Robot) -> "PositionTaskData":
+        return PositionTaskData(self, robot)
 
     def check_ready(self) -> None:
         if not self._has_target:
             raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
+    def __repr__(self) -> str:
+        return (f"PositionTask(frame={self.frame!r}, cost={self.cost.tolist()}, gain={self.gain}, "
+                f"max_speed={self.max_speed})")
+
+
+class PositionTaskData(TaskData):
+    """A :class:`PositionTask` in one controller: its frame resolved against the robot, and
+    the error ``p* - p`` of the last tick."""
+
+    dim = 3
+
+    def __init__(self, task: PositionTask, robot: Robot) -> None:
+        super().__init__(task)
+        self._joint_id, local, self._support = frame_in_joint(robot.model, robot.frame_id(task.frame))
+        self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
+        self._frame[kernels.FRAME_LOCAL] = local
+        self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
+        self.error = np.zeros(3)  #: last error p* - p [m], world
+
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         program.add(kernels.OP_POSITION_TASK, program.array(joint_jacobians.T), program.array(rotation.T),
-                    program.array(translation), program.array(self._support), program.array(self._parameters),
-                    program.array(self.error), program.array(stack_t), start, stack_t.shape[0] - 1,
-                    stack_t.shape[1], program.array(self._jacobian), program.array(self._origin))
+                    program.array(translation), program.array(self._support), program.array(self.task._settings),
+                    program.array(self._frame), program.array(self.error), program.array(stack_t), start,
+                    stack_t.shape[0] - 1, stack_t.shape[1], program.array(self._jacobian))
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
-        kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self._parameters, dt,
-                                   self.error, jacobian, target, self._jacobian, self._origin)
+        kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self.task._settings,
+                                   self._frame, dt, self.error, jacobian, target, self._jacobian)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self._key] = _norm(self.error)
-
-    def __repr__(self) -> str:
-        return (f"PositionTask(frame={self.frame!r}, cost={self.cost.tolist()}, gain={self.gain}, "
-                f"max_speed={self.max_speed})")
+        errors[self.name] = _norm(self.error)

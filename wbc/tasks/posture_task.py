@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 import pinocchio as pin
 
@@ -11,7 +13,7 @@ from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_weights
-from .task import Task, _norm
+from .task import Task, TaskData, _norm
 
 
 class PostureTask(Task):
@@ -38,43 +40,66 @@ class PostureTask(Task):
         self._cost_spec = cost
         self._target_spec = target
         self._joint_spec = joints
-        self._gain = as_gain(gain)
-        self.dim = 0
-        self._robot: Robot | None = None
-        self.target: np.ndarray | None = None  #: reference configuration, set when bound
+        self._settings = np.zeros(1)  # (gain,): compiled operand, shared by the controllers using the task
+        self.gain = gain
+        self._data: weakref.WeakSet[PostureTaskData] = weakref.WeakSet()  # for set_target
 
     @property
     def gain(self) -> float:
         """Fraction of the error removed per tick, in (0, 1]; may be changed between ticks."""
-        return self._gain
+        return float(self._settings[0])
 
     @gain.setter
     def gain(self, value) -> None:
-        self._gain = as_gain(value)
-        if self._robot is not None:
-            np.multiply(self._weights, self._gain, out=self._gain_weights)  # in place: a compiled operand
+        self._settings[0] = as_gain(value)
 
-    def bind(self, robot: Robot) -> None:
+    @property
+    def target(self):
+        """The reference configuration as given (``None``: each robot's neutral configuration)."""
+        return self._target_spec
+
+    def set_target(self, q) -> None:
+        """New reference configuration (size nq of every robot the task is used with)."""
+        for data in self._data:
+            data.robot.check_configuration(q)  # all or nothing
+        self._target_spec = q
+        for data in self._data:
+            data.apply_target(q)
+
+    def bind(self, robot: Robot) -> "PostureTaskData":
+        data = PostureTaskData(self, robot)
+        self._data.add(data)
+        return data
+
+    def __repr__(self) -> str:
+        return f"PostureTask(cost={self._cost_spec!r}, gain={self.gain}, joints={self._joint_spec!r})"
+
+
+class PostureTaskData(TaskData):
+    """A :class:`PostureTask` in one controller: the selected coordinates of the robot, their
+    weights and reference, and the error of the last tick."""
+
+    def __init__(self, task: PostureTask, robot: Robot) -> None:
+        super().__init__(task)
         model = robot.model
         base = set(robot.base.indices) if robot.base.is_mobile else set()
-        if self._joint_spec is None:
+        if task._joint_spec is None:
             joints = [j for j in model.joints[1:] if j.idx_v not in base]
         else:
             joints = []
-            for joint_name in self._joint_spec:
+            for joint_name in task._joint_spec:
                 if not model.existJointName(joint_name):
                     raise InvalidInputError(f"{self.name}: unknown joint {joint_name!r}")
                 joints.append(model.joints[model.getJointId(joint_name)])
         indices = [i for j in joints for i in range(j.idx_v, j.idx_v + j.nv)]
+        self.robot, self._model = robot, model
         self.indices = np.array(indices, dtype=int)
         self.dim = len(indices)
-        self.cost = as_weights(self._cost_spec, self.dim, "cost")
+        self.cost = as_weights(task._cost_spec, self.dim, "cost")
         self._weights = np.sqrt(self.cost)
-        self._robot, self._model = robot, model
         self._weighted_selection = np.zeros((self.dim, robot.nv))
         self._weighted_selection[np.arange(self.dim), self.indices] = self._weights
         self.error = np.zeros(self.dim)
-        self._gain_weights = self._weights * self._gain  # W gain; the rows use W gain / dt
         # vector-space shortcut: 1-DOF joints (nq = nv) forming one contiguous block of q and v
         q_index = np.array([j.idx_q for j in joints], dtype=int)
         simple = all(j.nq == 1 and j.nv == 1 for j in joints) and self.dim > 0
@@ -83,11 +108,11 @@ class PostureTask(Task):
         self._q_view: np.ndarray | None = None
         self.target = np.zeros(robot.nq)
         self._target_selected = np.zeros(self.dim)
-        self._apply_target(robot.neutral() if self._target_spec is None else self._target_spec)
+        self.apply_target(robot.neutral() if task._target_spec is None else task._target_spec)
 
-    def _apply_target(self, q) -> None:
-        # in place: compiled programs hold these buffers
-        self.target[:] = self._robot.check_configuration(q)
+    def apply_target(self, q) -> None:
+        """Validate ``q`` against this robot and write it in place (compiled programs hold the buffers)."""
+        self.target[:] = self.robot.check_configuration(q)
         if self._q_slice is not None:
             self._target_selected[:] = self.target[self._q_slice]
 
@@ -96,15 +121,9 @@ class PostureTask(Task):
             return False  # pin.difference over general joints: computed in Python
         nv = stack_t.shape[0] - 1
         program.add(kernels.OP_POSTURE, program.array(kin.q[self._q_slice]), program.array(self._target_selected),
-                    program.array(self._gain_weights), program.array(self.error), program.array(stack_t),
-                    start, self.dim, nv, stack_t.shape[1])
+                    program.array(self._weights), program.array(self.task._settings), program.array(self.error),
+                    program.array(stack_t), start, self.dim, nv, stack_t.shape[1])
         return True
-
-    def set_target(self, q) -> None:
-        """New reference configuration (size nq)."""
-        self._target_spec = q
-        if self._robot is not None:
-            self._apply_target(q)
 
     def write_static(self, jacobian: np.ndarray) -> None:
         jacobian[...] = self._weighted_selection
@@ -113,14 +132,12 @@ class PostureTask(Task):
         if self._q_slice is not None:
             if self._q_view is None or self._q_view.base is not kin.q:
                 self._q_view = kin.q[self._q_slice]  # kin.q is updated in place every tick
-            kernels.posture_rows(self._q_view, self._target_selected, self._gain_weights, dt, self.error, target)
+            kernels.posture_rows(self._q_view, self._target_selected, self._weights, self.task._settings, dt,
+                                 self.error, target)
         else:
             np.take(pin.difference(self._model, kin.q, self.target), self.indices, out=self.error)
-            np.multiply(self.error, self._gain_weights, out=target)
-            target *= 1.0 / dt
+            np.multiply(self.error, self._weights, out=target)
+            target *= self.task.gain / dt
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = _norm(self.error)
-
-    def __repr__(self) -> str:
-        return f"PostureTask(cost={self._cost_spec!r}, gain={self.gain}, joints={self._joint_spec!r})"

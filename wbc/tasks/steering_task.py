@@ -12,7 +12,7 @@ from ..kinematics import Kinematics
 from ..program import Operand, TickProgram
 from ..robot import Robot
 from ..validation import as_gain, as_positive
-from .task import Task
+from .task import Task, TaskData
 
 
 class SteeringTask(Task):
@@ -52,8 +52,6 @@ class SteeringTask(Task):
         speed_scale: [m/s] relaxation base speed at and above which the row has full weight.
     """
 
-    dim = 1
-    uses_preview = True
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
     gain = Operand("_parameters", 1, as_gain)
     speed_scale = Operand("_parameters", 2, as_positive)
@@ -72,32 +70,41 @@ class SteeringTask(Task):
         super().__init__(name)
         self._parameters = np.zeros(3)  # kernel operand: (sqrt(cost), gain, speed_scale)
         self.cost, self.gain, self.speed_scale = cost, gain, speed_scale
-        self.error = np.zeros(1)  #: heading error delta [rad]
 
-    def bind(self, robot: Robot) -> None:
+    def bind(self, robot: Robot) -> "SteeringTaskData":
         if not robot.base.is_nonholonomic:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base; "
                                     "steering is only needed by nonholonomic bases")
-        self._x, self._y, self._heading = robot.base.indices
+        return SteeringTaskData(self, robot)
 
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        raise RuntimeError("SteeringTask is computed by the controller with a preview (compute_preview)")
+    def __repr__(self) -> str:
+        return f"SteeringTask(cost={self.cost}, gain={self.gain}, speed_scale={self.speed_scale})"
+
+
+class SteeringTaskData(TaskData):
+    """A :class:`SteeringTask` in one controller: the base coordinates and the heading error
+    of the last tick."""
+
+    dim = 1
+    uses_preview = True
+
+    def __init__(self, task: SteeringTask, robot: Robot) -> None:
+        super().__init__(task)
+        self._x, self._y, self._heading = robot.base.indices
+        self.error = np.zeros(1)  #: heading error delta [rad]
 
     def compute_preview(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray,
                         preview: np.ndarray) -> None:
         """Write the row given the holonomic relaxation's velocity ``preview`` (nv)."""
-        kernels.steering_row(preview, kin.q, self._x, self._y, self._heading, self._parameters, dt, self.error,
-                             jacobian[0], target)
+        kernels.steering_row(preview, kin.q, self._x, self._y, self._heading, self.task._parameters, dt,
+                             self.error, jacobian[0], target)
 
     def add_preview_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int,
                         preview: np.ndarray) -> bool:
         program.add(kernels.OP_STEERING, program.array(preview), program.array(kin.q), self._x, self._y,
-                    self._heading, program.array(self._parameters), program.array(self.error),
+                    self._heading, program.array(self.task._parameters), program.array(self.error),
                     program.array(stack_t), start, stack_t.shape[0] - 1, stack_t.shape[1], len(kin.q))
         return True
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = abs(float(self.error[0]))
-
-    def __repr__(self) -> str:
-        return f"SteeringTask(cost={self.cost}, gain={self.gain}, speed_scale={self.speed_scale})"

@@ -15,7 +15,6 @@ fraction of the current error ``e`` the task asks to remove in one tick of lengt
 from __future__ import annotations
 
 import math
-from abc import ABC, abstractmethod
 
 import numpy as np
 
@@ -25,27 +24,35 @@ from ..program import TickProgram
 from ..robot import Robot
 
 
-class Task(Item, ABC):
-    """Base class of all tasks (bound and shared as described in :class:`~wbc.item.Item`)."""
+class TaskData:
+    """A task's data in one controller (:meth:`Task.bind`): what the controller calls each tick.
+
+    Built-in tasks return a data object of their own (robot-resolved indices, per-controller
+    buffers and the task's error at the last tick); it reads the task's settings from
+    ``self.task``. The methods below are the contract; their defaults do nothing.
+    """
 
     #: number of task rows
-    dim: int
+    dim: int = 0
     #: True for tasks that need the holonomic preview (see SteeringTask); they are
     #: computed after all others through ``compute_preview``
     uses_preview: bool = False
 
-    def __init__(self, name: str | None = None) -> None:
-        self.name = name or self.default_name()
-
-    def default_name(self) -> str:
-        return type(self).__name__
+    def __init__(self, task: "Task") -> None:
+        self.task, self.name = task, task.name
 
     def write_static(self, jacobian: np.ndarray) -> None:
         """Write rows that never change, once after allocation (e.g. a constant ``W J``)."""
 
-    @abstractmethod
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         """Write ``W J`` into ``jacobian`` (dim x nv) and ``W r`` into ``target`` (dim)."""
+        raise NotImplementedError(f"{type(self).__name__} computes no rows")
+
+    def compute_preview(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray,
+                        preview: np.ndarray) -> None:
+        """As :meth:`compute` for a task with ``uses_preview``, given the holonomic
+        relaxation's velocity ``preview`` (nv)."""
+        raise NotImplementedError(f"{type(self).__name__} uses no preview")
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         """Register this task's rows as compiled ops and return True, or return False to be
@@ -66,10 +73,37 @@ class Task(Item, ABC):
 
     def check_ready(self) -> None:
         """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
+        self.task.check_ready()
 
-    @abstractmethod
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         """Add this tick's error measures (unweighted, SI units) to ``errors``."""
+
+
+class Task(Item, TaskData):
+    """Base class of all tasks: a specification (settings) that :meth:`bind` turns into
+    per-controller :class:`TaskData` (see :class:`~wbc.item.Item`).
+
+    A simple custom task is its own data: set ``dim``, implement :meth:`compute` and
+    :meth:`report` (and ``check_ready`` if it needs a target); one that holds per-robot state
+    overrides :meth:`bind` to return a :class:`TaskData` of its own.
+    """
+
+    def __init__(self, name: str | None = None) -> None:
+        self.name = name or self.default_name()
+
+    @property
+    def task(self) -> "Task":
+        return self
+
+    def default_name(self) -> str:
+        return type(self).__name__
+
+    def bind(self, robot: Robot) -> TaskData:
+        """This task's data for a controller of ``robot`` (default: the task itself)."""
+        return Item.bind(self, robot)
+
+    def check_ready(self) -> None:
+        """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
 
 
 def _norm(vector: np.ndarray) -> float:
