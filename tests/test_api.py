@@ -1,5 +1,6 @@
 """Public API surface and bad input: clear exceptions at the boundary, before any solver runs."""
 
+import importlib.metadata
 import shutil
 
 import numpy as np
@@ -19,6 +20,11 @@ def test_public_names_are_importable_from_wbc():
     for name in ("load_robot", "Robot", "Controller", "FrameTask", "BaseVelocityTask", "PostureTask",
                  "JointPositionLimits", "JointVelocityLimits", "available_solvers"):
         assert hasattr(wbc, name), name
+
+
+def test_version_is_the_installed_distributions():
+    """One version: pyproject reads it from wbc.__version__, so the installed metadata must agree."""
+    assert wbc.__version__ == importlib.metadata.version("wbc")
 
 
 def test_robot_interface(youbot):
