@@ -98,7 +98,8 @@ def test_bad_dt_is_rejected(youbot, dt):
 def test_bad_targets_are_rejected():
     task = wbc.FrameTask("ee", 1.0, 1.0)
     pose = np.eye(4)
-    for bad in (pose[:3], np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]), np.diag([-1.0, 1.0, -1.0, 1.0]) @ np.diag([1, 1, -1, 1.0])):
+    for bad in (pose[:3], np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]),
+                np.diag([-1.0, 1.0, -1.0, 1.0]) @ np.diag([1, 1, -1, 1.0])):
         with pytest.raises(wbc.InvalidInputError):
             task.set_target(bad)
     with pytest.raises(wbc.InvalidInputError):
