@@ -286,7 +286,7 @@ class MinkSetup:
         posture.set_target(spec.posture_target)
         self.tasks = [self.task, posture]
         self.limits = [mink.ConfigurationLimit(model, gain=spec.limit_gain),
-                       mink.VelocityLimit(model, dict(zip(names, spec.velocity_limit)))]
+                       mink.VelocityLimit(model, dict(zip(names, spec.velocity_limit, strict=True)))]
         self.dt, self.damping = spec.dt, spec.damping
 
     def set_target(self, pose: np.ndarray) -> None:

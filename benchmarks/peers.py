@@ -40,8 +40,7 @@ import wbc
 from wbc.scenario import load_scenario
 
 from .common import OUTPUT, TASKS, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
-from .peer_setups import (HandRolledSetup, Log6FrameTask, MinkSetup, PinkSetup, StackSpec, WbcSetup,
-                          spec_from_scenario)
+from .peer_setups import HandRolledSetup, Log6FrameTask, MinkSetup, PinkSetup, StackSpec, WbcSetup, spec_from_scenario
 
 WBC, LOG6, FULL, HAND = "wbc", "wbc (log6 task)", "wbc (scenario stack)", "hand-rolled pinocchio + daqp"
 BARRIER = "wbc (scenario stack + barrier)"
@@ -292,7 +291,8 @@ def report_scenario(result: dict, summary: dict) -> list[str]:
                                  [[name, d["ticks_above_threshold"], d["resolved_ticks"],
                                    f"{d['max_default_tol']:.1e}", f"{d['max_tight_tol']:.1e}",
                                    f"{d['max_tight_tol_small_angle']:.1e}", f"{d['max_tight_tol_large_angle']:.1e}",
-                                   "-" if d["max_tight_tol_exact_jlog"] is None else f"{d['max_tight_tol_exact_jlog']:.1e}"]
+                                   "-" if d["max_tight_tol_exact_jlog"] is None
+                                   else f"{d['max_tight_tol_exact_jlog']:.1e}"]
                                   for name, d in diagnosis.items()]), ""]
     for name, failure in summary["failures"].items():
         lines += [f"- {name} failed in its own closed loop at {failure}"]
@@ -306,7 +306,7 @@ def plot(results: list[dict], out: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(results), figsize=(6.5 * len(results), 4.2), squeeze=False)
-    for ax, result in zip(axes[0], results):
+    for ax, result in zip(axes[0], results, strict=True):
         for name in result["names"]:
             values = np.sort(result["times"][name]) * 1e6
             ax.plot(values, np.linspace(0, 1, values.size), label=name)

@@ -76,8 +76,10 @@ def chain_mjcf(dof: int) -> str:
              '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/>']
     for i in range(1, n_arm + 1):
         pos = "0.1 0 0.1" if i == 1 else f"0 0 {length:.6f}"
-        lines.append(f'<body name="link_{i}" pos="{pos}"><joint name="joint_{i}" type="hinge" axis="{AXES[(i - 1) % 4]}" '
-                     f'range="{-JOINT_LIMIT} {JOINT_LIMIT}"/><inertial pos="0 0 0" mass="0.1" diaginertia="1e-3 1e-3 1e-3"/>')
+        lines.append(f'<body name="link_{i}" pos="{pos}">'
+                     f'<joint name="joint_{i}" type="hinge" axis="{AXES[(i - 1) % 4]}" '
+                     f'range="{-JOINT_LIMIT} {JOINT_LIMIT}"/>'
+                     '<inertial pos="0 0 0" mass="0.1" diaginertia="1e-3 1e-3 1e-3"/>')
     lines.append(f'<site name="ee" pos="0 0 {length:.6f}"/>' + "</body>" * n_arm + "</body></worldbody></mujoco>")
     return "\n".join(lines)
 
@@ -203,7 +205,8 @@ def main(argv: list[str] | None = None) -> int:
                f"{100 * s['solve_median'] / s['median']:.0f}", f"{s['median'] / base:.2f}"]
         if not args.no_peers:
             row += [fmt(stats[f"Pink {n}"]["median"]), fmt(stats[f"mink {n}"]["median"]),
-                    f"{stats[f'Pink {n}']['median'] / s['median']:.2f}", f"{stats[f'mink {n}']['median'] / s['median']:.2f}"]
+                    f"{stats[f'Pink {n}']['median'] / s['median']:.2f}",
+                    f"{stats[f'mink {n}']['median'] / s['median']:.2f}"]
         dof_rows.append(row)
     dof_header = ["DOF", "wbc median µs", "wbc p99 µs", "solve median µs", "solve %", f"vs {args.dofs[0]} DOF"]
     if not args.no_peers:

@@ -228,7 +228,8 @@ def warm_table(rows: list[dict], settings: list[str]) -> str:
         for solver in sorted({r["solver"] for r in rows if r["warm"]}):
             cold = summarize([r for r in rows if r["settings"] == setting and r["solver"] == solver and not r["warm"]])
             warm = summarize([r for r in rows if r["settings"] == setting and r["solver"] == solver and r["warm"]])
-            body.append([setting, solver, fmt(cold["sgm_us"]), fmt(warm["sgm_us"]), f"{warm['sgm_us'] / cold['sgm_us']:.2f}",
+            body.append([setting, solver, fmt(cold["sgm_us"]), fmt(warm["sgm_us"]),
+                         f"{warm['sgm_us'] / cold['sgm_us']:.2f}",
                          fmt(cold["backend_sgm_us"]), fmt(warm["backend_sgm_us"]),
                          f"{warm['backend_sgm_us'] / cold['backend_sgm_us']:.2f}",
                          f"{cold['success']:.1f} / {warm['success']:.1f}"])
@@ -297,7 +298,7 @@ def plot(rows: list[dict], out: Path) -> None:
     labels = [f"{s} ({'warm' if w else 'cold'})" for s, w in keys]
 
     fig, axes = plt.subplots(len(settings), 1, figsize=(10, 3.2 * len(settings)), squeeze=False)
-    for ax, setting in zip(axes[:, 0], settings):
+    for ax, setting in zip(axes[:, 0], settings, strict=True):
         data = [[r["runtime"] * 1e6 for r in rows if r["settings"] == setting and _config_key(r) == key]
                 for key in keys]
         ax.boxplot(data, whis=(1, 99), showfliers=True, flierprops={"markersize": 2})
@@ -311,7 +312,7 @@ def plot(rows: list[dict], out: Path) -> None:
     plt.close(fig)
 
     fig, axes = plt.subplots(1, len(settings), figsize=(5.2 * len(settings), 4.2), squeeze=False)
-    for ax, setting in zip(axes[0], settings):
+    for ax, setting in zip(axes[0], settings, strict=True):
         selected = [r for r in rows if r["settings"] == setting]
         problems = sorted({(r["scenario"], r["tick"]) for r in selected})
         position = {p: i for i, p in enumerate(problems)}
@@ -342,10 +343,12 @@ def plot(rows: list[dict], out: Path) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.solvers", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--dataset", type=Path, default=OUTPUT / "dataset", help="dataset folder (default: %(default)s)")
+    parser.add_argument("--dataset", type=Path, default=OUTPUT / "dataset",
+                        help="dataset folder (default: %(default)s)")
     parser.add_argument("--regenerate", action="store_true", help="record the dataset again first")
     parser.add_argument("--out", type=Path, default=OUTPUT / "solvers", help="report folder (default: %(default)s)")
-    parser.add_argument("--ticks", type=int, default=400, help="ticks per scenario, evenly spaced; 0 = all (default 400)")
+    parser.add_argument("--ticks", type=int, default=400,
+                        help="ticks per scenario, evenly spaced; 0 = all (default 400)")
     parser.add_argument("--repeats", type=int, default=3, help="solves per (QP, config); the minimum is kept")
     parser.add_argument("--settings", nargs="+", default=["default", "high", "low"], choices=list(TOLERANCES))
     parser.add_argument("--solvers", nargs="+", help="default: every installed qpsolvers backend")

@@ -1,5 +1,6 @@
 """Public API surface and bad input: clear exceptions at the boundary, before any solver runs."""
 
+import importlib.metadata
 import shutil
 
 import numpy as np
@@ -19,6 +20,11 @@ def test_public_names_are_importable_from_wbc():
     for name in ("load_robot", "Robot", "Controller", "FrameTask", "BaseVelocityTask", "PostureTask",
                  "JointPositionLimits", "JointVelocityLimits", "available_solvers"):
         assert hasattr(wbc, name), name
+
+
+def test_version_is_the_installed_distributions():
+    """One version: pyproject reads it from wbc.__version__, so the installed metadata must agree."""
+    assert wbc.__version__ == importlib.metadata.version("wbc")
 
 
 def test_robot_interface(youbot):
@@ -92,7 +98,8 @@ def test_bad_dt_is_rejected(youbot, dt):
 def test_bad_targets_are_rejected():
     task = wbc.FrameTask("ee", 1.0, 1.0)
     pose = np.eye(4)
-    for bad in (pose[:3], np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]), np.diag([-1.0, 1.0, -1.0, 1.0]) @ np.diag([1, 1, -1, 1.0])):
+    for bad in (pose[:3], np.full((4, 4), np.nan), np.diag([2.0, 1.0, 1.0, 1.0]),
+                np.diag([-1.0, 1.0, -1.0, 1.0]) @ np.diag([1, 1, -1, 1.0])):
         with pytest.raises(wbc.InvalidInputError):
             task.set_target(bad)
     with pytest.raises(wbc.InvalidInputError):

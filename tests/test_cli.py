@@ -168,4 +168,5 @@ def test_bench_checkout_option(tmp_path):
     assert wbc_process("bench", "--checkout", str(tmp_path / "checkout"), "solvers").returncode == 0
     assert marker.read_text() == "planted code ran"
     result = wbc_process("bench", "--checkout", str(tmp_path), "solvers")
-    assert result.returncode == 2 and "is not a wbc source checkout" in result.stderr and "Traceback" not in result.stderr
+    assert result.returncode == 2
+    assert "is not a wbc source checkout" in result.stderr and "Traceback" not in result.stderr

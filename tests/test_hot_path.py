@@ -3,9 +3,9 @@
 import daqp
 import numpy as np
 import pytest
-from conftest import TASKS, random_youbot_configurations
 
 import wbc
+from conftest import TASKS, random_youbot_configurations
 from wbc.qp import QP
 from wbc.scenario import load_scenario
 from wbc.solvers import DaqpBackend

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
-from conftest import TASKS
 
 import wbc
+from conftest import TASKS
 from wbc import kernels
 from wbc.constraints.constraint import ConstraintData
 from wbc.kinematics import Kinematics

@@ -124,8 +124,10 @@ def _arm(root) -> pin.Model:
     """A root joint carrying a 4-joint arm with skew axes and offsets, frame 'ee' at the tip."""
     model = pin.Model()
     parent = model.addJoint(0, root, pin.SE3.Identity(), "root")
-    for name, joint, offset in (("a1", pin.JointModelRZ(), (0.1, 0.0, 0.2)), ("a2", pin.JointModelRY(), (0.0, 0.0, 0.15)),
-                                ("a3", pin.JointModelRY(), (0.0, 0.05, 0.3)), ("a4", pin.JointModelRX(), (0.0, 0.0, 0.25))):
+    for name, joint, offset in (("a1", pin.JointModelRZ(), (0.1, 0.0, 0.2)),
+                                ("a2", pin.JointModelRY(), (0.0, 0.0, 0.15)),
+                                ("a3", pin.JointModelRY(), (0.0, 0.05, 0.3)),
+                                ("a4", pin.JointModelRX(), (0.0, 0.0, 0.25))):
         parent = model.addJoint(parent, joint, pin.SE3(np.eye(3), np.array(offset)), name)
     model.addFrame(pin.Frame("ee", parent, pin.SE3(np.eye(3), np.array([0.05, 0.0, 0.1])), pin.FrameType.OP_FRAME))
     return model

@@ -126,7 +126,8 @@ def test_iteration_budget_exhaustion_is_handled(youbot):
 
 
 @pytest.mark.parametrize("constraints", [[], [wbc.JointPositionLimits()], [wbc.JointVelocityLimits()],
-                                         [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()]])
+                                         [wbc.JointPositionLimits(), wbc.JointVelocityLimits(),
+                                          wbc.MecanumWheelLimits()]])
 def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
     """Bounds only, rows, nothing: the warm-started workspace solves each tick (no fallback)."""
     target = youbot.frame_pose(HOME, "ee")
@@ -141,8 +142,8 @@ def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
 
 
 def test_warm_start_returns_the_cold_solution(youbot):
-    from wbc.scenario import load_scenario
     from conftest import TASKS
+    from wbc.scenario import load_scenario
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")
     warm = scenario.make_controller()

@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc import singularity as sing
 from dh_tables import PUMA, SCORBOT
 from test_youbot_model import A1, A2, A3, C
+from wbc import singularity as sing
 
 MODELS = ["youbot", "scorbot_er4pc", "puma560"]
 
@@ -209,7 +209,9 @@ def test_measure_is_det_of_the_scaled_gram_matrix(robots, rng):
 def test_measure_does_not_depend_on_the_length_unit(robots, tmp_path, rng):
     """The PUMA rebuilt in millimetres: det(J^T J) grows by 1000^6, the scaled measure does not move."""
     text = wbc.model_path("puma560").read_text()
-    scale = lambda m: 'xyz="' + " ".join(repr(1000.0 * float(v)) for v in m.group(1).split()) + '"'
+    def scale(m):
+        return 'xyz="' + " ".join(repr(1000.0 * float(v)) for v in m.group(1).split()) + '"'
+
     text = re.sub(r'xyz="([^"]*)"', scale, text).replace('name="puma560"', 'name="puma560_mm"')
     path = tmp_path / "puma560_mm.urdf"
     path.write_text(text)

@@ -16,7 +16,7 @@ import sympy as sp
 import wbc
 from conftest import random_youbot_configurations
 from dh_tables import PUMA, SCORBOT, dh_frames, puma_table, scorbot_table, symbolic_geometric_jacobian, trig_to_symbols
-from test_youbot_model import A1, A2, A3, C, D1, H
+from test_youbot_model import A1, A2, A3, D1, C, H
 
 pi = sp.pi
 
@@ -227,7 +227,7 @@ def test_gierlaks_minors_eq20_are_right(scorbot_jacobian_q):
     eq20 = [-l2s * l3s * R * sin32 * co[3], -l2s * l3s * R * s[0] * sin32 * s[3], l2s * l3s * R * co[0] * sin32 * s[3],
             0, l2s * l3s * co[0] * sin32 * co[3], l2s * l3s * s[0] * sin32 * co[3]]
     minors = list(maximal_minors(poly).values())  # rows deleted: 6, 5, 4, 3, 2, 1 (in that order)
-    for ours, paper in zip(minors, eq20):
+    for ours, paper in zip(minors, eq20, strict=True):
         remainder = sp.reduced(sp.expand(ours - paper), [s[0] ** 2 + co[0] ** 2 - 1], s[0], co[0])[1]
         assert remainder == 0  # equal modulo sin^2 q1 + cos^2 q1 = 1
 
@@ -305,7 +305,8 @@ def test_puma_determinant(puma_frames, rng):
     robot = wbc.load_robot("puma560")
     numeric = sp.lambdify(TH6, J.subs(PUMA_VALUES))
     for q in rng.uniform(robot.lower, robot.upper, size=(50, 6)):
-        np.testing.assert_allclose(np.array(numeric(*q), dtype=float), robot.frame_jacobian(q, "ee"), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(np.array(numeric(*q), dtype=float), robot.frame_jacobian(q, "ee"),
+                                   rtol=0, atol=1e-12)
     assert J[:3, 3:] == sp.zeros(3, 3)
     t2, t3, t5 = TH6[1], TH6[2], TH6[4]
     elbow = a3p * sp.sin(t3) + d4p * sp.cos(t3)
@@ -343,18 +344,24 @@ def test_puma_ranks_on_the_sets_and_their_intersections():
 
     robot = wbc.load_robot("puma560")
     generic = np.array([0.3, 0.6, -0.8, 0.4, 0.9, 0.2])
-    cases = {"generic": (generic, 6)}
-    q = generic.copy(); q[4] = 0.0; cases["wrist"] = (q, 5)
-    q = generic.copy(); q[2] = elbow; cases["elbow"] = (q, 5)
-    q = generic.copy(); q[1] = shoulder_theta2(q[2]); cases["shoulder"] = (q, 5)
+
+    def moved(**joints):
+        """A copy of ``generic`` with joint i set to the value passed as ``q<i>=``."""
+        q = generic.copy()
+        for name, value in joints.items():
+            q[int(name[1:])] = value
+        return q
+
+    cases = {"generic": (generic, 6), "wrist": (moved(q4=0.0), 5), "elbow": (moved(q2=elbow), 5),
+             "shoulder": (moved(q1=shoulder_theta2(generic[2])), 5)}
     for label, (q, expected) in cases.items():
         assert robot.within_limits(q), label
         assert rank(robot.frame_jacobian(q, "ee")) == expected, label
     # both positioning factors: J11 has rank 1, so rank J <= 1 + 3
-    q = generic.copy(); q[2] = elbow; q[1] = shoulder_theta2(elbow)
+    q = moved(q2=elbow, q1=shoulder_theta2(elbow))
     assert robot.within_limits(q) and rank(robot.frame_jacobian(q, "ee")) <= 4
     # a positioning factor and the wrist: J11 and J22 each lose one, but the coupling block J21 generally
     # restores one (rank 5); it does not for the elbow at theta4 = 0
     for t4, expected in ((0.4, 5), (0.0, 4)):
-        q = generic.copy(); q[2] = elbow; q[3] = t4; q[4] = 0.0
+        q = moved(q2=elbow, q3=t4, q4=0.0)
         assert rank(robot.frame_jacobian(q, "ee")) == expected

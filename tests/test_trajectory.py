@@ -8,8 +8,18 @@ import pytest
 import wbc
 from wbc.errors import InvalidInputError
 from wbc.singularity import singularity_measure
-from wbc.trajectory import (ArcPath, JointTrajectory, LinePath, Quintic, SubPath, TimedPath, branch_switches,
-                            rest_to_rest_duration, solve_ik, wrist_flips)
+from wbc.trajectory import (
+    ArcPath,
+    JointTrajectory,
+    LinePath,
+    Quintic,
+    SubPath,
+    TimedPath,
+    branch_switches,
+    rest_to_rest_duration,
+    solve_ik,
+    wrist_flips,
+)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +41,7 @@ def test_quintic_meets_all_six_boundary_conditions_exactly(rng):
         duration = rng.uniform(0.1, 10.0)
         segment = Quintic(start, end, duration)
         for t, expected in ((0.0, start), (duration, end)):
-            for value, wanted in zip(segment(t), expected):
+            for value, wanted in zip(segment(t), expected, strict=True):
                 np.testing.assert_allclose(value, wanted, rtol=1e-9, atol=1e-9)
 
 

@@ -34,11 +34,11 @@ def _run(args: argparse.Namespace) -> int:
             for scenario in scenarios]
     summaries = [result.summary() for _, result in runs]
     if args.json:
-        named = [{"scenario": scenario.name} | summary for (scenario, _), summary in zip(runs, summaries)]
+        named = [{"scenario": scenario.name} | summary for (scenario, _), summary in zip(runs, summaries, strict=True)]
         print(json.dumps(summaries[0] if len(runs) == 1 else named, indent=2))
     else:
         print("\n".join(format_summary(scenario.name, result.solver, summary)
-                        for (scenario, result), summary in zip(runs, summaries)))
+                        for (scenario, result), summary in zip(runs, summaries, strict=True)))
     if args.plot:
         from .plotting import manipulability_traces, plot_runs
 
@@ -89,7 +89,8 @@ def format_summary(name: str, solver: str, s: dict) -> str:
     return "\n".join([
         f"scenario {name}  (solver {solver})",
         f"  ticks                      {s['ticks']}  ({s['fallback_ticks']} answered by a fallback)",
-        f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / {s['position_error_max_m'] * 1e3:.4f} mm",
+        f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / "
+        f"{s['position_error_max_m'] * 1e3:.4f} mm",
         f"  orientation err  rms / max {s['orientation_error_rms_rad'] * 1e3:.4f} / "
         f"{s['orientation_error_max_rad'] * 1e3:.4f} mrad",
         f"  final error      pos / ori {s['final_position_error_m'] * 1e3:.2e} mm / "

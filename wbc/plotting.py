@@ -115,7 +115,7 @@ def plot_runs(results: Sequence[RunResult], path: str | Path, joint_names: list[
 
     if trace is not None:
         ax = axes["m"]
-        for k, (result, series) in enumerate(zip(results, trace.series)):
+        for k, (result, series) in enumerate(zip(results, trace.series, strict=False)):
             ax.plot(np.arange(series.size) * result.dt, series, color=colors[k % len(colors)],
                     label=result.scenario)
         if trace.min_value is not None:

@@ -63,7 +63,7 @@ class QP:
         """Mirror ``b`` into the lower bound of the equality rows (call after writing ``b``)."""
         self.lower[self.n + self.n_ineq :] = self.b
 
-    def copy(self) -> "QP":
+    def copy(self) -> QP:
         """A deep copy (used to record QPs for tests and benchmarks)."""
         other = QP(self.n, self.n_ineq, self.n_eq)
         other.data[...] = self.data

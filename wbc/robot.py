@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import difflib
 import sys
-from typing import Annotated, Literal, Union
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Annotated, Literal
 
 import numpy as np
 import pinocchio as pin
@@ -297,7 +297,7 @@ class Sidecar(Table):
     urdf: str | None = None
     mjcf: str | None = None
     end_effector: str | None = None
-    base: Annotated[Union[FixedBaseTable, PlanarBaseTable, MecanumBaseTable, UnicycleBaseTable],
+    base: Annotated[FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
                     Field(discriminator="kind")] = FixedBaseTable(kind="fixed")
     geometry: dict[str, float] = {}
 

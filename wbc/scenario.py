@@ -145,7 +145,7 @@ class PlannedReference(GoalKeys):
         return self
 
 
-Reference = Annotated[Union[CircleReference, PoseReference, LineReference, PointReference, PlannedReference],
+Reference = Annotated[CircleReference | PoseReference | LineReference | PointReference | PlannedReference,
                       Field(discriminator="type")]
 
 
@@ -283,15 +283,15 @@ def _check_arguments(cls: type, arguments: dict, label: str) -> None:
         hint = hints.get(key, Literal["initial"] | _Numbers if cls is PostureTask and key == "target" else _Numbers)
         try:
             _adapter(hint).validate_python(value)
-        except ValidationError as exc:
+        except ValidationError:
             raise ScenarioError(f"{label} {key} = {value!r}: expected {_describe(hint)}"
                                 f"{' (numbers without quotes)' if isinstance(value, str) else ''}") from None
 
 
-_Numbers = Union[float, list[float]]  # unannotated constructor arguments: costs, targets
+_Numbers = float | list[float]  # unannotated constructor arguments: costs, targets
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _adapter(hint: Any) -> TypeAdapter:
     return TypeAdapter(hint, config=ConfigDict(strict=True, allow_inf_nan=False))
 

@@ -147,7 +147,8 @@ def _youbot(robot: Robot) -> tuple[SingularSystem, ...]:
     arm = SingularSystem(
         robot.name, "arm", "arm alone, platform fixed: 6 x 5 Jacobian of E (columns theta1..theta5)",
         "ee", tuple(range(3, 8)), length, (
-            SingularCondition("elbow stretched", "sin(theta3) = 0   (in the limits: theta3 = 0)", elbow, 4, project_elbow),
+            SingularCondition("elbow stretched", "sin(theta3) = 0   (in the limits: theta3 = 0)", elbow, 4,
+                              project_elbow),
             SingularCondition("gripper axis vertical and on axis 1",
                               "sin(theta2 + theta3 + theta4) = 0 and "
                               "a1 + a2 sin(theta2) + a3 sin(theta2 + theta3) + c sin(theta2 + theta3 + theta4) = 0",

@@ -11,7 +11,7 @@ import difflib
 import math
 import numbers
 import re
-from functools import lru_cache
+from functools import cache
 
 from .errors import InvalidInputError
 
@@ -98,7 +98,7 @@ _SETTINGS = {"daqp": _daqp, "osqp": _osqp, "proxqp": _proxqp, "clarabel": _clara
              "highs": _highs, "quadprog": dict}
 
 
-@lru_cache(maxsize=None)
+@cache
 def valid_options(name: str) -> dict[str, object] | None:
     """Every key ``solver_options`` may hold for backend ``name``, with its default
     (None: unknown type); None for a backend whose settings wbc cannot list."""

@@ -82,7 +82,7 @@ class QPSolver(ABC):
     @abstractmethod
     def solve(self, qp: QP) -> QPSolution: ...
 
-    def reset(self) -> None:
+    def reset(self) -> None:  # noqa: B027 -- optional hook: a backend without warm-start state keeps this no-op
         """Forget any warm start (the next solve starts cold)."""
 
     @property
@@ -109,7 +109,8 @@ def make_solver(name: str, options: dict | None = None) -> QPSolver:
     """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise.
 
     ``options`` are checked by the backend's constructor
-    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises :class:`~wbc.solver_options.InvalidSolverOptionError`.
+    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises
+    :class:`~wbc.solver_options.InvalidSolverOptionError`.
     """
     if not isinstance(name, str) or name not in qpsolvers.available_solvers:
         raise UnknownSolverError(

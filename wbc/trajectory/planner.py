@@ -165,7 +165,7 @@ def plan(robot: Robot, path: Path, q0, duration: float, threshold: float, frame:
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """(first, last) index of every maximal run of True."""
     edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(int), 0]))
-    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2])]
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def _reroute(robot, frame, timed, straight, threshold, margin, speed_fraction, length_scale, sample):

@@ -49,7 +49,8 @@ class Quintic:
             raise InvalidInputError("start and end must each be (position, velocity, acceleration)")
         names = ("p0", "v0", "a0", "p1", "v1", "a1")
         try:
-            p0, v0, a0, p1, v1, a1 = np.broadcast_arrays(*[_finite(x, n) for x, n in zip((*start, *end), names)])
+            values = [_finite(x, n) for x, n in zip((*start, *end), names, strict=True)]
+            p0, v0, a0, p1, v1, a1 = np.broadcast_arrays(*values)
         except ValueError as exc:
             raise InvalidInputError(f"quintic boundary values have incompatible shapes: {exc}") from exc
         T = self.duration
@@ -62,7 +63,7 @@ class Quintic:
         ])
 
     @classmethod
-    def rest_to_rest(cls, start, end, duration: float) -> "Quintic":
+    def rest_to_rest(cls, start, end, duration: float) -> Quintic:
         """Segment from ``start`` to ``end`` with zero velocity and acceleration at both ends."""
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
         zero = np.zeros_like(start)

@@ -86,6 +86,6 @@ def follow(robot: Robot, frame: str, trajectory: TimedPath, q0, samples: int = S
         times.append(t)
         qs.append(result.q)
     q = np.array(qs)
-    qdot = np.array([joint_rates(robot, frame, qi, trajectory(t)[1]) for t, qi in zip(times, q)])
+    qdot = np.array([joint_rates(robot, frame, qi, trajectory(t)[1]) for t, qi in zip(times, q, strict=True)])
     measure = np.array([singularity_measure(robot, qi, length_scale=length_scale) for qi in q])
     return JointTrajectory(np.array(times), q, qdot, measure, np.array(jumps))
