@@ -98,7 +98,7 @@ class WorldVelocityLimits(Constraint):
     has_bounds = True
     dynamic_bounds = False
 
-    def bind(self, robot: Robot) -> "WorldVelocityLimits":
+    def bind(self, robot: Robot) -> WorldVelocityLimits:
         self._limit = robot.velocity_limit.copy()
         return super().bind(robot)  # its own data: serves one robot object
 
@@ -121,7 +121,7 @@ class Log6FrameTask(FrameTask):
     (wbc's weights are applied in the body frame here).
     """
 
-    def bind(self, robot: Robot) -> "Log6FrameTaskData":
+    def bind(self, robot: Robot) -> Log6FrameTaskData:
         return Log6FrameTaskData(self, robot)
 
 

@@ -29,7 +29,7 @@ def figure(runs: list[tuple[Scenario, RunResult]], path: str | Path) -> Path:
 
     trace = manipulability_traces(runs)
     fig, axes = plt.subplots(1, 3, figsize=(12, 3.4), constrained_layout=True)
-    for (scenario, result), m in zip(runs, trace.series):
+    for (scenario, result), m in zip(runs, trace.series, strict=True):
         t = np.arange(m.size) * result.dt
         axes[0].plot(t, m, label=scenario.name)
         axes[1].plot(t, np.degrees(np.hypot(result.q[:, 4], result.q[:, 5])), label=scenario.name)

@@ -362,7 +362,8 @@ def test_the_elastic_fallback_keeps_bounds_that_daqp_soft_mode_misses(youbot):
     task.set_target(target)
     limits = wbc.JointPositionLimits(gain=2.8608077615635767e-12)
     controller = wbc.Controller(
-        youbot, [task, wbc.ManipulabilityTask("ee", cost=277021.57814671274, gain=1e-12, target=3.1358218617635436e-05)],
+        youbot,
+        [task, wbc.ManipulabilityTask("ee", cost=277021.57814671274, gain=1e-12, target=3.1358218617635436e-05)],
         [wbc.ManipulabilityBarrier("ee", min_value=0.007262418412154669, gain=1e-12), limits,
          wbc.MecanumWheelLimits(), wbc.JointVelocityLimits()])
     v = controller.step(q)

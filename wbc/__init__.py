@@ -10,18 +10,32 @@ Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base
 """
 
 from .base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
-from .constraints import (Constraint, JointPositionLimits, JointVelocityLimits, ManipulabilityBarrier,
-                          MecanumWheelLimits, NonholonomicBase, WheelSpeedLimits)
+from .constraints import (
+    Constraint,
+    JointPositionLimits,
+    JointVelocityLimits,
+    ManipulabilityBarrier,
+    MecanumWheelLimits,
+    NonholonomicBase,
+    WheelSpeedLimits,
+)
 from .controller import Controller
 from .diagnostics import TickDiagnostics
-from .errors import (InvalidInputError, ModelError, PlanningError, ScenarioError, SolverError, UnknownFrameError,
-                     UnknownSolverError, WbcError)
+from .errors import (
+    InvalidInputError,
+    ModelError,
+    PlanningError,
+    ScenarioError,
+    SolverError,
+    UnknownFrameError,
+    UnknownSolverError,
+    WbcError,
+)
 from .manipulability import Manipulability, manipulability, manipulability_gradient
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
-from .tasks import (BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask,
-                    Task)
+from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
 
 __version__ = "0.1.0"
 

@@ -230,7 +230,7 @@ class Controller:
 
     def data(self, item: Task | Constraint) -> TaskData | ConstraintData:
         """This controller's data of ``item`` (e.g. ``controller.data(task).error``)."""
-        for spec, data in zip(self.tasks + self.constraints, self._task_data + self._constraint_data):
+        for spec, data in zip(self.tasks + self.constraints, self._task_data + self._constraint_data, strict=True):
             if spec is item:
                 return data
         raise InvalidInputError(f"{item!r} is not used by this controller")
@@ -451,7 +451,8 @@ class Controller:
         """Labels of this tick's bounds and rows that ``v`` meets with equality."""
         at_upper = np.abs(v - self._upper) <= ACTIVE_TOLERANCE
         at_lower = np.abs(v - self._lower) <= ACTIVE_TOLERANCE
-        names = [self._bound_labels[k][i] for k, i in zip(*np.nonzero(np.concatenate([at_upper, at_lower], 1)))]
+        active = np.nonzero(np.concatenate([at_upper, at_lower], 1))
+        names = [self._bound_labels[k][i] for k, i in zip(*active, strict=True)]
         qp = self._qp_v
         if qp.n_ineq:
             rows = qp.C[: qp.n_ineq] @ v - qp.h
@@ -508,6 +509,6 @@ def _meet_halfway(bounds: np.ndarray) -> None:
 
 def _velocity_names(robot: Robot) -> list[str]:
     names = []
-    for joint, name in zip(robot.model.joints[1:], robot.joint_names):
+    for joint, name in zip(robot.model.joints[1:], robot.joint_names, strict=True):
         names += [name] if joint.nv == 1 else [f"{name}[{i}]" for i in range(joint.nv)]
     return names

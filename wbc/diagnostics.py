@@ -44,7 +44,7 @@ class TickDiagnostics:
     __slots__ = ("tick", "solver", "status", "success", "solve_time", "tick_time", "v", "u",
                  "_controller", "_task_errors", "_active", "_violation")
 
-    def __init__(self, controller: "Controller", tick: int, status: str, success: bool, solve_time: float,
+    def __init__(self, controller: Controller, tick: int, status: str, success: bool, solve_time: float,
                  tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
         self._controller = controller
         self.tick, self.solver, self.status, self.success = tick, controller.solver.name, status, success
@@ -53,7 +53,7 @@ class TickDiagnostics:
         self._active: list[str] | None = None
         self._violation: float | None = None
 
-    def _source(self) -> "Controller":
+    def _source(self) -> Controller:
         if self._controller._tick != self.tick:
             raise StaleDiagnosticsError(
                 f"diagnostics of tick {self.tick} were overwritten by tick {self._controller._tick}; "
@@ -82,7 +82,7 @@ class TickDiagnostics:
             self._active = [] if self.v is None else self._source().active_constraints(self.v)
         return self._active
 
-    def freeze(self) -> "TickDiagnostics":
+    def freeze(self) -> TickDiagnostics:
         """Compute every lazy field now, so the record stays readable after later ticks."""
         _ = self.task_errors, self.max_violation, self.active_constraints
         return self

@@ -98,7 +98,8 @@ def pose_defect(pose: np.ndarray, tolerance: float) -> int:
 
 # ------------------------------------------------------------------- tasks
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True,
+      nogil=True)
 def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                    local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
     """World-aligned Jacobian (6 x nv) at the origin ``p = R_i p_f + p_i`` of a frame placed at
@@ -156,7 +157,8 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
     """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
 
     Frame placement ``R = R_i R_f``, ``p = R_i p_f + p_i`` (``R_i, p_i``: parent joint;
-    ``R_f, p_f``: frame in the joint); the Jacobian is :func:`frame_jacobian`'s. Writes ``error = (p* - p, log3(R* R^T))``,
+    ``R_f, p_f``: frame in the joint); the Jacobian is :func:`frame_jacobian`'s. Writes
+    ``error = (p* - p, log3(R* R^T))``,
     ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (layouts: the
     ``FRAME_*`` settings and the frame data of this module).
     """
@@ -520,7 +522,8 @@ def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np
     return value
 
 
-@njit("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])", cache=True, nogil=True)
+@njit("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])",
+      cache=True, nogil=True)
 def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, origin: np.ndarray,
                             support: np.ndarray, ancestor: np.ndarray, first_row: int, last_row: int,
                             gradient: np.ndarray) -> float:
@@ -531,8 +534,8 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
     while the Gram matrix is well conditioned (Cholesky), else ``G = U diag(c) V^T`` from the
     SVD, ``c_l`` the product of the other singular values (see :mod:`wbc.manipulability`).
 
-    Row selections are ``0:6``, ``0:3`` or ``3:6``. ``dJ/dq_i`` for a chain of 1-DOF joints, from the joint columns ``S_k = (v_k; w_k)``
-    (spatial, world origin): moving ``q_i`` moves the subtree of joint i rigidly, so
+    Row selections are ``0:6``, ``0:3`` or ``3:6``. ``dJ/dq_i`` for a chain of 1-DOF joints, from the joint
+    columns ``S_k = (v_k; w_k)`` (spatial, world origin): moving ``q_i`` moves the subtree of joint i rigidly, so
     ``dS_k/dq_i = (w_i x v_k + v_i x w_k; w_i x w_k)`` when i is a strict ancestor of k
     (``ancestor[i, k] = 1``), else 0, and the frame origin moves by ``dp_i = v_i + w_i x p``
     (the linear part of column i of ``jacobian``). The world-aligned column

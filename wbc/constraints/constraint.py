@@ -53,7 +53,7 @@ class ConstraintData:
     #: ``write_static``), so the controller can intersect them once instead of every tick
     dynamic_bounds: bool = True
 
-    def __init__(self, constraint: "Constraint") -> None:
+    def __init__(self, constraint: Constraint) -> None:
         self.constraint, self.name = constraint, constraint.name
         self.hard = constraint.hard
 
@@ -88,7 +88,7 @@ class Constraint(Item, ConstraintData):
         self.name = name or type(self).__name__
 
     @property
-    def constraint(self) -> "Constraint":
+    def constraint(self) -> Constraint:
         return self
 
     def bind(self, robot: Robot) -> ConstraintData:

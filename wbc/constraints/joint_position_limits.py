@@ -43,7 +43,7 @@ class JointPositionLimits(Constraint):
         self._gain = np.zeros(1)  # operand of the compiled op, shared by the controllers using it
         self.gain = gain
 
-    def bind(self, robot: Robot) -> "JointPositionLimitsData":
+    def bind(self, robot: Robot) -> JointPositionLimitsData:
         return JointPositionLimitsData(self, robot)
 
     def __repr__(self) -> str:

@@ -20,7 +20,7 @@ class JointVelocityLimits(Constraint):
     ``(c, s) = (cos yaw, sin yaw)``; the yaw rate is a plain bound.
     """
 
-    def bind(self, robot: Robot) -> "JointVelocityLimitsData":
+    def bind(self, robot: Robot) -> JointVelocityLimitsData:
         return JointVelocityLimitsData(self, robot)
 
 

@@ -61,7 +61,7 @@ class ManipulabilityBarrier(Constraint):
         self._settings = np.zeros(2)  # (gain, m_min): compiled operand, shared by the controllers using it
         self.gain, self.min_value = gain, min_value
 
-    def bind(self, robot: Robot) -> "ManipulabilityBarrierData":
+    def bind(self, robot: Robot) -> ManipulabilityBarrierData:
         return ManipulabilityBarrierData(self, robot)
 
     def __repr__(self) -> str:

@@ -24,7 +24,7 @@ class NonholonomicBase(Constraint):
 
     satisfied_by_input_map = True
 
-    def bind(self, robot: Robot) -> "NonholonomicBaseData":
+    def bind(self, robot: Robot) -> NonholonomicBaseData:
         if not robot.base.is_nonholonomic:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base, "
                                     "not a nonholonomic one")

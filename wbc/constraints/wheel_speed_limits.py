@@ -32,7 +32,7 @@ class WheelSpeedLimits(Constraint):
         super().__init__(name)
         self._max_speed = None if max_speed is None else as_positive(max_speed, "max_speed")
 
-    def bind(self, robot: Robot) -> "WheelSpeedLimitsData":
+    def bind(self, robot: Robot) -> WheelSpeedLimitsData:
         base = robot.base
         if base.wheels is None or (self.required_kind is not None and base.kind is not self.required_kind):
             wanted = self.required_kind.value if self.required_kind else "wheeled"

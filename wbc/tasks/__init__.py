@@ -2,8 +2,8 @@
 
 from .base_velocity_task import BaseVelocityTask
 from .frame_task import FrameTask
-from .position_task import PositionTask
 from .manipulability_task import ManipulabilityTask
+from .position_task import PositionTask
 from .posture_task import PostureTask
 from .steering_task import SteeringTask
 from .task import Task

@@ -40,7 +40,7 @@ class BaseVelocityTask(Task):
         """Command a base-frame twist ``(v_x, v_y, omega)``."""
         self._twist[...] = as_vector(twist, 3, "base twist")
 
-    def bind(self, robot: Robot) -> "BaseVelocityTaskData":
+    def bind(self, robot: Robot) -> BaseVelocityTaskData:
         if not robot.base.is_mobile:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a fixed base")
         return BaseVelocityTaskData(self, robot)

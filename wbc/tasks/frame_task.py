@@ -84,7 +84,7 @@ class FrameTask(Task):
         pose[:3, :3], pose[:3, 3] = self._target_rotation, self._target_position
         return pose
 
-    def bind(self, robot: Robot) -> "FrameTaskData":
+    def bind(self, robot: Robot) -> FrameTaskData:
         return FrameTaskData(self, robot)
 
     def check_ready(self) -> None:

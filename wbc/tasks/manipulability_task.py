@@ -85,7 +85,7 @@ class ManipulabilityTask(Task):
     def default_name(self) -> str:
         return f"ManipulabilityTask({self.frame})"
 
-    def bind(self, robot: Robot) -> "ManipulabilityTaskData":
+    def bind(self, robot: Robot) -> ManipulabilityTaskData:
         return ManipulabilityTaskData(self, robot)
 
     def __repr__(self) -> str:

@@ -61,7 +61,7 @@ class PositionTask(Task):
     def target(self) -> np.ndarray:
         return self._target.copy()
 
-    def bind(self, robot: Robot) -> "PositionTaskData":
+    def bind(self, robot: Robot) -> PositionTaskData:
         return PositionTaskData(self, robot)
 
     def check_ready(self) -> None:

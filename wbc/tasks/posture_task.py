@@ -66,7 +66,7 @@ class PostureTask(Task):
         for data in self._data:
             data.apply_target(q)
 
-    def bind(self, robot: Robot) -> "PostureTaskData":
+    def bind(self, robot: Robot) -> PostureTaskData:
         data = PostureTaskData(self, robot)
         self._data.add(data)
         return data

@@ -71,7 +71,7 @@ class SteeringTask(Task):
         self._parameters = np.zeros(3)  # kernel operand: (sqrt(cost), gain, speed_scale)
         self.cost, self.gain, self.speed_scale = cost, gain, speed_scale
 
-    def bind(self, robot: Robot) -> "SteeringTaskData":
+    def bind(self, robot: Robot) -> SteeringTaskData:
         if not robot.base.is_nonholonomic:
             raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base; "
                                     "steering is only needed by nonholonomic bases")

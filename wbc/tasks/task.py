@@ -38,7 +38,7 @@ class TaskData:
     #: computed after all others through ``compute_preview``
     uses_preview: bool = False
 
-    def __init__(self, task: "Task") -> None:
+    def __init__(self, task: Task) -> None:
         self.task, self.name = task, task.name
 
     def write_static(self, jacobian: np.ndarray) -> None:
@@ -92,7 +92,7 @@ class Task(Item, TaskData):
         self.name = name or self.default_name()
 
     @property
-    def task(self) -> "Task":
+    def task(self) -> Task:
         return self
 
     def default_name(self) -> str:
