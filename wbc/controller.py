@@ -81,6 +81,7 @@ class Controller:
         self.robot = robot
         self.dt = dt
         self._damping = as_nonnegative(damping, "damping")
+        self._cost_scaling = np.array([self._damping, DAMPING_FLOOR])  # operand of the cost normalisation
         self.tasks = as_items(tasks, Task, "tasks")
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
@@ -122,7 +123,7 @@ class Controller:
 
     @damping.setter
     def damping(self, value) -> None:
-        self._damping = as_nonnegative(value, "damping")
+        self._damping = self._cost_scaling[0] = as_nonnegative(value, "damping")
         np.fill_diagonal(self._damping_rows, np.sqrt(self._damping))
 
     # ------------------------------------------------------------------ setup
@@ -159,6 +160,7 @@ class Controller:
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
         n_eq = sum(c.n_equalities for c in self._constraint_data)
         self._qp_v = QP(nv, n_ineq, n_eq)
+        self._n_rows = n_ineq + n_eq
         bounded = ([c for c in self._constraint_data if c.has_bounds and c.hard]
                    + [c for c in self._constraint_data if c.has_bounds and not c.hard])
         self._n_hard_bounds = sum(c.hard for c in bounded)
@@ -270,7 +272,8 @@ class Controller:
                         program.array(hard_upper), program.array(hard_lower), program.array(qp.ub),
                         program.array(qp.lb), nv)
         self._nan_in_program = self._merge_in_program and (self._preview_in_program or not self._preview_blocks)
-        if self._nan_in_program:
+        if self._nan_in_program:  # H and c complete: normalise them, then screen for NaN
+            program.add(kernels.OP_NORMALISE_COST, program.array(qp.Hc), program.array(self._cost_scaling), nv)
             program.add(kernels.OP_HAS_NAN, program.array(qp.data), qp.data.size)
         self._program = program
         self._unready = list(self._task_data)  # checked every tick until each one is ready
@@ -287,7 +290,7 @@ class Controller:
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
                 and math.isfinite(q.dot(q))):  # fast path of check_configuration
             q = self.robot.check_configuration(q)
-        kin, dt, qp = self.kinematics, self.dt, self._qp_v
+        kin, dt, qp = self.kinematics, self._dt, self._qp_v
         kin.update(q)
         if self._unready:
             self._check_ready()
@@ -313,8 +316,13 @@ class Controller:
         if has_nan:
             solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
         else:
-            kernels.normalise_cost(self.qp.Hc, self._damping, DAMPING_FLOOR)
-            solution = self._checked(self.solver.solve(self.qp))
+            if not self._nan_in_program:
+                kernels.normalise_cost(self.qp.Hc, self._damping, DAMPING_FLOOR)
+            qp_solved = self.qp
+            solution = self.solver.solve(qp_solved)
+            if solution.success and kernels.qp_defect(qp_solved.data, qp_solved.n, self._n_rows,
+                                                      solution.x) > ANSWER_TOLERANCE:
+                solution = self._rejected(solution)
         self._tick += 1
         if not solution.success:
             solution = self._fallback(solution)
@@ -330,18 +338,15 @@ class Controller:
                                     solution.solve_time, time.perf_counter() - start, v, u)
         return v
 
-    def _checked(self, solution: QPSolution) -> QPSolution:
-        """``solution``, unless it violates a bound or row of the QP it solved by more than
-        :data:`ANSWER_TOLERANCE` (relative): then a failure, so the fallback chain answers
-        and the backend's warm start is dropped."""
-        if solution.success:
-            qp = self.qp
-            defect = kernels.constraint_defect(qp.C, qp.upper, qp.lower, solution.x)
-            if defect > ANSWER_TOLERANCE:
-                self.solver.reset()
-                return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
-                                  solution.solve_time)
-        return solution
+    def _rejected(self, solution: QPSolution) -> QPSolution:
+        """A backend's answer that violates a bound or row of the QP it solved by more than
+        :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.kernels.qp_defect`): a failure, so the
+        fallback chain answers, and the backend's warm start is dropped."""
+        qp = self.qp
+        defect = kernels.qp_defect(qp.data, qp.n, self._n_rows, solution.x)
+        self.solver.reset()
+        return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
+                          solution.solve_time)
 
     def _check_ready(self) -> None:
         for task in self._unready:

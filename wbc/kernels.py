@@ -413,6 +413,19 @@ def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np
     return worst
 
 
+@njit("float64(float64[::1], int64, int64, float64[:])", cache=True, nogil=True)
+def qp_defect(data: np.ndarray, n: int, rows: int, x: np.ndarray) -> float:
+    """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.QP`'s
+    flat buffer: H, c, C, upper, lower) with ``n`` variables and ``rows`` rows: the check run
+    on every answer, with two array arguments instead of four."""
+    start = n * n + n
+    m = n + rows
+    C = data[start:start + rows * n].reshape((rows, n))
+    upper = data[start + rows * n:start + rows * n + m]
+    lower = data[start + rows * n + m:start + rows * n + 2 * m]
+    return constraint_defect(C, upper, lower, x)
+
+
 # ---------------------------------------------------------- manipulability
 
 #: closed form accepted while det(gram) > GRAM_CONDITION * (mean eigenvalue)^size
@@ -664,7 +677,7 @@ def has_nan(data: np.ndarray) -> bool:
 # sizes); the layouts are those of the kernels above.
 
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING) = range(1, 12)
+ OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST) = range(1, 13)
 
 
 @intrinsic
@@ -704,6 +717,7 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
       nv, rows, nq
     * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
     * HAS_NAN: data, size
+    * NORMALISE_COST: Hc ((nv + 1) x nv), (damping, damping floor), nv
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
     * POSITION_TASK: J^T, R^T, p, support (nv), settings, frame data, error (3), stack, first row, nv,
       rows, Jacobian scratch (6 x nv)
@@ -753,6 +767,10 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
                         _vector(addresses, op[4], n), _vector(addresses, op[5], n), _vector(addresses, op[6], n))
         elif code == OP_HAS_NAN:
             found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
+        elif code == OP_NORMALISE_COST:
+            nv = op[3]
+            damping = _vector(addresses, op[2], 2)
+            normalise_cost(_matrix(addresses, op[1], nv + 1, nv), damping[0], damping[1])
         elif code == OP_HEADING_ROWS:
             rows, nq, nv = op[6], op[7], op[8]
             heading_rows(_matrix(addresses, op[1], rows, 2), _matrix(addresses, op[2], rows, 2),
