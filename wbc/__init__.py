@@ -32,6 +32,7 @@ from .errors import (
     WbcError,
 )
 from .manipulability import Manipulability, manipulability, manipulability_gradient
+from .outcome import Outcome
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
@@ -44,7 +45,7 @@ __all__ = [
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
     "NonholonomicBase", "WheelSpeedLimits",
     "Manipulability", "manipulability", "manipulability_gradient",
-    "Controller", "TickDiagnostics", "QP",
+    "Controller", "TickDiagnostics", "Outcome", "QP",
     "InvalidInputError", "ModelError", "PlanningError", "ScenarioError", "SolverError", "UnknownFrameError",
     "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",

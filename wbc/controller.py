@@ -1,23 +1,19 @@
 """The control tick: kinematics -> tasks and constraints -> QP -> solver -> command.
 
-The whole hot path is :meth:`Controller.step`. Every buffer is allocated once in
-``__init__``; a tick writes into views of them:
+The whole tick is :meth:`Controller.step`; everything it uses is allocated once, when the
+controller is built, by named pieces:
 
-    Js v ~ rs          (stacked weighted task rows, one block per task)
-    H = Js^T Js + damping I,   c = -Js^T rs
-    lb = max_k lower_k,  ub = min_k upper_k   (bounds of all constraints)
-    G v <= h,  A v = b                         (rows of all constraints)
-
-A tick: Pinocchio updates the kinematics; tasks and constraints without a compiled op
-compute in Python; then one native call (:class:`wbc.program.TickProgram`) runs the
-compiled ones (FrameTask, PositionTask, PostureTask, the SteeringTask preview, position and
-speed limits, wheel and no-slip rows, the manipulability barrier), the normal equations, the
-bound merge and the NaN screen; DAQP
-solves on the QP buffers in place.
-
-Two optional stages: tasks that need the holonomic preview (SteeringTask) get
-``v_h = -H^-1 c`` of the other tasks before their rows are added; with
-``reduced=True`` the QP is rewritten over the real inputs ``u`` (``v = S(q) u``).
+* the **stack layout** (:meth:`Controller._allocate`): one matrix ``[W J | W r]`` whose
+  blocks are the tasks' rows, then ``sqrt(damping) I``, then the preview tasks' rows;
+* the **bound policy** (:class:`wbc.bounds.BoundPolicy`): hard bounds intersected, soft
+  ones clipped into them;
+* the **program** (:class:`wbc.program.TickProgram`): one native call for every compiled
+  item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
+  the cost normalisation and the NaN screen;
+* the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
+  **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
+* the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
+  :class:`wbc.outcome.Outcome`.
 """
 
 from __future__ import annotations
@@ -29,16 +25,24 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import kernels
+from .bounds import BoundPolicy
 from .constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
-from .errors import InvalidInputError, SolverError
+from .errors import InvalidInputError
+from .fallback import ANSWER_TOLERANCE, Fallback
 from .kinematics import Kinematics
+from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
+from .reduction import InputReduction
 from .robot import Robot
 from .solvers import QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
 from .validation import as_flag, as_items, as_nonnegative, as_positive
+
+#: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
+#: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
+DAMPING_FLOOR = 1e-10
 
 
 class Controller:
@@ -65,12 +69,13 @@ class Controller:
     1. *Soft bounds* (position dampers) are clipped into the *hard* ones (speed limits)
        every tick, so conflicting limits never make the QP infeasible (a joint outside its
        range returns at top speed).
-    2. If the backend fails (infeasible rows, iteration / time budget, numerical trouble),
-       the same QP is solved again by DAQP with the rows of soft constraints made
-       *elastic* (violations penalised with weight 1e6): hard limits hold, the violation
-       shows in ``last.max_violation``; status ``"fallback: elastic ..."``.
+    2. Every answer is checked against its QP's bounds and rows (and, for qpsolvers
+       backends, for optimality). If the backend fails (infeasible rows, iteration / time
+       budget, numerical trouble, an answer that does not check), the same QP is solved again
+       by DAQP with the rows of soft constraints made *elastic*: hard limits hold, the
+       violation shows in ``last.max_violation``; ``last.outcome`` is ``Outcome.ELASTIC``.
     3. If that fails too, or the QP data holds NaN, the command is ``v = 0`` (it satisfies
-       every hard limit: speed, wheel and no-slip limits); status ``"fallback: zero ..."``.
+       every shipped hard limit: speed, wheel and no-slip limits); ``Outcome.ZERO``.
     """
 
     def __init__(self, robot: Robot, tasks: Sequence[Task], constraints: Sequence[Constraint] = (),
@@ -98,8 +103,6 @@ class Controller:
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
         self.solver: QPSolver = make_solver(solver, solver_options)
-        # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
-        self._fallback_settings = self.solver.fallback_budget
         self.kinematics = Kinematics(robot)
         self._tick = 0
         self._q_shape = (robot.nq,)
@@ -163,19 +166,10 @@ class Controller:
         self._n_rows = n_ineq + n_eq
         bounded = ([c for c in self._constraint_data if c.has_bounds and c.hard]
                    + [c for c in self._constraint_data if c.has_bounds and not c.hard])
-        self._n_hard_bounds = sum(c.hard for c in bounded)
-        # each bounded constraint k writes (upper; lower) = self._bounds[k], the row order of
-        # the QP buffer; hard constraints first, then soft ones
-        self._bounds = np.empty((max(len(bounded), 1), 2, nv))
-        self._bounds[:, 0], self._bounds[:, 1] = np.inf, -np.inf
-        self._upper, self._lower = self._bounds[:, 0], self._bounds[:, 1]
-        n_hard = self._n_hard_bounds
-        n_soft = len(self._bounds) - n_hard  # 1 with no bounded constraint: an all-inf row
-        # hard bounds: intersected once when no hard constraint rewrites its bounds per tick
-        self._hard_dynamic = any(c.dynamic_bounds for c in bounded[:n_hard])
-        self._hard = self._bounds[0] if n_hard == 1 else np.array([[np.inf] * nv, [-np.inf] * nv])
-        self._soft = self._bounds[n_hard] if n_soft == 1 else np.zeros((2, nv))  # scratch if several
-        self._hard_bound_rows, self._soft_bound_rows = tuple(self._hard), tuple(self._soft)
+        n_hard = sum(c.hard for c in bounded)
+        self._bound_policy = bounds = BoundPolicy(n_hard, len(bounded) - n_hard, nv,
+                                                  any(c.dynamic_bounds for c in bounded[:n_hard]))
+        self._upper, self._lower = bounds.upper, bounds.lower  # per bounded constraint (diagnostics)
         self._constraint_blocks = []
         row_labels: list[str] = []
         soft_rows: list[int] = []
@@ -183,8 +177,7 @@ class Controller:
         qp = self._qp_v
         for constraint in self._constraint_data:
             k = bounded.index(constraint) if constraint.has_bounds else None
-            lower = self._bounds[k, 1] if k is not None else np.full(nv, -np.inf)
-            upper = self._bounds[k, 0] if k is not None else np.full(nv, np.inf)
+            lower, upper = bounds.slot(k) if k is not None else (np.full(nv, -np.inf), np.full(nv, np.inf))
             p, e = constraint.n_inequalities, constraint.n_equalities
             block = ConstraintRows(lower, upper, qp.G[i_ineq:i_ineq + p], qp.h[i_ineq:i_ineq + p],
                                    qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
@@ -194,7 +187,7 @@ class Controller:
                 soft_rows += range(i_ineq, i_ineq + p)
             constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
-        self._intersect_hard_bounds()
+        bounds.intersect_hard()
         for constraint in self._constraint_data:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
@@ -202,24 +195,19 @@ class Controller:
         self._bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
                               for c in bounded] or [[""] * (2 * nv)]
         self._row_labels = row_labels
-        self._soft_rows = np.array(soft_rows, dtype=int)  # indices among the inequality rows
-        self._elastic = None  # DAQP workspace of the fallback, built on first use
+        # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
+        self._fallback = Fallback(np.array(soft_rows, dtype=int), self.solver.fallback_budget, self.strict)
         self._preview = np.zeros(nv)  # holonomic relaxation -H^-1 c of the plain tasks
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
-        self._build_program(n_soft)
+        self._build_program()
 
         self._nonholonomic = robot.base.is_nonholonomic
         self._S = robot.input_map(robot.neutral())
-        if self.reduced:
-            nu = robot.nu
-            self.qp = QP(nu, n_ineq, n_eq)  # what the solver sees
-            self._HS = np.zeros((nv, nu))
-            unit_rows = np.flatnonzero(np.sum(self._S != 0.0, axis=1) == 1)
-            self._bound_v = unit_rows  # v coordinates whose bounds are bounds on one input
-            self._bound_u = np.argmax(self._S[unit_rows] != 0.0, axis=1)
-            self._coupled_v = np.setdiff1d(np.arange(nv), unit_rows)  # base x, y: no bounds allowed
-        else:
-            self.qp = qp
+        self._reduction = InputReduction(self._S, n_ineq, n_eq) if self.reduced else None
+        if self._reduction is not None:
+            bounds.merge(qp)  # the static bounds, checked once
+            self._reduction.check_bounds(qp)
+        self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
 
     def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
         """``item``'s data for this controller (:meth:`wbc.item.Item.bind`); from now on only
@@ -237,7 +225,7 @@ class Controller:
                 return data
         raise InvalidInputError(f"{item!r} is not used by this controller")
 
-    def _build_program(self, n_soft: int) -> None:
+    def _build_program(self) -> None:
         """The compiled part of the tick (wbc.program): tasks and constraints that have ops,
         the normal equations, and -- in the usual case of one soft bound constraint clipped
         into fixed hard bounds, no preview task -- the bound merge and the NaN screen. What has
@@ -265,12 +253,9 @@ class Controller:
                 program.truncate(mark)
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        self._merge_in_program = self._n_hard_bounds >= 1 and n_soft == 1 and not self._hard_dynamic
+        self._merge_in_program = self._bound_policy.compiled
         if self._merge_in_program:
-            (soft_upper, soft_lower), (hard_upper, hard_lower) = self._soft_bound_rows, self._hard_bound_rows
-            program.add(kernels.OP_CLIP_BOUNDS, program.array(soft_upper), program.array(soft_lower),
-                        program.array(hard_upper), program.array(hard_lower), program.array(qp.ub),
-                        program.array(qp.lb), nv)
+            self._bound_policy.add_op(program, qp)
         self._nan_in_program = self._merge_in_program and (self._preview_in_program or not self._preview_blocks)
         if self._nan_in_program:  # H and c complete: normalise them, then screen for NaN
             program.add(kernels.OP_NORMALISE_COST, program.array(qp.Hc), program.array(self._cost_scaling), nv)
@@ -302,31 +287,34 @@ class Controller:
         if qp.n_eq:
             qp.sync_equalities()
         has_nan = self._program.run(dt)  # compiled tasks and constraints, normal equations, ...
+        qp_failure = "QP data holds NaN (from a task or constraint)"
         if self._preview_blocks and not self._preview_in_program:
             self._add_preview_tasks(kin, dt, qp)
         if not self._merge_in_program:
-            self._merge_bounds(qp)
+            self._bound_policy.merge(qp)
         if not self._nan_in_program:
             has_nan = qp.has_nan()
 
         if self._nonholonomic:
             S = self.robot.input_map(q, out=self._S)
-            if self.reduced:
-                self._reduce(S)
+            if self._reduction is not None and not has_nan and not self._reduction.reduce(qp, S):
+                has_nan, qp_failure = True, "reduced form: a constraint bounded the coupled base rates x, y"
         if has_nan:
-            solution = QPSolution(None, False, "QP data holds NaN (from a task or constraint)", 0.0)
+            solution = QPSolution(None, False, qp_failure, 0.0)
         else:
-            if not self._nan_in_program:
-                kernels.normalise_cost(self.qp.Hc, self._damping, DAMPING_FLOOR)
             qp_solved = self.qp
-            solution = self.solver.solve(qp_solved)
+            if not self._nan_in_program:
+                kernels.normalise_cost(qp_solved.Hc, self._damping, DAMPING_FLOOR)
+            solution = self.solver.solve(qp_solved)  # checked against the QP's bounds and rows:
             if solution.success and kernels.qp_defect(qp_solved.data, qp_solved.n, self._n_rows,
                                                       solution.x) > ANSWER_TOLERANCE:
                 solution = self._rejected(solution)
         self._tick += 1
+        outcome, status = Outcome.OPTIMAL, "optimal"
         if not solution.success:
-            solution = self._fallback(solution)
-        if self.reduced:
+            solution, outcome, status = self._fallback.answer(self.qp, solution, self.solver.name, self._tick,
+                                                              has_nan)
+        if self._reduction is not None:
             u = solution.x
             v = S @ u
         elif self._nonholonomic:
@@ -334,8 +322,8 @@ class Controller:
             u = S.T @ v
         else:
             v = u = solution.x
-        self.last = TickDiagnostics(self, self._tick, solution.status, solution.status == "optimal",
-                                    solution.solve_time, time.perf_counter() - start, v, u)
+        self.last = TickDiagnostics(self, self._tick, outcome, status, solution.solve_time,
+                                    time.perf_counter() - start, v, u)
         return v
 
     def _rejected(self, solution: QPSolution) -> QPSolution:
@@ -353,71 +341,6 @@ class Controller:
             task.check_ready()
         self._unready = []
 
-    def _intersect_hard_bounds(self) -> None:
-        if self._n_hard_bounds > 1:
-            _intersect(self._bounds[: self._n_hard_bounds], self._hard)
-
-    def _merge_bounds(self, qp: QP) -> None:
-        """``lb, ub`` = hard bounds intersected, then the soft ones clipped into them (soft
-        bounds that exclude each other are first set to the midpoint of the conflict)."""
-        k, total = self._n_hard_bounds, len(self._bounds)
-        if self._hard_dynamic:
-            self._intersect_hard_bounds()
-        if k == total:
-            qp.bounds[...] = self._hard
-            return
-        if total - k > 1:
-            _intersect(self._bounds[k:], self._soft)
-            _meet_halfway(self._soft)
-        if k == 0:
-            qp.bounds[...] = self._soft
-            _meet_halfway(qp.bounds)
-            return
-        soft_upper, soft_lower = self._soft_bound_rows
-        hard_upper, hard_lower = self._hard_bound_rows
-        kernels.clip_bounds(soft_upper, soft_lower, hard_upper, hard_lower, qp.ub, qp.lb)
-
-    def _fallback(self, failed: QPSolution) -> QPSolution:
-        """Elastic re-solve, then the zero command (see the class docstring)."""
-        if self.strict:
-            raise SolverError(f"{self.solver.name} failed at tick {self._tick}: {failed.status}")
-        reason = f"{self.solver.name}: {failed.status}"
-        elapsed = failed.solve_time
-        if not failed.status.startswith("QP data holds NaN"):
-            elastic = self._elastic_solve()
-            elapsed += elastic.solve_time
-            if elastic.success:
-                return QPSolution(elastic.x, False, f"fallback: elastic soft rows after {reason}", elapsed)
-            reason += f"; elastic: {elastic.status}"
-        return QPSolution(np.zeros(self.qp.n), False, f"fallback: zero command after {reason}", elapsed)
-
-    def _elastic_solve(self) -> QPSolution:
-        """DAQP, cold, on the same QP with soft inequality rows elastic; hard limits checked."""
-        import daqp
-
-        qp = self.qp
-        start = time.perf_counter()
-        sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
-        sense[qp.n + self._soft_rows] = 8  # soft (elastic) rows
-        sense[qp.n + qp.n_ineq:] = 5  # equalities
-        try:
-            x, _, exitflag, _ = daqp.solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense,
-                                           **self._fallback_settings)
-        except Exception as exc:  # noqa: BLE001 -- any backend error means: no elastic solution
-            return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
-        elapsed = time.perf_counter() - start
-        if exitflag < 1 or not np.all(np.isfinite(x)):
-            return QPSolution(None, False, f"exitflag {exitflag}", elapsed)
-        # the bounds are hard here, but DAQP's soft mode was seen to leave them ~1e-6 off on
-        # ill-conditioned ticks: project onto them (exact), then check every hard row
-        np.clip(x, qp.lb, qp.ub, out=x)
-        hard_upper = qp.upper.copy()
-        hard_upper[qp.n + self._soft_rows] = np.inf
-        defect = kernels.constraint_defect(qp.C, hard_upper, qp.lower, x)
-        if defect > ANSWER_TOLERANCE:
-            return QPSolution(None, False, f"hard limits violated by {defect:.1e} (relative)", elapsed)
-        return QPSolution(x, True, "optimal", elapsed)
-
     def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
         """Holonomic relaxation of the plain tasks, then the rows of the preview tasks (the
         Python path of the program's PREVIEW / STEERING / NORMAL_EQUATIONS ops)."""
@@ -425,21 +348,6 @@ class Controller:
         for task, jacobian, target, _ in self._preview_blocks:
             task.compute_preview(kin, dt, jacobian, target, self._preview)
         kernels.normal_equations(self._stack_t, self._n_plain, self._stack_t.shape[1], False, qp.Hc)
-
-    def _reduce(self, S: np.ndarray) -> None:
-        """Rewrite the QP over v as a QP over u with v = S u."""
-        qv, qu = self._qp_v, self.qp
-        if np.any(np.isfinite(qv.lb[self._coupled_v])) or np.any(np.isfinite(qv.ub[self._coupled_v])):
-            raise InvalidInputError("reduced=True needs the base x, y rates unbounded "
-                                    "(express base speed limits as rows, as JointVelocityLimits does)")
-        np.matmul(qv.H, S, out=self._HS)
-        np.matmul(S.T, self._HS, out=qu.H)
-        np.matmul(S.T, qv.c, out=qu.c)
-        np.matmul(qv.C, S, out=qu.C)
-        qu.upper[qu.n:] = qv.upper[qv.n:]
-        qu.lower[qu.n:] = qv.lower[qv.n:]
-        qu.lb[self._bound_u] = qv.lb[self._bound_v]
-        qu.ub[self._bound_u] = qv.ub[self._bound_v]
 
     # ------------------------------------------------------------ diagnostics
     def constraint_violation(self, v: np.ndarray) -> float:
@@ -470,12 +378,6 @@ class Controller:
 
 
 _FLOAT64 = np.dtype(np.float64)
-#: largest relative violation of its own constraints accepted in a backend's answer
-#: (:func:`wbc.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
-ANSWER_TOLERANCE = 1e-6
-#: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
-#: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
-DAMPING_FLOOR = 1e-10
 
 
 #: what a task's or constraint's data computes (TaskData / ConstraintData)
@@ -493,23 +395,6 @@ def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | Constrai
             raise InvalidInputError(
                 f"{type(item).__name__} overrides {name}(), but its rows are computed by {type(data).__name__}: "
                 f"subclass {type(data).__name__} and return it from bind() (docs/extending.md)")
-
-
-def _intersect(bounds: np.ndarray, out: np.ndarray) -> None:
-    """``out = (min_k upper_k; max_k lower_k)`` of ``bounds`` (k, 2, nv) rows (upper; lower)."""
-    np.minimum(bounds[0, 0], bounds[1, 0], out=out[0])
-    np.maximum(bounds[0, 1], bounds[1, 1], out=out[1])
-    for upper, lower in bounds[2:]:
-        np.minimum(out[0], upper, out=out[0])
-        np.maximum(out[1], lower, out=out[1])
-
-
-def _meet_halfway(bounds: np.ndarray) -> None:
-    """Where soft bounds (upper; lower) exclude each other (lower > upper), set both to their midpoint."""
-    upper, lower = bounds
-    conflict = lower > upper
-    if conflict.any():
-        lower[conflict] = upper[conflict] = 0.5 * (lower[conflict] + upper[conflict])
 
 
 def _velocity_names(robot: Robot) -> list[str]:

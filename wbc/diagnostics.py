@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import WbcError
+from .outcome import Outcome
 
 if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller
@@ -23,9 +24,10 @@ class TickDiagnostics:
 
     Always available (set during the tick):
 
-    * ``tick`` -- tick counter; ``solver``; ``status`` -- ``"optimal"``, or what went wrong and
-      which fallback produced the command (see :class:`Controller`); ``success`` -- True when the
-      command is the solution of the full QP;
+    * ``tick`` -- tick counter; ``solver``; ``outcome`` -- :class:`wbc.outcome.Outcome` (which link
+      of the fallback chain answered); ``status`` -- ``"optimal"``, or what went wrong and which
+      fallback produced the command, in words (see :class:`Controller`); ``success`` -- True when
+      the command is the (checked) solution of the full QP (``outcome is Outcome.OPTIMAL``);
     * ``solve_time`` -- time inside the QP backend(s) [s]; ``tick_time`` -- whole ``step`` [s];
     * ``v`` -- the command; ``u`` -- the same command over the real inputs, ``v = S(q) u``
       (``u is v`` for holonomic bases).
@@ -41,13 +43,14 @@ class TickDiagnostics:
       :data:`ACTIVE_TOLERANCE`), e.g. ``"JointVelocityLimits: arm_joint_2 upper"``.
     """
 
-    __slots__ = ("tick", "solver", "status", "success", "solve_time", "tick_time", "v", "u",
+    __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
                  "_controller", "_task_errors", "_active", "_violation")
 
-    def __init__(self, controller: Controller, tick: int, status: str, success: bool, solve_time: float,
+    def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
                  tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
         self._controller = controller
-        self.tick, self.solver, self.status, self.success = tick, controller.solver.name, status, success
+        self.tick, self.solver, self.outcome, self.status = tick, controller.solver.name, outcome, status
+        self.success = outcome is Outcome.OPTIMAL
         self.solve_time, self.tick_time, self.v, self.u = solve_time, tick_time, v, u
         self._task_errors: dict[str, float] | None = None
         self._active: list[str] | None = None
