@@ -95,17 +95,20 @@ _MODULE_OF = {name: module for module, names in COMPILED.items() for name in nam
 
 _prepared = False
 _loaded = False
+#: numba's cache directory of this package, known after the first :func:`prepare_cache`
+#: (None: numba found no writable place and compiles on every load)
+cache_directory: Path | None = None
 
 
 def prepare_cache() -> None:
     """Apply the cache rule of this package's docstring once per process, before the first
     topic module compiles (each topic module calls it first): stale entries are deleted, a
     cold cache is announced by one line on stderr."""
-    global _prepared
+    global _prepared, cache_directory
     if not _prepared:
         from . import _cache
 
-        _cache.prepare(Path(__file__).parent, tuple(COMPILED))
+        cache_directory = _cache.prepare(Path(__file__).parent, tuple(COMPILED))
         _prepared = True
 
 
