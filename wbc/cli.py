@@ -1,5 +1,5 @@
 """Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--sim mujoco]``, ``wbc solvers``,
-``wbc singularities MODEL``, ``wbc bench SUITE``."""
+``wbc singularities MODEL``, ``wbc bench SUITE``, ``wbc warmup``."""
 
 from __future__ import annotations
 
@@ -112,6 +112,21 @@ def _solvers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _warmup(args: argparse.Namespace) -> int:
+    """Load the compiled kernels -- compiling them if the cache is cold -- and say how long it took."""
+    import time
+
+    from . import kernels
+
+    start = time.perf_counter()
+    kernels.load()
+    elapsed = time.perf_counter() - start
+    where = kernels.cache_directory
+    print(f"numba kernels ready in {elapsed:.1f} s ("
+          + (f"cached in {where})" if where is not None else "not cached: numba found no writable cache directory)"))
+    return 0
+
+
 def _singularities(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -197,6 +212,10 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.set_defaults(handler=_run)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
     solvers_parser.set_defaults(handler=_solvers)
+    warmup_parser = sub.add_parser("warmup", help="compile (or load) the numba kernels now and report the time",
+                                   description="Pays the one-time compilation after an install (~20 s) up front, "
+                                               "e.g. in an installer or a Docker build; later runs load the cache.")
+    warmup_parser.set_defaults(handler=_warmup)
     sing_parser = sub.add_parser("singularities", help="print a model's certified singular conditions and check them")
     sing_parser.add_argument("model", help="shipped model name (e.g. youbot, scorbot_er4pc, puma560)")
     sing_parser.add_argument("--samples", type=int, default=2000, help="random configurations per subsystem")

@@ -7,6 +7,7 @@ import functools
 import numpy as np
 import pinocchio as pin
 
+from . import kernels
 from .errors import ModelError
 from .robot import Robot
 
@@ -23,6 +24,9 @@ class Kinematics:
     """
 
     def __init__(self, robot: Robot) -> None:
+        # whatever reads a Kinematics runs the compiled kernels: load (or compile) them now,
+        # when a controller is built, not in its first tick
+        kernels.load()
         self.robot = robot
         self.model = robot.model
         self.data = robot.model.createData()

@@ -1,0 +1,195 @@
+"""numba is imported only when compiled code is first needed; its on-disk cache is never stale.
+
+``import wbc`` (and ``wbc.singularity``, ``wbc.trajectory``, ``wbc solvers``, ``wbc --help``)
+must not import numba; building a controller loads the kernels. numba keys a cached function
+on its own source file only, so :mod:`wbc.kernels._cache` deletes the package's entries when
+any kernel source changes: checked here on a small package with a cross-file call, whose
+stale cache numba alone would load.
+"""
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from wbc import kernels
+from wbc.kernels import _cache
+
+
+@pytest.fixture(scope="module")
+def warm():
+    """The kernels loaded in this process, so that their cache is warm for the subprocesses."""
+    kernels.load()
+
+
+def _python(code: str, env: dict | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})}, cwd=cwd, timeout=300)
+
+
+def test_import_does_not_import_numba():
+    result = _python("""
+        import sys
+        import wbc, wbc.singularity, wbc.trajectory
+        from wbc import kernels
+        assert kernels.FRAME_GAIN == 24 and kernels.OP_FRAME_TASK == 1  # the layouts need no numba
+        print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite")))
+    """)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("argv", [["solvers"], ["--help"]])
+def test_cli_without_kernels_does_not_import_numba(argv):
+    result = _python(f"""
+        import sys
+        from wbc.cli import main
+        try:
+            status = main({argv!r})
+        except SystemExit as exc:
+            status = exc.code
+        print("numba" in sys.modules, status)
+    """)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip().splitlines()[-1] == "False 0"
+
+
+def test_building_a_controller_loads_the_kernels(warm):
+    result = _python("""
+        import sys
+        import wbc
+        robot = wbc.load_robot("youbot")
+        assert "numba" not in sys.modules
+        controller = wbc.Controller(robot, tasks=[wbc.FrameTask("ee", 1.0, 0.5), wbc.PostureTask(cost=1e-3)])
+        print("numba" in sys.modules)
+    """)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "True"
+    assert result.stderr == ""  # warm cache: no compile message
+
+
+def test_loaded_kernels_are_plain_attributes(warm):
+    """After the first load no lookup goes through the module __getattr__ (the tick path)."""
+    namespace = vars(kernels)
+    for module, names in kernels.COMPILED.items():
+        topic = vars(getattr(kernels, module))
+        for name in names:
+            assert namespace[name] is topic[name]
+        # every public compiled function of a topic module is re-exported
+        dispatchers = {name for name, value in topic.items() if not name.startswith("_")
+                       and hasattr(value, "py_func") and value.__module__ == topic["__name__"]}
+        assert dispatchers == set(names), module
+    with pytest.raises(AttributeError):
+        kernels.no_such_kernel  # noqa: B018
+
+
+def test_warmup_command(warm):
+    result = subprocess.run([sys.executable, "-m", "wbc.cli", "warmup"], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("numba kernels ready in ")
+    assert result.stderr == ""
+
+
+# ----------------------------------------------------------------- the cache rule
+
+
+def test_source_stamp_follows_every_file_and_numba(tmp_path):
+    (tmp_path / "a.py").write_text("x = 1\n")
+    (tmp_path / "b.py").write_text("y = 2\n")
+    stamp = _cache.source_stamp(tmp_path, "0.60.0")
+    assert _cache.source_stamp(tmp_path, "0.60.0") == stamp
+    assert _cache.source_stamp(tmp_path, "0.61.0") != stamp
+    (tmp_path / "b.py").write_text("y = 3\n")
+    assert _cache.source_stamp(tmp_path, "0.60.0") != stamp
+
+
+def test_invalidate_deletes_only_this_package_entries(tmp_path):
+    tag = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    ours = [f"frames.log3-22.{tag}.nbi", f"frames.log3-22.{tag}.1.nbc", f"tick.run_program-62.{tag}.nbi",
+            "tick.run_program-62.py399.nbi"]  # another Python's entry is as stale
+    others = ["frames.cpython-311.pyc", "other.f-3.py311.nbi"]
+    for name in ours + others:
+        (tmp_path / name).write_bytes(b"")
+    modules = ("frames", "tick")
+    assert not _cache.is_cold(tmp_path, modules)
+    assert not _cache.is_cold(tmp_path, ("frames",))
+    assert _cache.is_cold(tmp_path, ("frames", "joints"))  # joints has no index: it will compile
+    assert _cache.invalidate(tmp_path, "stamp 1", modules)  # no record yet: compiled from unknown sources
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(others + [_cache.STAMP_FILE])
+    assert _cache.is_cold(tmp_path, modules)
+    for name in ours:
+        (tmp_path / name).write_bytes(b"")
+    assert not _cache.invalidate(tmp_path, "stamp 1", modules)  # same sources: kept
+    assert all((tmp_path / name).exists() for name in ours)
+    assert _cache.invalidate(tmp_path, "stamp 2", modules)
+    assert not any((tmp_path / name).exists() for name in ours)
+
+
+def test_cache_directory_is_numbas(warm):
+    """The directory the rule watches is the one numba writes the kernels' entries to."""
+    import numba
+
+    folder = Path(kernels.__file__).parent
+    directory = _cache.cache_dir(folder / "frames.py")
+    assert directory == kernels.cache_directory == _cache.default_cache_dir(folder / "frames.py")
+    assert (directory / _cache.STAMP_FILE).read_text().strip() == _cache.source_stamp(folder, numba.__version__)
+    assert not _cache.is_cold(directory, tuple(kernels.COMPILED))
+
+
+_CALLEE = """
+from numba import njit
+
+@njit("float64(float64)", cache=True)
+def g(x):
+    return x + 1.0
+"""
+_CALLER = """
+from numba import njit
+from .callee import g
+
+@njit("float64(float64)", cache=True)
+def f(x):
+    return g(x) * 10.0
+"""
+_INIT = """
+import importlib.util
+from pathlib import Path
+
+spec = importlib.util.spec_from_file_location("kernel_cache", {cache_module!r})
+cache = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(cache)
+cache.prepare(Path(__file__).parent, ("callee", "caller"))
+"""
+
+
+@pytest.mark.parametrize("where", ["in-tree", "NUMBA_CACHE_DIR", "user-wide"])
+def test_changed_callee_in_another_file_is_recompiled(tmp_path, where):
+    """A caller cached by numba keeps a changed callee of another file (numba alone would load
+    ``f(1) = 20`` after ``g`` became ``x + 2``); the rule deletes the entries and says so."""
+    package = tmp_path / "pkg"
+    package.mkdir()
+    (package / "__init__.py").write_text(_INIT.format(cache_module=_cache.__file__))
+    (package / "callee.py").write_text(_CALLEE)
+    (package / "caller.py").write_text(_CALLER)
+    env = {"PYTHONPATH": str(tmp_path)}
+    if where == "NUMBA_CACHE_DIR":
+        env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba-cache")
+    elif where == "user-wide":  # where numba caches for a read-only site-packages
+        env |= {"NUMBA_CACHE_LOCATOR_CLASSES": "UserWideCacheLocator", "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    run = "from pkg.caller import f; print(f(1.0))"
+
+    first = _python(run, env, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    assert (first.stdout.strip(), first.stderr.strip()) == ("20.0", _cache.COLD_MESSAGE)
+    again = _python(run, env, cwd=tmp_path)
+    assert (again.stdout.strip(), again.stderr) == ("20.0", "")  # loaded from the cache, silently
+    if where != "in-tree":
+        assert not (package / "__pycache__").exists() or not list((package / "__pycache__").glob("*.nbi"))
+
+    (package / "callee.py").write_text(_CALLEE.replace("x + 1.0", "x + 2.0"))
+    changed = _python(run, env, cwd=tmp_path)
+    assert changed.returncode == 0, changed.stderr
+    assert (changed.stdout.strip(), changed.stderr.strip()) == ("30.0", _cache.CHANGED_MESSAGE)

@@ -1,0 +1,163 @@
+"""QP assembly: normal equations, holonomic preview solve, bound clip, cost normalisation,
+NaN screen and the answer check (layout of :class:`wbc.qp.QP`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import prepare_cache
+
+prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+
+@njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=True, nogil=True)
+def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
+    """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
+
+    ``stack_t`` is ``A^T`` ((nv + 1) x rows); rows ``first:last`` of ``A`` are used:
+    ``H = sum_rows (WJ)_r^T (WJ)_r``, ``c = -sum_rows (WJ)_r^T (W r)_r``, one rank-1 update
+    per row over its non-zero entries only -- posture and damping rows have one, so the cost
+    grows with the dense rows (nv^2 each), not with nv^2 times every row. ``reset=False``
+    adds to ``Hc`` instead of overwriting it (the preview rows).
+    """
+    nv = Hc.shape[1]
+    if reset:
+        for i in range(nv + 1):
+            for j in range(nv):
+                Hc[i, j] = 0.0
+    nonzero = np.empty(nv, dtype=np.int64)
+    for r in range(first, last):
+        count = 0
+        for i in range(nv):
+            if stack_t[i, r] != 0.0:
+                nonzero[count] = i
+                count += 1
+        target = stack_t[nv, r]
+        for a in range(count):
+            i = nonzero[a]
+            value = stack_t[i, r]
+            for b in range(a, count):
+                j = nonzero[b]
+                Hc[i, j] += value * stack_t[j, r]
+            Hc[nv, i] -= target * value
+    for i in range(nv):  # mirror the upper triangle
+        for j in range(i):
+            Hc[i, j] = Hc[j, i]
+
+
+@njit("boolean(float64[:, :], float64[:, :], float64[:])", cache=True, nogil=True)
+def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
+    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (``factor``: nv x nv scratch).
+    Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
+    nv = Hc.shape[1]
+    for j in range(nv):
+        pivot = Hc[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if not pivot > 0.0:
+            for i in range(nv):
+                preview[i] = 0.0
+            return False
+        factor[j, j] = math.sqrt(pivot)
+        for a in range(j + 1, nv):
+            total = Hc[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total / factor[j, j]
+    for a in range(nv):  # L y = -c
+        total = -Hc[nv, a]
+        for p in range(a):
+            total -= factor[a, p] * preview[p]
+        preview[a] = total / factor[a, a]
+    for a in range(nv - 1, -1, -1):  # L^T x = y
+        total = preview[a]
+        for p in range(a + 1, nv):
+            total -= factor[p, a] * preview[p]
+        preview[a] = total / factor[a, a]
+    return True
+
+
+@njit("void(float64[:], float64[:], float64[:], float64[:], float64[:], float64[:])", cache=True, nogil=True)
+def clip_bounds(soft_upper: np.ndarray, soft_lower: np.ndarray, hard_upper: np.ndarray, hard_lower: np.ndarray,
+                upper: np.ndarray, lower: np.ndarray) -> None:
+    """Soft bounds clipped into the hard ones: ``clip(soft, hard_lower, hard_upper)``, both sides."""
+    for i in range(len(upper)):
+        upper[i] = min(max(soft_upper[i], hard_lower[i]), hard_upper[i])
+        lower[i] = min(max(soft_lower[i], hard_lower[i]), hard_upper[i])
+
+
+@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
+    """Scale ``[H; c]`` so that ``max_i H_ii = 1`` (the minimiser is unchanged), then raise the
+    damping to at least ``damping_floor`` of that scale.
+
+    Costs far from 1 (a weight of 1e11, or 1e-12 everywhere) otherwise meet absolute
+    tolerances inside the solvers: DAQP then returned answers violating hard rows by O(1).
+    ``damping`` is the part of ``H_ii`` that is damping: where it is below ``damping_floor``
+    times the scale, ``H`` is numerically singular in double precision (costs 1e12 over a
+    damping of 1e-3) and the floor is added, a regularisation below every solver's tolerance."""
+    n = Hc.shape[1]
+    scale = 0.0
+    for i in range(n):
+        scale = max(scale, Hc[i, i])
+    if scale > 0.0 and math.isfinite(scale):
+        inverse = 1.0 / scale
+        for i in range(n + 1):
+            for j in range(n):
+                Hc[i, j] *= inverse
+        missing = damping_floor - damping * inverse
+        if missing > 0.0:
+            for i in range(n):
+                Hc[i, i] += missing
+
+
+@njit("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=True, nogil=True)
+def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
+    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
+    :class:`wbc.qp.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
+    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
+    n = x.shape[0]
+    worst = 0.0
+    for i in range(upper.shape[0]):
+        if i < n:
+            value = x[i]
+            size = abs(value)
+        else:
+            value = 0.0
+            size = 0.0
+            for j in range(n):
+                term = C[i - n, j] * x[j]
+                value += term
+                size += abs(term)
+        if not math.isfinite(value):
+            return math.inf
+        excess = max(value - upper[i], lower[i] - value)
+        if excess > 0.0:
+            bound = upper[i] if value > upper[i] else lower[i]
+            worst = max(worst, excess / max(1.0, abs(bound), size))
+    return worst
+
+
+@njit("float64(float64[::1], int64, int64, float64[:])", cache=True, nogil=True)
+def qp_defect(data: np.ndarray, n: int, rows: int, x: np.ndarray) -> float:
+    """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.QP`'s
+    flat buffer: H, c, C, upper, lower) with ``n`` variables and ``rows`` rows: the check run
+    on every answer, with two array arguments instead of four."""
+    start = n * n + n
+    m = n + rows
+    C = data[start:start + rows * n].reshape((rows, n))
+    upper = data[start + rows * n:start + rows * n + m]
+    lower = data[start + rows * n + m:start + rows * n + 2 * m]
+    return constraint_defect(C, upper, lower, x)
+
+
+@njit("boolean(float64[:])", cache=True, nogil=True)
+def has_nan(data: np.ndarray) -> bool:
+    """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
+    for value in data:
+        if math.isnan(value):
+            return True
+    return False

@@ -1,0 +1,76 @@
+"""Joint-space kernels: PostureTask and SteeringTask rows, position-limit bounds, heading rows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import prepare_cache
+
+prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+
+# ------------------------------------------------------------------- tasks
+
+
+@njit("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True,
+      nogil=True)
+def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, dt: float,
+                 error: np.ndarray, target: np.ndarray) -> None:
+    """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
+    (``settings = (gain,)``)."""
+    scale = settings[0] / dt
+    for i in range(len(q)):
+        error[i] = reference[i] - q[i]
+        target[i] = weights[i] * scale * error[i]
+
+
+@njit("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
+      cache=True, nogil=True)
+def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, parameters: np.ndarray,
+                 dt: float, error: np.ndarray, jacobian: np.ndarray, target: np.ndarray) -> None:
+    """Row of :class:`~wbc.SteeringTask` from the holonomic ``preview`` velocity:
+    ``delta = wrap_[-pi/2, pi/2)(atan2(ydot, xdot) - heading)``, weight
+    ``sqrt(cost) min(1, speed / speed_scale)``; ``parameters = (sqrt(cost), gain, speed_scale)``."""
+    xdot, ydot = preview[x], preview[y]
+    speed = math.sqrt(xdot * xdot + ydot * ydot)
+    delta = 0.0
+    if speed > 0.0:
+        delta = math.atan2(ydot, xdot) - q[heading]
+        delta = (delta + math.pi / 2) % math.pi - math.pi / 2  # drive forward or backward
+    weight = parameters[0] * min(1.0, speed / parameters[2])
+    error[0] = delta
+    for k in range(len(jacobian)):
+        jacobian[k] = 0.0
+    jacobian[heading] = weight
+    target[0] = weight * parameters[1] * delta / dt
+
+
+# ------------------------------------------------------------- constraints
+
+
+@njit("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=True, nogil=True)
+def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
+                          dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
+    """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
+    fraction ``gain`` of each margin per tick; outside them the full margins (``gain = 1``),
+    so the joint may land on the violated limit in one tick and ``lower <= upper`` holds
+    whatever the gain (a small gain on one side only would exclude the way back)."""
+    for i in range(len(q)):
+        low = (lower_limit[i] - q[i]) / dt
+        high = (upper_limit[i] - q[i]) / dt
+        scale = gain if low <= 0.0 <= high else 1.0
+        lower[i] = scale * low
+        upper[i] = scale * high
+
+
+@njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=True, nogil=True)
+def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray,
+                 x: int, y: int) -> None:
+    """Base-frame rows: columns ``x, y`` of ``G`` = ``cos(q[heading]) A + sin(q[heading]) B``."""
+    c, s = math.cos(q[heading]), math.sin(q[heading])
+    for r in range(G.shape[0]):
+        G[r, x] = c * cos_part[r, 0] + s * sin_part[r, 0]
+        G[r, y] = c * cos_part[r, 1] + s * sin_part[r, 1]

@@ -1,0 +1,152 @@
+"""The tick program: one compiled call runs every compiled part of a tick.
+
+Its operands are registered once (wbc.program.TickProgram) as C-contiguous float64 arrays
+and handed over by address: entering a numba function costs ~0.1 us per array argument,
+a dozen arrays would cost more than the arithmetic. Each program row is
+[opcode, operands...] (array indices and sizes); the opcodes are the ``OP_*`` constants
+of :mod:`wbc.kernels`, the layouts those of the kernels of the topic modules.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import carray, njit, types
+from numba.extending import intrinsic
+
+from . import (
+    FRAME_DATA,
+    FRAME_SETTINGS,
+    OP_CLIP_BOUNDS,
+    OP_FRAME_TASK,
+    OP_HAS_NAN,
+    OP_HEADING_ROWS,
+    OP_MANIPULABILITY_BARRIER,
+    OP_NORMAL_EQUATIONS,
+    OP_NORMALISE_COST,
+    OP_POSITION_LIMITS,
+    OP_POSITION_TASK,
+    OP_POSTURE,
+    OP_PREVIEW,
+    OP_STEERING,
+    POSITION_SETTINGS,
+    prepare_cache,
+)
+from .assembly import clip_bounds, has_nan, normal_equations, normalise_cost, preview_solve
+from .frames import frame_task_rows, position_task_rows
+from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
+from .manipulability import barrier_row
+
+prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+
+@intrinsic
+def _as_pointer(typingctx, address):
+    """The float64 pointer at integer ``address`` (registered arrays only: see TickProgram)."""
+    signature = types.CPointer(types.float64)(types.int64)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return signature, codegen
+
+
+@njit(inline="always")
+def _vector(addresses: np.ndarray, index: int, size: int) -> np.ndarray:
+    return carray(_as_pointer(addresses[index]), (size,))
+
+
+@njit(inline="always")
+def _matrix(addresses: np.ndarray, index: int, rows: int, columns: int) -> np.ndarray:
+    return carray(_as_pointer(addresses[index]), (rows, columns))
+
+
+@njit("boolean(int64[:, :], int64[:], float64)", cache=True, nogil=True)
+def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
+    """Run the rows of ``program`` in order; returns True when a HAS_NAN row found a NaN.
+
+    Rows (array operands by index into ``addresses``):
+
+    * FRAME_TASK: J^T (nv x 6), R^T (3 x 3), p (3), support (nv), settings, frame data, error (6),
+      stack A^T ((nv + 1) x rows), first row, nv, rows
+    * POSTURE: q (dim), reference (dim), W (dim), settings (gain), error (dim), stack, first row, dim, nv, rows
+    * POSITION_LIMITS: q (k), lower limit, upper limit, gain (1), lower out, upper out, k
+    * NORMAL_EQUATIONS: stack, nv, rows, first row, last row, reset (0/1), Hc ((nv + 1) x nv)
+    * PREVIEW: Hc, factor scratch (nv x nv), preview (nv), nv
+    * STEERING: preview (nv), q (nq), x, y, heading, parameters (3), error (1), stack, first row,
+      nv, rows, nq
+    * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
+    * HAS_NAN: data, size
+    * NORMALISE_COST: Hc ((nv + 1) x nv), (damping, damping floor), nv
+    * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
+    * POSITION_TASK: J^T, R^T, p, support (nv), settings, frame data, error (3), stack, first row, nv,
+      rows, Jacobian scratch (6 x nv)
+    * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
+      Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
+      settings (gain, min value), value out (1), first row, last row, nv
+    """
+    found_nan = False
+    for r in range(program.shape[0]):
+        op = program[r]
+        code = op[0]
+        if code == OP_FRAME_TASK:
+            nv, rows, start = op[10], op[11], op[9]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
+            frame_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                            _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
+                            _vector(addresses, op[5], FRAME_SETTINGS), _vector(addresses, op[6], FRAME_DATA), dt,
+                            _vector(addresses, op[7], 6), stack_t[:nv, start:start + 6].T, stack_t[nv, start:start + 6])
+        elif code == OP_POSTURE:
+            start, dim, nv, rows = op[7], op[8], op[9], op[10]
+            stack_t = _matrix(addresses, op[6], nv + 1, rows)
+            posture_rows(_vector(addresses, op[1], dim), _vector(addresses, op[2], dim),
+                         _vector(addresses, op[3], dim), _vector(addresses, op[4], 1), dt,
+                         _vector(addresses, op[5], dim), stack_t[nv, start:start + dim])
+        elif code == OP_POSITION_LIMITS:
+            k = op[7]
+            position_limit_bounds(_vector(addresses, op[1], k), _vector(addresses, op[2], k),
+                                  _vector(addresses, op[3], k), _vector(addresses, op[4], 1)[0], dt,
+                                  _vector(addresses, op[5], k), _vector(addresses, op[6], k))
+        elif code == OP_NORMAL_EQUATIONS:
+            nv, rows = op[2], op[3]
+            normal_equations(_matrix(addresses, op[1], nv + 1, rows), op[4], op[5], op[6] != 0,
+                             _matrix(addresses, op[7], nv + 1, nv))
+        elif code == OP_PREVIEW:
+            nv = op[4]
+            preview_solve(_matrix(addresses, op[1], nv + 1, nv), _matrix(addresses, op[2], nv, nv),
+                          _vector(addresses, op[3], nv))
+        elif code == OP_STEERING:
+            nv, rows, start, nq = op[10], op[11], op[9], op[12]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
+            steering_row(_vector(addresses, op[1], nv), _vector(addresses, op[2], nq), op[3], op[4], op[5],
+                         _vector(addresses, op[6], 3), dt, _vector(addresses, op[7], 1), stack_t[:nv, start],
+                         stack_t[nv, start:start + 1])
+        elif code == OP_CLIP_BOUNDS:
+            n = op[7]
+            clip_bounds(_vector(addresses, op[1], n), _vector(addresses, op[2], n), _vector(addresses, op[3], n),
+                        _vector(addresses, op[4], n), _vector(addresses, op[5], n), _vector(addresses, op[6], n))
+        elif code == OP_HAS_NAN:
+            found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
+        elif code == OP_NORMALISE_COST:
+            nv = op[3]
+            damping = _vector(addresses, op[2], 2)
+            normalise_cost(_matrix(addresses, op[1], nv + 1, nv), damping[0], damping[1])
+        elif code == OP_HEADING_ROWS:
+            rows, nq, nv = op[6], op[7], op[8]
+            heading_rows(_matrix(addresses, op[1], rows, 2), _matrix(addresses, op[2], rows, 2),
+                         _vector(addresses, op[3], nq), op[4], _matrix(addresses, op[5], rows, nv), op[9], op[10])
+        elif code == OP_POSITION_TASK:
+            nv, rows, start = op[10], op[11], op[9]
+            stack_t = _matrix(addresses, op[8], nv + 1, rows)
+            position_task_rows(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                               _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
+                               _vector(addresses, op[5], POSITION_SETTINGS), _vector(addresses, op[6], FRAME_DATA),
+                               dt, _vector(addresses, op[7], 3), stack_t[:nv, start:start + 3].T,
+                               stack_t[nv, start:start + 3], _matrix(addresses, op[12], 6, nv))
+        elif code == OP_MANIPULABILITY_BARRIER:
+            nv = op[16]
+            barrier_row(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,
+                        _vector(addresses, op[3], 3), _vector(addresses, op[4], 12), _vector(addresses, op[5], nv),
+                        _matrix(addresses, op[6], nv, nv), _matrix(addresses, op[7], 6, nv),
+                        _vector(addresses, op[8], 3), _vector(addresses, op[9], nv), _vector(addresses, op[10], nv),
+                        _vector(addresses, op[11], 1), _vector(addresses, op[12], 2), _vector(addresses, op[13], 1),
+                        op[14], op[15], dt)
+    return found_nan
