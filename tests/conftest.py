@@ -1,4 +1,5 @@
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +21,10 @@ elif os.environ.get("CI"):
 
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = ROOT / "tasks"
+#: working directory of `python -c` subprocesses: outside the checkout, so that they import
+#: the installed wbc (from the checkout root, `-c` would import the source tree, which has
+#: no wbc.models in a non-editable install)
+NEUTRAL = tempfile.gettempdir()
 
 
 @pytest.fixture(scope="session")

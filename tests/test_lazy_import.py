@@ -15,6 +15,7 @@ from pathlib import Path
 
 import pytest
 
+from conftest import NEUTRAL
 from wbc import kernels
 from wbc.kernels import _cache
 
@@ -25,7 +26,7 @@ def warm():
     kernels.load()
 
 
-def _python(code: str, env: dict | None = None, cwd: Path | None = None) -> subprocess.CompletedProcess:
+def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
                           env={**os.environ, **(env or {})}, cwd=cwd, timeout=300)
 
@@ -87,7 +88,8 @@ def test_loaded_kernels_are_plain_attributes(warm):
 
 
 def test_warmup_command(warm):
-    result = subprocess.run([sys.executable, "-m", "wbc.cli", "warmup"], capture_output=True, text=True, timeout=300)
+    result = subprocess.run([sys.executable, "-m", "wbc.cli", "warmup"], capture_output=True, text=True, timeout=300,
+                            cwd=NEUTRAL)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("numba kernels ready in ")
     assert result.stderr == ""

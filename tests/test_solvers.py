@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import wbc
-from conftest import TASKS
+from conftest import NEUTRAL, TASKS
 from wbc.qp import QP
 from wbc.scenario import load_scenario
 from wbc.solvers import make_solver
@@ -145,6 +145,7 @@ print("survived")
 def test_no_backend_kills_the_process_on_ill_conditioned_qps(name):
     """Backends abort in C (HiGHS has been reported to abort with malloc(): invalid size):
     run ill-conditioned / degenerate QPs in a child process with wbc's default settings."""
-    child = subprocess.run([sys.executable, "-c", CRASH_PROBE, name], capture_output=True, text=True, timeout=300)
+    child = subprocess.run([sys.executable, "-c", CRASH_PROBE, name], capture_output=True, text=True, timeout=300,
+                           cwd=NEUTRAL)
     assert child.returncode == 0, f"{name} killed the process ({child.returncode}): {child.stderr[-2000:]}"
     assert child.stdout.strip().endswith("survived")

@@ -52,9 +52,8 @@ class BoundPolicy:
     def add_op(self, program: TickProgram, qp: QP) -> None:
         """The clip of the soft bounds into the hard ones as a compiled op (when :attr:`compiled`)."""
         (soft_upper, soft_lower), (hard_upper, hard_lower) = self._soft_rows, self._hard_rows
-        program.add(kernels.OP_CLIP_BOUNDS, program.array(soft_upper), program.array(soft_lower),
-                    program.array(hard_upper), program.array(hard_lower), program.array(qp.ub),
-                    program.array(qp.lb), qp.n)
+        program.add(kernels.OP_CLIP_BOUNDS, soft_upper=soft_upper, soft_lower=soft_lower, hard_upper=hard_upper,
+                    hard_lower=hard_lower, upper=qp.ub, lower=qp.lb, n=qp.n)
 
     def merge(self, qp: QP) -> None:
         """``lb, ub`` of ``qp``: hard bounds intersected, then the soft ones clipped into them."""

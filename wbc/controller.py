@@ -235,19 +235,19 @@ class Controller:
         # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, self._stack_t, start))]
-        stack, rows = program.array(self._stack_t), self._stack_t.shape[1]
-        program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, 0, self._n_plain, 1, program.array(qp.Hc))
+        stack, rows = self._stack_t, self._stack_t.shape[1]
+        program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain, reset=1,
+                    Hc=qp.Hc)
         # preview tasks (SteeringTask): in the program when all of them have ops, else in Python after it
         self._preview_in_program = False
         if self._preview_blocks:
             mark = len(program)
-            program.add(kernels.OP_PREVIEW, program.array(qp.Hc), program.array(self._factor),
-                        program.array(self._preview), nv)
+            program.add(kernels.OP_PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
             if all(ops_follow_compute(task, "compute_preview", "add_preview_ops")
                    and task.add_preview_ops(program, kin, self._stack_t, start, self._preview)
                    for task, _, _, start in self._preview_blocks):
-                program.add(kernels.OP_NORMAL_EQUATIONS, stack, nv, rows, self._n_plain, rows, 0,
-                            program.array(qp.Hc))
+                program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain,
+                            last=rows, reset=0, Hc=qp.Hc)
                 self._preview_in_program = True
             else:
                 program.truncate(mark)
@@ -258,8 +258,8 @@ class Controller:
             self._bound_policy.add_op(program, qp)
         self._nan_in_program = self._merge_in_program and (self._preview_in_program or not self._preview_blocks)
         if self._nan_in_program:  # H and c complete: normalise them, then screen for NaN
-            program.add(kernels.OP_NORMALISE_COST, program.array(qp.Hc), program.array(self._cost_scaling), nv)
-            program.add(kernels.OP_HAS_NAN, program.array(qp.data), qp.data.size)
+            program.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
+            program.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size)
         self._program = program
         self._unready = list(self._task_data)  # checked every tick until each one is ready
 

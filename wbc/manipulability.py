@@ -39,7 +39,6 @@ from scipy.linalg.lapack import dgesvd, dposv
 from . import kernels
 from .errors import InvalidInputError
 from .kinematics import Kinematics, frame_in_joint
-from .program import TickProgram
 from .robot import Robot
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
@@ -96,12 +95,12 @@ class Manipulability:
         """True when :meth:`compute` is one compiled call (all joints up to the frame have 1 DOF)."""
         return self._compiled
 
-    def operands(self, program: TickProgram, kin: Kinematics) -> list[int]:
-        """Program operands of :func:`wbc.kernels.barrier_row` up to the gradient (compiled only)."""
+    def operands(self, kin: Kinematics) -> dict[str, np.ndarray]:
+        """Operands of the MANIPULABILITY_BARRIER op up to the gradient, by name (compiled only)."""
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
-        arrays = (joint_jacobians.T, rotation.T, translation, self._local, self._support, self._ancestor,
-                  self._jacobian, self._origin, self.gradient)
-        return [program.array(array) for array in arrays]
+        return dict(joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T, translation=translation,
+                    local=self._local, support=self._support, ancestor=self._ancestor, jacobian=self._jacobian,
+                    origin=self._origin, gradient=self.gradient)
 
     def compute(self, kin: Kinematics) -> float:
         """Evaluate ``m`` and ``grad m`` at ``kin.q``; returns ``m``.

@@ -1,13 +1,16 @@
 """The compiled part of a control tick: a list of kernel calls run by one native call.
 
 Tasks and constraints that have a kernel (:mod:`wbc.kernels`) register their rows here
-once, when the controller is built (``Task.add_ops`` / ``Constraint.add_ops``); the
-controller appends the assembly (normal equations, bound clip, NaN screen). Each tick
-then costs one call of :func:`wbc.kernels.run_program` for all of it.
+once, when the controller is built (``TaskData.add_ops`` / ``ConstraintData.add_ops``);
+the controller appends the assembly (normal equations, bound clip, cost normalisation, NaN
+screen). Each tick then costs one call of :func:`wbc.kernels.run_program` for all of it.
 
-Operands are passed by address, so every registered array must outlive the program and
-never be reallocated: :class:`TickProgram` keeps a reference to each, and only accepts
-C-contiguous float64 arrays (views included: they keep their base alive).
+Operands are passed by address. Memory safety rests on two rules, both enforced here when
+an op is added: every array operand is checked against the op's declared schema
+(:data:`wbc.kernels.ops.OP_SPECS`: name, float64, C-contiguous, exact shape in terms of the
+op's int operands, range conditions on those ints), and the program keeps a reference to
+every array it was given, so none is freed or reallocated while the program can run
+(views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``).
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from . import kernels
+from .kernels.ops import OP_SPECS
 from .validation import as_weights
 
 _WIDTH = 17  # opcode + the longest operand list (the barrier)
@@ -42,11 +46,33 @@ class TickProgram:
         self._arrays.append(array)
         return len(self._arrays) - 1
 
-    def add(self, opcode: int, *operands: int) -> None:
-        """Append one row; operands are array indices from :meth:`array` and sizes."""
-        row = [opcode, *(int(value) for value in operands)]
-        if len(row) > _WIDTH:
-            raise ValueError(f"a program row holds at most {_WIDTH - 1} operands")
+    def add(self, opcode: int, **operands: Any) -> None:
+        """Append one op, its operands given by name (:data:`wbc.kernels.ops.OP_SPECS`).
+
+        Raises TypeError for a missing or unknown operand, an array that is not C-contiguous
+        float64 of the declared shape, or int operands that break the op's conditions.
+        """
+        spec = OP_SPECS[opcode]
+        names = [name for name, _ in spec.operands]
+        if set(operands) != set(names):
+            missing, unknown = sorted(set(names) - set(operands)), sorted(set(operands) - set(names))
+            raise TypeError(f"{spec.name} op: missing operands {missing}, unknown operands {unknown}")
+        sizes = {name: int(operands[name]) for name, shape in spec.operands if shape is None}
+        for check in spec.checks:
+            if not eval(check, {"__builtins__": {}}, dict(sizes)):  # noqa: S307 -- the package's own specs
+                raise TypeError(f"{spec.name} op: {check} does not hold for {sizes}")
+        row = [opcode]
+        for name, shape in spec.operands:
+            if shape is None:
+                row.append(sizes[name])
+                continue
+            expected = tuple(dim if isinstance(dim, int) else eval(dim, {"__builtins__": {}}, dict(sizes))
+                             for dim in shape)
+            array = operands[name]
+            if not isinstance(array, np.ndarray) or array.shape != expected:
+                raise TypeError(f"{spec.name} op: operand {name} must have shape {expected}, got "
+                                f"{getattr(array, 'shape', type(array).__name__)}")
+            row.append(self.array(array))
         self._rows.append(row + [0] * (_WIDTH - len(row)))
         self._program = np.array(self._rows, dtype=np.int64)
         self._addresses = np.array([a.ctypes.data for a in self._arrays], dtype=np.int64)

@@ -89,10 +89,9 @@ class ManipulabilityBarrierData(ConstraintData):
         if not self._manipulability.compiled:
             return False  # multi-DOF joints on the chain: the Hessian path, in Python
         selected = row_selection(self.constraint.rows)
-        program.add(kernels.OP_MANIPULABILITY_BARRIER, *self._manipulability.operands(program, kin),
-                    program.array(rows.G[0]), program.array(rows.h[0:1]),
-                    program.array(self.constraint._settings), program.array(self._value),
-                    selected.start, selected.stop, kin.model.nv)
+        program.add(kernels.OP_MANIPULABILITY_BARRIER, **self._manipulability.operands(kin), G=rows.G[0],
+                    h=rows.h[0:1], settings=self.constraint._settings, value=self._value, first=selected.start,
+                    last=selected.stop, nv=kin.model.nv)
         return True
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:

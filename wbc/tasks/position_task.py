@@ -89,10 +89,10 @@ class PositionTaskData(TaskData):
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
-        program.add(kernels.OP_POSITION_TASK, program.array(joint_jacobians.T), program.array(rotation.T),
-                    program.array(translation), program.array(self._support), program.array(self.task._settings),
-                    program.array(self._frame), program.array(self.error), program.array(stack_t), start,
-                    stack_t.shape[0] - 1, stack_t.shape[1], program.array(self._jacobian))
+        program.add(kernels.OP_POSITION_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
+                    translation=translation, support=self._support, settings=self.task._settings, frame=self._frame,
+                    error=self.error, stack=stack_t, start=start, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1],
+                    jacobian=self._jacobian)
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:

@@ -120,9 +120,9 @@ class PostureTaskData(TaskData):
         if self._q_slice is None:
             return False  # pin.difference over general joints: computed in Python
         nv = stack_t.shape[0] - 1
-        program.add(kernels.OP_POSTURE, program.array(kin.q[self._q_slice]), program.array(self._target_selected),
-                    program.array(self._weights), program.array(self.task._settings), program.array(self.error),
-                    program.array(stack_t), start, self.dim, nv, stack_t.shape[1])
+        program.add(kernels.OP_POSTURE, q=kin.q[self._q_slice], reference=self._target_selected,
+                    weights=self._weights, settings=self.task._settings, error=self.error, stack=stack_t,
+                    start=start, dim=self.dim, nv=nv, rows=stack_t.shape[1])
         return True
 
     def write_static(self, jacobian: np.ndarray) -> None:

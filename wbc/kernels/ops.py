@@ -1,0 +1,89 @@
+"""Operand schemas of the tick program's ops: the one place an op's operand order is written.
+
+Each entry of :data:`OP_SPECS` lists an op's operands in row order: an *int* operand
+(``None`` shape) or an *array* operand with its shape, whose entries are ints or
+expressions over the op's int operands (``"nv + 1"``). :meth:`wbc.program.TickProgram.add`
+takes the operands by name, checks every array against its declared shape (float64,
+C-contiguous) and every ``checks`` expression (e.g. that a block of rows lies inside the
+stack), and packs the row in this order -- so a misnamed, misshapen or out-of-range operand
+raises when the controller is built, never corrupts memory at tick time. The interpreter
+(:func:`wbc.kernels.tick.run_program`) reads the rows in the same order; ``tests/
+test_program.py`` checks that every spec matches its decoder's positions and sizes.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from . import (
+    FRAME_DATA,
+    FRAME_SETTINGS,
+    OP_CLIP_BOUNDS,
+    OP_FRAME_TASK,
+    OP_HAS_NAN,
+    OP_HEADING_ROWS,
+    OP_MANIPULABILITY_BARRIER,
+    OP_NORMAL_EQUATIONS,
+    OP_NORMALISE_COST,
+    OP_POSITION_LIMITS,
+    OP_POSITION_TASK,
+    OP_POSTURE,
+    OP_PREVIEW,
+    OP_STEERING,
+    POSITION_SETTINGS,
+)
+
+Shape = tuple[int | str, ...] | None
+
+
+class OpSpec(NamedTuple):
+    """Operands of one op, in row order, and the conditions on its int operands."""
+
+    name: str
+    operands: tuple[tuple[str, Shape], ...]
+    checks: tuple[str, ...] = ()
+
+
+_STACK = ("stack", ("nv + 1", "rows"))  # the controller's task stack A^T ((nv + 1) x rows)
+
+OP_SPECS: dict[int, OpSpec] = {
+    OP_FRAME_TASK: OpSpec("FRAME_TASK", (
+        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
+        ("settings", (FRAME_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (6,)), _STACK,
+        ("start", None), ("nv", None), ("rows", None)), ("0 <= start", "start + 6 <= rows")),
+    OP_POSTURE: OpSpec("POSTURE", (
+        ("q", ("dim",)), ("reference", ("dim",)), ("weights", ("dim",)), ("settings", (1,)), ("error", ("dim",)),
+        _STACK, ("start", None), ("dim", None), ("nv", None), ("rows", None)),
+        ("0 <= start", "start + dim <= rows")),
+    OP_POSITION_LIMITS: OpSpec("POSITION_LIMITS", (
+        ("q", ("k",)), ("lower_limit", ("k",)), ("upper_limit", ("k",)), ("gain", (1,)), ("lower", ("k",)),
+        ("upper", ("k",)), ("k", None))),
+    OP_NORMAL_EQUATIONS: OpSpec("NORMAL_EQUATIONS", (
+        _STACK, ("nv", None), ("rows", None), ("first", None), ("last", None), ("reset", None),
+        ("Hc", ("nv + 1", "nv"))), ("0 <= first", "first <= last", "last <= rows")),
+    OP_PREVIEW: OpSpec("PREVIEW", (
+        ("Hc", ("nv + 1", "nv")), ("factor", ("nv", "nv")), ("preview", ("nv",)), ("nv", None))),
+    OP_STEERING: OpSpec("STEERING", (
+        ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None), ("settings", (3,)),
+        ("error", (1,)), _STACK, ("start", None), ("nv", None), ("rows", None), ("nq", None)),
+        ("0 <= start", "start < rows", "0 <= x < nv", "0 <= y < nv", "0 <= heading < nq")),
+    OP_CLIP_BOUNDS: OpSpec("CLIP_BOUNDS", (
+        ("soft_upper", ("n",)), ("soft_lower", ("n",)), ("hard_upper", ("n",)), ("hard_lower", ("n",)),
+        ("upper", ("n",)), ("lower", ("n",)), ("n", None))),
+    OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None))),
+    OP_NORMALISE_COST: OpSpec("NORMALISE_COST", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
+    OP_HEADING_ROWS: OpSpec("HEADING_ROWS", (
+        ("cos_part", ("rows", 2)), ("sin_part", ("rows", 2)), ("q", ("nq",)), ("heading", None),
+        ("G", ("rows", "nv")), ("rows", None), ("nq", None), ("nv", None), ("x", None), ("y", None)),
+        ("0 <= heading < nq", "0 <= x < nv", "0 <= y < nv")),
+    OP_POSITION_TASK: OpSpec("POSITION_TASK", (
+        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
+        ("settings", (POSITION_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (3,)), _STACK,
+        ("start", None), ("nv", None), ("rows", None), ("jacobian", (6, "nv"))),
+        ("0 <= start", "start + 3 <= rows")),
+    OP_MANIPULABILITY_BARRIER: OpSpec("MANIPULABILITY_BARRIER", (
+        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("local", (12,)),
+        ("support", ("nv",)), ("ancestor", ("nv", "nv")), ("jacobian", (6, "nv")), ("origin", (3,)),
+        ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (2,)), ("value", (1,)),
+        ("first", None), ("last", None), ("nv", None)), ("0 <= first < last <= 6",)),
+}
