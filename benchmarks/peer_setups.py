@@ -96,7 +96,6 @@ class WorldVelocityLimits(Constraint):
     """
 
     has_bounds = True
-    dynamic_bounds = False
 
     def bind(self, robot: Robot) -> WorldVelocityLimits:
         self._limit = robot.velocity_limit.copy()

@@ -239,7 +239,7 @@ def test_inherited_ops_never_replace_an_overridden_compute():
     task = wbc.PositionTask("wrist_center")
     task.set_target([1.0, 0.5, 0.5])
     controller = wbc.Controller(robot, [task, Steering()], [wbc.NonholonomicBase(), Limits()])
-    assert not controller._preview_in_program
+    assert [type(t) for t, _, _ in controller._python_preview] == [SteeringData]  # not compiled
     assert [type(c) for c, _ in controller._python_constraints] == [LimitsData]
     assert np.all(np.isfinite(controller.step(robot.neutral())))
 
@@ -298,7 +298,7 @@ def test_steering_preview_without_damping_is_a_safe_zero_preview(compiled, monke
     steering = wbc.SteeringTask()
     controller = wbc.Controller(robot, [task, steering], [wbc.NonholonomicBase(), wbc.JointVelocityLimits()],
                                 damping=0.0)
-    assert controller._preview_in_program == compiled
+    assert (controller._program_after_preview is None) == compiled  # Python preview: a second part
     v = controller.step(robot.neutral())
     assert np.all(np.isfinite(v))
     np.testing.assert_array_equal(controller._preview, 0.0)

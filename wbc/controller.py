@@ -163,12 +163,10 @@ class Controller:
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
         n_eq = sum(c.n_equalities for c in self._constraint_data)
         self._qp_v = QP(nv, n_ineq, n_eq)
-        self._n_rows = n_ineq + n_eq
         bounded = ([c for c in self._constraint_data if c.has_bounds and c.hard]
                    + [c for c in self._constraint_data if c.has_bounds and not c.hard])
         n_hard = sum(c.hard for c in bounded)
-        self._bound_policy = bounds = BoundPolicy(n_hard, len(bounded) - n_hard, nv,
-                                                  any(c.dynamic_bounds for c in bounded[:n_hard]))
+        self._bound_policy = bounds = BoundPolicy(n_hard, len(bounded) - n_hard, nv)
         self._upper, self._lower = bounds.upper, bounds.lower  # per bounded constraint (diagnostics)
         self._constraint_blocks = []
         row_labels: list[str] = []
@@ -187,7 +185,6 @@ class Controller:
                 soft_rows += range(i_ineq, i_ineq + p)
             constraint.write_static(block)
             i_ineq, i_eq = i_ineq + p, i_eq + e
-        bounds.intersect_hard()
         for constraint in self._constraint_data:
             labels = constraint.row_labels()[constraint.n_inequalities:]
             row_labels += [f"{constraint.name}: {label}" for label in labels]
@@ -205,8 +202,8 @@ class Controller:
         self._S = robot.input_map(robot.neutral())
         self._reduction = InputReduction(self._S, n_ineq, n_eq) if self.reduced else None
         if self._reduction is not None:
-            bounds.merge(qp)  # the static bounds, checked once
-            self._reduction.check_bounds(qp)
+            kernels.merge_bounds(bounds.bounds.reshape(-1, nv), n_hard, qp.ub, qp.lb)  # the static bounds,
+            self._reduction.check_bounds(qp)  # checked once
         self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
 
     def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
@@ -226,41 +223,36 @@ class Controller:
         raise InvalidInputError(f"{item!r} is not used by this controller")
 
     def _build_program(self) -> None:
-        """The compiled part of the tick (wbc.program): tasks and constraints that have ops,
-        the normal equations, and -- in the usual case of one soft bound constraint clipped
-        into fixed hard bounds, no preview task -- the bound merge and the NaN screen. What has
-        no op runs in Python before the program (nothing it writes depends on the program)."""
+        """The compiled part of the tick (wbc.program): the ops of every task and constraint
+        that has them, the normal equations, the holonomic preview, the bound merge, the cost
+        normalisation and the NaN screen -- one native call. Items without ops compute in
+        Python before it; preview tasks without ops (custom ones) compute between two parts
+        of it, after the preview they need."""
         kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
+        stack, rows = self._stack_t, self._stack_t.shape[1]
         program = TickProgram()
         # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
-                              if not (ops_follow_compute(task) and task.add_ops(program, kin, self._stack_t, start))]
-        stack, rows = self._stack_t, self._stack_t.shape[1]
-        program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain, reset=1,
-                    Hc=qp.Hc)
-        # preview tasks (SteeringTask): in the program when all of them have ops, else in Python after it
-        self._preview_in_program = False
-        if self._preview_blocks:
-            mark = len(program)
-            program.add(kernels.OP_PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
-            if all(ops_follow_compute(task, "compute_preview", "add_preview_ops")
-                   and task.add_preview_ops(program, kin, self._stack_t, start, self._preview)
-                   for task, _, _, start in self._preview_blocks):
-                program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain,
-                            last=rows, reset=0, Hc=qp.Hc)
-                self._preview_in_program = True
-            else:
-                program.truncate(mark)
+                              if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        self._merge_in_program = self._bound_policy.compiled
-        if self._merge_in_program:
-            self._bound_policy.add_op(program, qp)
-        self._nan_in_program = self._merge_in_program and (self._preview_in_program or not self._preview_blocks)
-        if self._nan_in_program:  # H and c complete: normalise them, then screen for NaN
-            program.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
-            program.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size)
-        self._program = program
+        program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain, reset=1,
+                    Hc=qp.Hc)
+        self._python_preview = []
+        rest = program
+        if self._preview_blocks:  # tasks needing the holonomic relaxation -H^-1 c of the others
+            program.add(kernels.OP_PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
+            self._python_preview = [(task, jacobian, target) for task, jacobian, target, start in self._preview_blocks
+                                    if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
+                                            and task.add_preview_ops(program, kin, stack, start, self._preview))]
+            if self._python_preview:
+                rest = TickProgram()  # runs after the Python preview tasks
+            rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain, last=rows,
+                     reset=0, Hc=qp.Hc)
+        self._bound_policy.add_op(rest, qp)
+        rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
+        rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size)
+        self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._unready = list(self._task_data)  # checked every tick until each one is ready
 
     # --------------------------------------------------------------- hot path
@@ -286,14 +278,12 @@ class Controller:
             constraint.compute(kin, dt, block)
         if qp.n_eq:
             qp.sync_equalities()
-        has_nan = self._program.run(dt)  # compiled tasks and constraints, normal equations, ...
+        has_nan = self._program.run(dt)  # compiled items, normal equations, bounds, NaN screen
+        if self._program_after_preview is not None:
+            for task, jacobian, target in self._python_preview:
+                task.compute_preview(kin, dt, jacobian, target, self._preview)
+            has_nan = self._program_after_preview.run(dt)
         qp_failure = "QP data holds NaN (from a task or constraint)"
-        if self._preview_blocks and not self._preview_in_program:
-            self._add_preview_tasks(kin, dt, qp)
-        if not self._merge_in_program:
-            self._bound_policy.merge(qp)
-        if not self._nan_in_program:
-            has_nan = qp.has_nan()
 
         if self._nonholonomic:
             S = self.robot.input_map(q, out=self._S)
@@ -303,14 +293,11 @@ class Controller:
             solution = QPSolution(None, False, qp_failure, 0.0)
         else:
             qp_solved = self.qp
-            if not self._nan_in_program:
-                kernels.normalise_cost(qp_solved.Hc, self._damping, DAMPING_FLOOR)
             solution = self.solver.solve(qp_solved)  # checked against the QP's bounds and rows:
-            if solution.success and kernels.qp_defect(qp_solved.data, qp_solved.n, self._n_rows,
-                                                      solution.x) > ANSWER_TOLERANCE:
+            if solution.success and kernels.qp_defect(qp_solved.data, solution.x) > ANSWER_TOLERANCE:
                 solution = self._rejected(solution)
         self._tick += 1
-        outcome, status = Outcome.OPTIMAL, "optimal"
+        outcome, status = _OPTIMAL, "optimal"
         if not solution.success:
             solution, outcome, status = self._fallback.answer(self.qp, solution, self.solver.name, self._tick,
                                                               has_nan)
@@ -331,7 +318,7 @@ class Controller:
         :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.kernels.qp_defect`): a failure, so the
         fallback chain answers, and the backend's warm start is dropped."""
         qp = self.qp
-        defect = kernels.qp_defect(qp.data, qp.n, self._n_rows, solution.x)
+        defect = kernels.qp_defect(qp.data, solution.x)
         self.solver.reset()
         return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
                           solution.solve_time)
@@ -340,14 +327,6 @@ class Controller:
         for task in self._unready:
             task.check_ready()
         self._unready = []
-
-    def _add_preview_tasks(self, kin: Kinematics, dt: float, qp: QP) -> None:
-        """Holonomic relaxation of the plain tasks, then the rows of the preview tasks (the
-        Python path of the program's PREVIEW / STEERING / NORMAL_EQUATIONS ops)."""
-        kernels.preview_solve(qp.Hc, self._factor, self._preview)
-        for task, jacobian, target, _ in self._preview_blocks:
-            task.compute_preview(kin, dt, jacobian, target, self._preview)
-        kernels.normal_equations(self._stack_t, self._n_plain, self._stack_t.shape[1], False, qp.Hc)
 
     # ------------------------------------------------------------ diagnostics
     def constraint_violation(self, v: np.ndarray) -> float:
@@ -378,6 +357,7 @@ class Controller:
 
 
 _FLOAT64 = np.dtype(np.float64)
+_OPTIMAL = Outcome.OPTIMAL
 
 
 #: what a task's or constraint's data computes (TaskData / ConstraintData)

@@ -13,6 +13,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller
 
 ACTIVE_TOLERANCE = 1e-7  #: a bound or row within this of equality counts as active
+_OPTIMAL = Outcome.OPTIMAL
 
 
 class StaleDiagnosticsError(WbcError):
@@ -50,7 +51,7 @@ class TickDiagnostics:
                  tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
         self._controller = controller
         self.tick, self.solver, self.outcome, self.status = tick, controller.solver.name, outcome, status
-        self.success = outcome is Outcome.OPTIMAL
+        self.success = outcome is _OPTIMAL
         self.solve_time, self.tick_time, self.v, self.u = solve_time, tick_time, v, u
         self._task_errors: dict[str, float] | None = None
         self._active: list[str] | None = None

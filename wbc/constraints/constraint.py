@@ -49,9 +49,6 @@ class ConstraintData:
     #: soft bounds are clipped into the hard ones every tick, and soft rows become elastic
     #: in the controller's fallback solve
     hard: bool = True
-    #: False when ``compute`` never changes the bounds (they are written once in
-    #: ``write_static``), so the controller can intersect them once instead of every tick
-    dynamic_bounds: bool = True
 
     def __init__(self, constraint: Constraint) -> None:
         self.constraint, self.name = constraint, constraint.name

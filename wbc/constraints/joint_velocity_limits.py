@@ -28,7 +28,6 @@ class JointVelocityLimitsData(ConstraintData):
     """:class:`JointVelocityLimits` in one controller: the robot's limits and base rows."""
 
     has_bounds = True
-    dynamic_bounds = False
 
     def __init__(self, limits: JointVelocityLimits, robot: Robot) -> None:
         super().__init__(limits)

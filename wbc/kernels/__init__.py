@@ -76,7 +76,7 @@ GRAM_CONDITION = 1e-8
 # ------------------------------------------------------------- tick program
 
 #: opcodes of the tick program (:func:`run_program`)
-(OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_CLIP_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
+(OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
  OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST) = range(1, 13)
 
 # ------------------------------------------------------- compiled functions
@@ -87,7 +87,7 @@ COMPILED = {
                "position_task_rows"),
     "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
-    "assembly": ("normal_equations", "preview_solve", "clip_bounds", "normalise_cost", "constraint_defect",
+    "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
                  "qp_defect", "has_nan"),
     "tick": ("run_program",),
 }

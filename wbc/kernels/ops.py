@@ -18,11 +18,11 @@ from typing import NamedTuple
 from . import (
     FRAME_DATA,
     FRAME_SETTINGS,
-    OP_CLIP_BOUNDS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
     OP_MANIPULABILITY_BARRIER,
+    OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
     OP_NORMALISE_COST,
     OP_POSITION_LIMITS,
@@ -67,9 +67,9 @@ OP_SPECS: dict[int, OpSpec] = {
         ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None), ("settings", (3,)),
         ("error", (1,)), _STACK, ("start", None), ("nv", None), ("rows", None), ("nq", None)),
         ("0 <= start", "start < rows", "0 <= x < nv", "0 <= y < nv", "0 <= heading < nq")),
-    OP_CLIP_BOUNDS: OpSpec("CLIP_BOUNDS", (
-        ("soft_upper", ("n",)), ("soft_lower", ("n",)), ("hard_upper", ("n",)), ("hard_lower", ("n",)),
-        ("upper", ("n",)), ("lower", ("n",)), ("n", None))),
+    OP_MERGE_BOUNDS: OpSpec("MERGE_BOUNDS", (
+        ("bounds", ("2 * count", "nv")), ("count", None), ("n_hard", None), ("nv", None), ("upper", ("nv",)),
+        ("lower", ("nv",))), ("1 <= count", "0 <= n_hard <= count")),
     OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None))),
     OP_NORMALISE_COST: OpSpec("NORMALISE_COST", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
     OP_HEADING_ROWS: OpSpec("HEADING_ROWS", (

@@ -16,11 +16,11 @@ from numba.extending import intrinsic
 from . import (
     FRAME_DATA,
     FRAME_SETTINGS,
-    OP_CLIP_BOUNDS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
     OP_MANIPULABILITY_BARRIER,
+    OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
     OP_NORMALISE_COST,
     OP_POSITION_LIMITS,
@@ -31,7 +31,7 @@ from . import (
     POSITION_SETTINGS,
     prepare_cache,
 )
-from .assembly import clip_bounds, has_nan, normal_equations, normalise_cost, preview_solve
+from .assembly import has_nan, merge_bounds, normal_equations, normalise_cost, preview_solve
 from .frames import frame_task_rows, position_task_rows
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
@@ -73,7 +73,7 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * PREVIEW: Hc, factor scratch (nv x nv), preview (nv), nv
     * STEERING: preview (nv), q (nq), x, y, heading, parameters (3), error (1), stack, first row,
       nv, rows, nq
-    * CLIP_BOUNDS: soft upper, soft lower, hard upper, hard lower, ub, lb, n
+    * MERGE_BOUNDS: bounds ((2 count) x nv: upper, lower of each bounded constraint), count, n_hard, nv, ub, lb
     * HAS_NAN: data, size
     * NORMALISE_COST: Hc ((nv + 1) x nv), (damping, damping floor), nv
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
@@ -119,10 +119,10 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             steering_row(_vector(addresses, op[1], nv), _vector(addresses, op[2], nq), op[3], op[4], op[5],
                          _vector(addresses, op[6], 3), dt, _vector(addresses, op[7], 1), stack_t[:nv, start],
                          stack_t[nv, start:start + 1])
-        elif code == OP_CLIP_BOUNDS:
-            n = op[7]
-            clip_bounds(_vector(addresses, op[1], n), _vector(addresses, op[2], n), _vector(addresses, op[3], n),
-                        _vector(addresses, op[4], n), _vector(addresses, op[5], n), _vector(addresses, op[6], n))
+        elif code == OP_MERGE_BOUNDS:
+            count, nv = op[2], op[4]
+            merge_bounds(_matrix(addresses, op[1], 2 * count, nv), op[3], _vector(addresses, op[5], nv),
+                         _vector(addresses, op[6], nv))
         elif code == OP_HAS_NAN:
             found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
         elif code == OP_NORMALISE_COST:
