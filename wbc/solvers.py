@@ -45,7 +45,10 @@ DEFAULT_SETTINGS: dict[str, dict] = {
     # An abort (malloc(): invalid size) was reported with regularisation 0.0; not reproduced
     # with highspy 1.15.1 on ~40 000 ill-conditioned / degenerate QPs and random ticks
     # (H up to 1e11 : 1e-3, zero diagonals, duplicated rows through one vertex, cost
-    # ratios 1e12..1e-12); a set of those runs in a child process in tests/test_solvers.py
+    # ratios 1e12..1e-12); a set of those runs in a child process in tests/test_solvers.py.
+    # Whatever the costs, the controller hands every backend H scaled to max diag 1 with the
+    # damping floored at 1e-10 of it (wbc.kernels.normalise_cost): positive definite and well
+    # scaled, which is what HiGHS's own regularisation would otherwise provide
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
               "qp_regularization_value": 0.0, "qp_iteration_limit": 10_000, "time_limit": 0.1},
     "scs": {"eps_abs": 1e-9, "eps_rel": 1e-9},
