@@ -97,8 +97,8 @@ class Controller:
         self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
         self.strict = as_flag(strict, "strict")
         if self.reduced:
-            self.constraints = [c for c in self.constraints if not getattr(c, "satisfied_by_input_map", False)]
-        elif robot.base.is_nonholonomic and not any(getattr(c, "satisfied_by_input_map", False)
+            self.constraints = [c for c in self.constraints if not c.satisfied_by_input_map]
+        elif robot.base.is_nonholonomic and not any(c.satisfied_by_input_map
                                                     for c in self.constraints):
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
