@@ -25,12 +25,12 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from . import kernels
-from .bounds import BoundPolicy
-from .constraints.constraint import Constraint, ConstraintData, ConstraintRows
+from .constraints.constraint import Constraint, ConstraintData
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .kinematics import Kinematics
+from .layout import ConstraintLayout, TaskStack
 from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -136,64 +136,21 @@ class Controller:
         self._task_data = [self._bind(task) for task in self.tasks]
         self._constraint_data = [self._bind(constraint) for constraint in self.constraints]
 
-        # One stacked matrix [W J | W r]: rows of the ordinary tasks, then sqrt(damping) I
-        # (target 0), then the preview tasks (SteeringTask). With A the first two blocks,
-        # A^T [W J] = [H; r^T J]: H and -c in one pass (kernels.normal_equations), written
-        # straight into the QP buffer. Stored transposed (C-contiguous A^T), so that every
-        # column of A the kernel sums over is contiguous.
-        plain = [t for t in self._task_data if not t.uses_preview]
-        preview = [t for t in self._task_data if t.uses_preview]
-        n_plain = sum(t.dim for t in plain) + nv
-        self._stack_t = np.zeros((nv + 1, n_plain + sum(t.dim for t in preview)))
-        self._stack = self._stack_t.T  # (rows, nv + 1) view: [W J | W r]
-        self._damping_rows = self._stack[n_plain - nv:n_plain, :nv]
+        stack = TaskStack(self._task_data, nv)
+        self._stack_t, self._stack, self._damping_rows = stack.stack_t, stack.stack, stack.damping_rows
+        self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
         self.damping = self._damping  # writes sqrt(damping) I into its rows
-        self._task_blocks, self._preview_blocks = [], []
-        start = 0
-        for task in plain + preview:
-            if task is (preview[0] if preview else None):
-                start = n_plain
-            stop = start + task.dim
-            block = (task, self._stack[start:stop, :nv], self._stack[start:stop, nv], start)
-            task.write_static(block[1])
-            (self._preview_blocks if task.uses_preview else self._task_blocks).append(block)
-            start = stop
-        self._n_plain = n_plain
 
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
         n_eq = sum(c.n_equalities for c in self._constraint_data)
-        self._qp_v = QP(nv, n_ineq, n_eq)
-        bounded = ([c for c in self._constraint_data if c.has_bounds and c.hard]
-                   + [c for c in self._constraint_data if c.has_bounds and not c.hard])
-        n_hard = sum(c.hard for c in bounded)
-        self._bound_policy = bounds = BoundPolicy(n_hard, len(bounded) - n_hard, nv)
+        self._qp_v = qp = QP(nv, n_ineq, n_eq)
+        layout = ConstraintLayout(self._constraint_data, qp, _velocity_names(robot))
+        self._bound_policy = bounds = layout.bounds
+        self._constraint_blocks = layout.blocks
         self._upper, self._lower = bounds.upper, bounds.lower  # per bounded constraint (diagnostics)
-        self._constraint_blocks = []
-        row_labels: list[str] = []
-        soft_rows: list[int] = []
-        i_ineq = i_eq = 0
-        qp = self._qp_v
-        for constraint in self._constraint_data:
-            k = bounded.index(constraint) if constraint.has_bounds else None
-            lower, upper = bounds.slot(k) if k is not None else (np.full(nv, -np.inf), np.full(nv, np.inf))
-            p, e = constraint.n_inequalities, constraint.n_equalities
-            block = ConstraintRows(lower, upper, qp.G[i_ineq:i_ineq + p], qp.h[i_ineq:i_ineq + p],
-                                   qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
-            self._constraint_blocks.append((constraint, block))
-            row_labels += [f"{constraint.name}: {label}" for label in constraint.row_labels()[:p]]
-            if not constraint.hard:
-                soft_rows += range(i_ineq, i_ineq + p)
-            constraint.write_static(block)
-            i_ineq, i_eq = i_ineq + p, i_eq + e
-        for constraint in self._constraint_data:
-            labels = constraint.row_labels()[constraint.n_inequalities:]
-            row_labels += [f"{constraint.name}: {label}" for label in labels]
-        names = _velocity_names(robot)
-        self._bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in names]
-                              for c in bounded] or [[""] * (2 * nv)]
-        self._row_labels = row_labels
+        self._row_labels, self._bound_labels = layout.row_labels, layout.bound_labels
         # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
-        self._fallback = Fallback(np.array(soft_rows, dtype=int), self.solver.fallback_budget, self.strict)
+        self._fallback = Fallback(layout.soft_rows, self.solver.fallback_budget, self.strict)
         self._preview = np.zeros(nv)  # holonomic relaxation -H^-1 c of the plain tasks
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
         self._build_program()
@@ -202,7 +159,7 @@ class Controller:
         self._S = robot.input_map(robot.neutral())
         self._reduction = InputReduction(self._S, n_ineq, n_eq) if self.reduced else None
         if self._reduction is not None:
-            kernels.merge_bounds(bounds.bounds.reshape(-1, nv), n_hard, qp.ub, qp.lb)  # the static bounds,
+            kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
         self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
 
