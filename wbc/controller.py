@@ -3,8 +3,8 @@
 The whole tick is :meth:`Controller.step`; everything it uses is allocated once, when the
 controller is built, by named pieces:
 
-* the **stack layout** (:meth:`Controller._allocate`): one matrix ``[W J | W r]`` whose
-  blocks are the tasks' rows, then ``sqrt(damping) I``, then the preview tasks' rows;
+* the **layout** (:mod:`wbc.layout`): the task stack ``[W J | W r]`` (the tasks' rows, then
+  ``sqrt(damping) I``, then the preview tasks' rows) and where each constraint writes;
 * the **bound policy** (:class:`wbc.bounds.BoundPolicy`): hard bounds intersected, soft
   ones clipped into them;
 * the **program** (:class:`wbc.program.TickProgram`): one native call for every compiled
