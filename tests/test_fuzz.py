@@ -69,8 +69,9 @@ ACCURACY = {"daqp": (1e-6, 1e-13), "quadprog": (1e-6, 1e-13), "highs": (1e-6, 1e
 # the cost of a command relative to the optimal cost (scale lambda_max (1 + |v*|)^2), where the
 # commands themselves differ (flat directions): exact active-set and interior-point solvers
 # reach ~1e-8, first-order ones (OSQP's ADMM, ProxQP's augmented Lagrangian) ~1e-5 on
-# ill-conditioned stacks (seen 6e-6, ProxQP, cond(H) ~1e6)
-COST_ACCURACY = {"osqp": 1e-5, "proxqp": 1e-5}
+# ill-conditioned stacks (seen 6e-6, ProxQP, cond(H) ~1e6); HiGHS's QP solver stops ~3e-7 short
+# (a campaign of 20000 examples: 11 of 2813 HiGHS cases, cond(H) < 1e3, commands 3e-6..6e-5 apart)
+COST_ACCURACY = {"osqp": 1e-5, "proxqp": 1e-5, "highs": 1e-6}
 LIMIT_TOL = 1e-6  # hard limits, absolute (speeds in rad/s, m/s; slip in m/s)
 DAMPING = 1e-3  # the Controller default; the oracle uses the same value
 
