@@ -21,6 +21,7 @@ from numba import njit
 
 import wbc
 from wbc.kinematics import Kinematics
+from wbc.settings import Operand
 from wbc.tasks.task import TaskData
 from wbc.validation import as_gain, as_nonnegative
 
@@ -43,26 +44,14 @@ def centering_rows(q, q_index, v_index, middle, half_range, cost, gain, dt, jaco
 class CenteringTask(wbc.Task):
     """Keep the bounded 1-DOF joints away from their limits; ``cost`` in [cost]/[rad]^2."""
 
+    # settings: validated on assignment, kept in the array the kernel reads every tick
+    cost = Operand("_settings", 0, as_nonnegative)
+    gain = Operand("_settings", 1, as_gain)
+
     def __init__(self, cost: float = 1e-2, gain: float = 0.1) -> None:
         super().__init__("CenteringTask")
         self._settings = np.zeros(2)  # (cost, gain), read by the kernel every tick
         self.cost, self.gain = cost, gain
-
-    @property
-    def cost(self) -> float:
-        return float(self._settings[0])
-
-    @cost.setter
-    def cost(self, value) -> None:
-        self._settings[0] = as_nonnegative(value, "cost")
-
-    @property
-    def gain(self) -> float:
-        return float(self._settings[1])
-
-    @gain.setter
-    def gain(self, value) -> None:
-        self._settings[1] = as_gain(value)
 
     def bind(self, robot: wbc.Robot) -> CenteringTaskData:
         return CenteringTaskData(self, robot)

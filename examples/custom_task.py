@@ -16,6 +16,7 @@ import numpy as np
 
 import wbc
 from wbc.kinematics import Kinematics
+from wbc.settings import Setting
 from wbc.tasks.task import TaskData
 from wbc.validation import as_gain, as_nonnegative, as_number
 
@@ -23,35 +24,15 @@ from wbc.validation import as_gain, as_nonnegative, as_number
 class HeightTask(wbc.Task):
     """Hold ``frame`` at height ``height`` [m] (world z); ``cost`` in [cost]/[m]^2."""
 
+    # settings: validated on assignment, may change between ticks (the data reads them every tick)
+    height = Setting(as_number)
+    cost = Setting(as_nonnegative)
+    gain = Setting(as_gain)
+
     def __init__(self, frame: str, height: float, cost: float = 1.0, gain: float = 0.5) -> None:
         self.frame = frame
         super().__init__(f"HeightTask({frame})")
         self.height, self.cost, self.gain = height, cost, gain
-
-    # settings: validated, may change between ticks (read by the data every tick)
-    @property
-    def height(self) -> float:
-        return self._height
-
-    @height.setter
-    def height(self, value) -> None:
-        self._height = as_number(value, "height")
-
-    @property
-    def cost(self) -> float:
-        return self._cost
-
-    @cost.setter
-    def cost(self, value) -> None:
-        self._cost = as_nonnegative(value, "cost")
-
-    @property
-    def gain(self) -> float:
-        return self._gain
-
-    @gain.setter
-    def gain(self, value) -> None:
-        self._gain = as_gain(value)
 
     def bind(self, robot: wbc.Robot) -> HeightTaskData:
         return HeightTaskData(self, robot)

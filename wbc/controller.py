@@ -36,6 +36,7 @@ from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
 from .robot import Robot
+from .settings import Setting
 from .solvers import QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
 from .validation import as_flag, as_items, as_nonnegative, as_positive
@@ -110,14 +111,7 @@ class Controller:
         self._allocate()
 
     # --------------------------------------------------------------- settings
-    @property
-    def dt(self) -> float:
-        """Control period [s] (> 0); may be changed between ticks."""
-        return self._dt
-
-    @dt.setter
-    def dt(self, value) -> None:
-        self._dt = as_positive(value, "dt")
+    dt = Setting(as_positive)  #: control period [s] (> 0); may be changed between ticks
 
     @property
     def damping(self) -> float:

@@ -15,14 +15,12 @@ every array it was given, so none is freed or reallocated while the program can 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from . import kernels
 from .kernels.ops import OP_SPECS
-from .validation import as_weights
 
 _WIDTH = 17  # opcode + the longest operand list (the barrier)
 
@@ -98,52 +96,3 @@ def ops_follow_compute(item: Any, compute: str = "compute", add_ops: str = "add_
         return next(cls for cls in type(item).__mro__ if name in vars(cls))
 
     return issubclass(owner(add_ops), owner(compute))
-
-
-class Operand:
-    """A scalar setting that lives in an operand array of a compiled op.
-
-    ``gain = Operand("_parameters", 36, as_gain)`` makes ``task.gain`` read and write slot
-    36 of ``task._parameters``, validated by ``check(value, name)`` on every assignment, so
-    tuning a setting between ticks reaches the compiled code.
-    """
-
-    def __init__(self, array: str, index: int, check: Callable[[Any, str], float]) -> None:
-        self._array, self._index, self._check = array, index, check
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self._name = name
-
-    def __get__(self, instance: Any, owner: type | None = None) -> Any:
-        if instance is None:
-            return self
-        return float(getattr(instance, self._array)[self._index])
-
-    def __set__(self, instance: Any, value: Any) -> None:
-        getattr(instance, self._array)[self._index] = self._check(value, self._name)
-
-
-class Cost:
-    """A cost setting stored as its square root (the row weights ``W = sqrt(cost)``) in a
-    slice of an operand array: ``position_cost = Cost("_weights", slice(0, 3))``.
-
-    Reads give the cost vector; assignments are validated (scalar or one per row, finite,
-    >= 0) and act from the next tick on, in every controller that uses the item.
-    """
-
-    def __init__(self, array: str, rows: slice) -> None:
-        self._array, self._rows = array, rows
-
-    def __set_name__(self, owner: type, name: str) -> None:
-        self._name = name
-
-    def __get__(self, instance: Any, owner: type | None = None) -> Any:
-        if instance is None:
-            return self
-        return instance.__dict__[self._name].copy()
-
-    def __set__(self, instance: Any, value: Any) -> None:
-        weights = getattr(instance, self._array)[self._rows]
-        cost = as_weights(value, len(weights), self._name)
-        weights[...] = np.sqrt(cost)
-        instance.__dict__[self._name] = cost  # what was asked, without the rounding of sqrt

@@ -6,8 +6,9 @@ import numpy as np
 
 from .. import kernels
 from ..kinematics import Kinematics
-from ..program import Operand, TickProgram
+from ..program import TickProgram
 from ..robot import Robot
+from ..settings import Operand
 from ..validation import as_gain
 from .constraint import Constraint, ConstraintData, ConstraintRows
 

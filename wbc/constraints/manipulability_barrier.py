@@ -8,8 +8,9 @@ from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
-from ..program import Operand, TickProgram
+from ..program import TickProgram
 from ..robot import Robot
+from ..settings import Operand
 from ..validation import as_gain, as_positive
 from .constraint import Constraint, ConstraintData, ConstraintRows
 

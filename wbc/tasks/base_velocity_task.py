@@ -6,8 +6,8 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import Cost
 from ..robot import Robot
+from ..settings import Cost
 from ..validation import as_vector
 from .task import Task, TaskData, _norm
 

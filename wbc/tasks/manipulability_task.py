@@ -10,7 +10,8 @@ from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, row_selection
 from ..robot import Robot
-from ..validation import as_gain, as_positive, as_weights
+from ..settings import Setting
+from ..validation import as_gain, as_nonnegative, as_positive
 from .task import Task, TaskData
 
 
@@ -43,6 +44,11 @@ class ManipulabilityTask(Task):
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
     """
 
+    #: settings that may be changed between ticks (validated)
+    cost = Setting(as_nonnegative)  # [cost] / [1/s]^2
+    gain = Setting(as_gain)
+    target = Setting(as_positive)  # m* > 0
+
     def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: str = "all",
                  name: str | None = None) -> None:
         if not isinstance(frame, str):
@@ -52,35 +58,6 @@ class ManipulabilityTask(Task):
         self.cost, self.gain, self.target = cost, gain, target
         row_selection(rows)
         self.rows = rows
-
-    @property
-    def cost(self) -> float:
-        """[cost] / [1/s]^2; may be changed between ticks (validated)."""
-        return self._cost
-
-    @cost.setter
-    def cost(self, value) -> None:
-        self._cost = float(as_weights(value, 1, "cost")[0])
-        self._weight = math.sqrt(self._cost)
-
-    @property
-    def gain(self) -> float:
-        """Fraction of ``ln(m*/m)`` removed per tick, (0, 1]; may be changed between ticks."""
-        return self._gain
-
-    @gain.setter
-    def gain(self, value) -> None:
-        self._gain = as_gain(value)
-
-    @property
-    def target(self) -> float:
-        """``m*`` > 0; may be changed between ticks."""
-        return self._target
-
-    @target.setter
-    def target(self, value) -> None:
-        self._target = as_positive(value, "target")
-        self._floor = 1e-9 * self._target
 
     def default_name(self) -> str:
         return f"ManipulabilityTask({self.frame})"
@@ -108,10 +85,11 @@ class ManipulabilityTaskData(TaskData):
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         task, manipulability = self.task, self._manipulability
         self.value = manipulability.compute(kin)
-        m = max(self.value, task._floor)
-        self.error = math.log(task._target / m)
-        np.multiply(manipulability.gradient, task._weight / m, out=jacobian[0])
-        target[0] = task._weight * task._gain / dt * self.error
+        m = max(self.value, 1e-9 * task.target)
+        self.error = math.log(task.target / m)
+        weight = math.sqrt(task.cost)
+        np.multiply(manipulability.gradient, weight / m, out=jacobian[0])
+        target[0] = weight * task.gain / dt * self.error
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = abs(self.error)

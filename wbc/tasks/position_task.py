@@ -7,8 +7,9 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import Cost, Operand, TickProgram
+from ..program import TickProgram
 from ..robot import Robot
+from ..settings import Cost, Operand
 from ..validation import as_gain, as_speed_limit, as_vector
 from .task import Task, TaskData, _norm
 

@@ -9,8 +9,9 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import Operand, TickProgram
+from ..program import TickProgram
 from ..robot import Robot
+from ..settings import Operand
 from ..validation import as_gain, as_positive
 from .task import Task, TaskData
 

@@ -1,0 +1,89 @@
+"""Settings of tasks and constraints: validated attributes that may change between ticks.
+
+Three descriptors, for the three places a setting can live:
+
+* :class:`Setting` -- a plain attribute (read by Python code each tick);
+* :class:`Operand` -- one slot of an operand array that a compiled op reads;
+* :class:`Cost` -- a cost stored as its square root (row weights) in a slice of such an array.
+
+Each validates on assignment (``check(value, name)``, from :mod:`wbc.validation`) and the new
+value acts from the next tick on, in every controller using the item; :class:`wbc.item.Item`
+lets these (and properties with setters) be assigned after a controller uses the item.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .validation import as_weights
+
+
+class Setting:
+    """A validated setting kept on the instance: ``gain = Setting(as_gain)`` makes
+    ``task.gain = x`` store ``as_gain(x, "gain")`` (raising on bad input) in ``task._gain``."""
+
+    def __init__(self, check: Callable[[Any, str], Any]) -> None:
+        self._check = check
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name, self._slot = name, f"_{name}"
+
+    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        return getattr(instance, self._slot)
+
+    def __set__(self, instance: Any, value: Any) -> None:
+        setattr(instance, self._slot, self._check(value, self._name))
+
+
+class Operand:
+    """A scalar setting that lives in an operand array of a compiled op.
+
+    ``gain = Operand("_parameters", 36, as_gain)`` makes ``task.gain`` read and write slot
+    36 of ``task._parameters``, validated by ``check(value, name)`` on every assignment, so
+    tuning a setting between ticks reaches the compiled code.
+    """
+
+    def __init__(self, array: str, index: int, check: Callable[[Any, str], float]) -> None:
+        self._array, self._index, self._check = array, index, check
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = name
+
+    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        return float(getattr(instance, self._array)[self._index])
+
+    def __set__(self, instance: Any, value: Any) -> None:
+        getattr(instance, self._array)[self._index] = self._check(value, self._name)
+
+
+class Cost:
+    """A cost setting stored as its square root (the row weights ``W = sqrt(cost)``) in a
+    slice of an operand array: ``position_cost = Cost("_weights", slice(0, 3))``.
+
+    Reads give the cost vector; assignments are validated (scalar or one per row, finite,
+    >= 0) and act from the next tick on, in every controller that uses the item.
+    """
+
+    def __init__(self, array: str, rows: slice) -> None:
+        self._array, self._rows = array, rows
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = name
+
+    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+        if instance is None:
+            return self
+        return instance.__dict__[self._name].copy()
+
+    def __set__(self, instance: Any, value: Any) -> None:
+        weights = getattr(instance, self._array)[self._rows]
+        cost = as_weights(value, len(weights), self._name)
+        weights[...] = np.sqrt(cost)
+        instance.__dict__[self._name] = cost  # what was asked, without the rounding of sqrt
