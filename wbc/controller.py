@@ -86,8 +86,8 @@ class Controller:
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
         self.dt = dt
-        self._damping = as_nonnegative(damping, "damping")
-        self._cost_scaling = np.array([self._damping, DAMPING_FLOOR])  # operand of the cost normalisation
+        # (damping, floor): operand of the cost normalisation, and where the damping setting lives
+        self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
         self.tasks = as_items(tasks, Task, "tasks")
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
@@ -116,12 +116,12 @@ class Controller:
     @property
     def damping(self) -> float:
         """Weight of ``|v|^2`` in the cost (>= 0); may be changed between ticks."""
-        return self._damping
+        return float(self._cost_scaling[0])
 
     @damping.setter
     def damping(self, value) -> None:
-        self._damping = self._cost_scaling[0] = as_nonnegative(value, "damping")
-        np.fill_diagonal(self._damping_rows, np.sqrt(self._damping))
+        self._cost_scaling[0] = as_nonnegative(value, "damping")
+        np.fill_diagonal(self._damping_rows, np.sqrt(self._cost_scaling[0]))
 
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
@@ -133,7 +133,7 @@ class Controller:
         stack = TaskStack(self._task_data, nv)
         self._stack_t, self._stack, self._damping_rows = stack.stack_t, stack.stack, stack.damping_rows
         self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
-        self.damping = self._damping  # writes sqrt(damping) I into its rows
+        self.damping = self.damping  # writes sqrt(damping) I into its rows
 
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
         n_eq = sum(c.n_equalities for c in self._constraint_data)
@@ -245,8 +245,10 @@ class Controller:
         else:
             qp_solved = self.qp
             solution = self.solver.solve(qp_solved)  # checked against the QP's bounds and rows:
-            if solution.success and kernels.qp_defect(qp_solved.data, solution.x) > ANSWER_TOLERANCE:
-                solution = self._rejected(solution)
+            if solution.success:
+                defect = kernels.qp_defect(qp_solved.data, solution.x)
+                if defect > ANSWER_TOLERANCE:
+                    solution = self._rejected(solution, defect)
         self._tick += 1
         outcome, status = _OPTIMAL, "optimal"
         if not solution.success:
@@ -264,12 +266,10 @@ class Controller:
                                     time.perf_counter() - start, v, u)
         return v
 
-    def _rejected(self, solution: QPSolution) -> QPSolution:
-        """A backend's answer that violates a bound or row of the QP it solved by more than
+    def _rejected(self, solution: QPSolution, defect: float) -> QPSolution:
+        """A backend's answer that violates a bound or row of the QP it solved by ``defect`` >
         :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.kernels.qp_defect`): a failure, so the
         fallback chain answers, and the backend's warm start is dropped."""
-        qp = self.qp
-        defect = kernels.qp_defect(qp.data, solution.x)
         self.solver.reset()
         return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
                           solution.solve_time)

@@ -22,7 +22,7 @@ import numpy as np
 from . import kernels
 from .kernels.ops import OP_SPECS
 
-_WIDTH = 17  # opcode + the longest operand list (the barrier)
+_WIDTH = 1 + max(len(spec.operands) for spec in OP_SPECS.values())  # opcode + the longest operand list
 
 
 class TickProgram:

@@ -20,7 +20,7 @@ def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
     """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
     if np.iscomplexobj(value):
         raise InvalidInputError(f"{name} must be real, got complex values")
-    kind = np.asarray(value).dtype.kind if not isinstance(value, np.ndarray) else value.dtype.kind
+    kind = np.asarray(value).dtype.kind
     if kind in "bOUSV" and not (kind == "O" and _all_real(value)):
         raise InvalidInputError(f"{name} must be numeric (int or float), got {_describe(value)}")
     try:
