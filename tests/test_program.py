@@ -13,7 +13,9 @@ from wbc import kernels
 from wbc.kernels import ops, tick
 from wbc.program import TickProgram
 
-CONSTANTS = {name: getattr(kernels, name) for name in ("FRAME_SETTINGS", "FRAME_DATA", "POSITION_SETTINGS")}
+CONSTANTS = {name: getattr(kernels, name) for name in ("FRAME_SETTINGS", "FRAME_DATA", "POSITION_SETTINGS",
+                                                       "DAQP_PROBLEM_WORDS", "DAQP_WORKSPACE_WORDS",
+                                                       "DAQP_RESULT_WORDS", "DAQP_CONTROL_SIZE")}
 
 
 def _decoder_blocks() -> dict[str, str]:

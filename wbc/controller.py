@@ -9,7 +9,8 @@ controller is built, by named pieces:
   ones clipped into them;
 * the **program** (:class:`wbc.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
-  the cost normalisation and the NaN screen;
+  the cost normalisation, the NaN screen and -- with DAQP on its native path
+  (:mod:`wbc.daqp_native`) -- the solve and the check of its answer;
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
 * the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
@@ -103,7 +104,7 @@ class Controller:
                                                     for c in self.constraints):
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
-        self.solver: QPSolver = make_solver(solver, solver_options)
+        self._solver: QPSolver = make_solver(solver, solver_options)
         self.kinematics = Kinematics(robot)
         self._tick = 0
         self._q_shape = (robot.nq,)
@@ -122,6 +123,21 @@ class Controller:
     def damping(self, value) -> None:
         self._cost_scaling[0] = as_nonnegative(value, "damping")
         np.fill_diagonal(self._damping_rows, np.sqrt(self._cost_scaling[0]))
+
+    @property
+    def solver(self) -> QPSolver:
+        """The QP backend (:func:`wbc.solvers.make_solver`); assigning another one rebuilds
+        the tick program (the solve may run inside it)."""
+        return self._solver
+
+    @solver.setter
+    def solver(self, solver: QPSolver) -> None:
+        if not isinstance(solver, QPSolver):
+            raise InvalidInputError(f"solver must be a wbc.solvers.QPSolver (see make_solver), got "
+                                    f"{type(solver).__name__}")
+        self._solver = solver
+        self._fallback.budget = solver.fallback_budget
+        self._build_program()
 
     # ------------------------------------------------------------------ setup
     def _allocate(self) -> None:
@@ -203,6 +219,9 @@ class Controller:
         self._bound_policy.add_op(rest, qp)
         rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
         rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size)
+        # the solve itself, when the backend can run in the program (native DAQP) and no
+        # Python step (the input reduction) stands between the QP and the solver
+        self._solve_in_program = not self.reduced and self.solver.bind_program(rest, qp)
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._unready = list(self._task_data)  # checked every tick until each one is ready
 
@@ -242,11 +261,11 @@ class Controller:
                 has_nan, qp_failure = True, "reduced form: a constraint bounded the coupled base rates x, y"
         if has_nan:
             solution = QPSolution(None, False, qp_failure, 0.0)
-        else:
-            qp_solved = self.qp
-            solution = self.solver.solve(qp_solved)  # checked against the QP's bounds and rows:
-            if solution.success:
-                defect = kernels.qp_defect(qp_solved.data, solution.x)
+        else:  # solved in the program already (native DAQP), or now
+            solution = self.solver.collect() if self._solve_in_program else self.solver.solve(self.qp)
+            if solution.success:  # checked against the QP's bounds and rows:
+                defect = solution.defect if solution.defect is not None else kernels.qp_defect(self.qp.data,
+                                                                                                solution.x)
                 if defect > ANSWER_TOLERANCE:
                     solution = self._rejected(solution, defect)
         self._tick += 1

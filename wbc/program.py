@@ -10,7 +10,9 @@ an op is added: every array operand is checked against the op's declared schema
 (:data:`wbc.kernels.ops.OP_SPECS`: name, float64, C-contiguous, exact shape in terms of the
 op's int operands, range conditions on those ints), and the program keeps a reference to
 every array it was given, so none is freed or reallocated while the program can run
-(views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``).
+(views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``;
+an op whose arrays point into memory owned by another object -- the DAQP workspace of
+:class:`wbc.daqp_native.NativeWorkspace` -- registers that object with :meth:`keep_alive`).
 """
 
 from __future__ import annotations
@@ -33,6 +35,12 @@ class TickProgram:
         self._rows: list[list[int]] = []
         self._program = np.zeros((0, _WIDTH), dtype=np.int64)
         self._addresses = np.zeros(0, dtype=np.int64)
+        self._owners: list[Any] = []
+
+    def keep_alive(self, owner: Any) -> None:
+        """Keep ``owner`` (which frees memory an op's operands point to) alive as long as this program."""
+        if not any(known is owner for known in self._owners):
+            self._owners.append(owner)
 
     def array(self, array: np.ndarray) -> int:
         """Register ``array`` (C-contiguous float64, any shape) and return its operand index."""

@@ -20,7 +20,10 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
+from . import daqp_abi
+from .daqp_native import NativeWorkspace
 from .errors import UnknownSolverError
+from .program import TickProgram
 from .qp import QP
 from .solver_options import BUDGET_KEYS, validate_options
 
@@ -69,6 +72,9 @@ class QPSolution(NamedTuple):
     success: bool
     status: str
     solve_time: float  #: wall time inside the backend [s]
+    #: relative violation of the QP's bounds and rows by x (:func:`wbc.kernels.qp_defect`)
+    #: when the backend checked it itself (the native DAQP path); None: not checked yet
+    defect: float | None = None
 
 
 def _finite(x: np.ndarray) -> bool:
@@ -88,15 +94,26 @@ class QPSolver(ABC):
     def reset(self) -> None:  # noqa: B027 -- optional hook: a backend without warm-start state keeps this no-op
         """Forget any warm start (the next solve starts cold)."""
 
+    def bind_program(self, program: TickProgram, qp: QP) -> bool:
+        """Append the solve of ``qp`` to a controller's tick program, when this backend can run
+        inside it (then the controller reads each tick's answer with :meth:`collect` instead
+        of calling :meth:`solve`); False, and nothing appended, otherwise."""
+        return False
+
+    def collect(self) -> QPSolution:
+        """The answer of the solve that the bound tick program ran (see :meth:`bind_program`)."""
+        raise NotImplementedError(f"{self.name} does not run inside a tick program")
+
     @property
     def fallback_budget(self) -> dict:
         """DAQP settings (``time_limit`` [s], ``iter_limit``) for the elastic fallback solve:
         this backend's time budget whatever the backend; its iteration budget only when it
-        is DAQP (iterations of other algorithms do not count the same work)."""
-        own = BUDGET_KEYS.get(self.name, {})
-        budget = {"time_limit": self.settings.get(own.get("time_limit", ""))}
+        is DAQP (iterations of other algorithms do not count the same work). Nothing for a
+        backend without ``settings``."""
+        own, settings = BUDGET_KEYS.get(self.name, {}), getattr(self, "settings", {})
+        budget = {"time_limit": settings.get(own.get("time_limit", ""))}
         if self.name == "daqp":
-            budget["iter_limit"] = self.settings.get("iter_limit")
+            budget["iter_limit"] = settings.get("iter_limit")
         return {key: value for key, value in budget.items() if value is not None}
 
     def __repr__(self) -> str:
@@ -201,16 +218,20 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
 
 
 class DaqpBackend(QPSolver):
-    """DAQP through a persistent ``daqp.Model`` workspace on the QP buffers.
+    """DAQP on a persistent workspace that points into the QP's own buffers (no copy).
 
-    ``setup`` is run once: DAQP then holds pointers into the QP's own buffers (they are
-    C-contiguous float64, so its binding copies nothing), and each tick only has to
-    refresh DAQP's factorisation with ``update(H)`` (a different QP object of the same
-    shape re-points the workspace with a full ``update``). Updating H
-    re-derives every other part of the workspace (``A R^-1``, ``R^-T f`` and the scaled
-    bounds) from those pointers, so the fresh ``c``, rows and bounds are picked up too.
-    With ``warm_start=True`` (default) the solve starts from the previous tick's active
-    set, which in a control loop usually means zero or one active-set change.
+    **Native path** (DAQP releases whose C layout :mod:`wbc.daqp_abi` knows and has checked):
+    :class:`wbc.daqp_native.NativeWorkspace` calls DAQP's C API from compiled code. A
+    controller appends the solve to its tick program (:meth:`bind_program`), so the whole
+    tick is one native call and :meth:`collect` reads its outcome; :meth:`solve` solves a
+    QP on its own (one native call). **Binding path** (any other DAQP): a ``daqp.Model``,
+    set up once, refreshed by ``update(H)`` each tick.
+
+    Either way each tick re-forms DAQP's factorisation from H, which re-derives every other
+    part of the workspace (``A R^-1``, ``R^-T f``, the scaled bounds) from the buffers, so
+    the fresh ``c``, rows and bounds are picked up too. With ``warm_start=True`` (default)
+    the solve starts from the previous tick's active set, which in a control loop usually
+    means zero or one active-set change; a failed solve is never warm-started from.
     ``options`` are DAQP settings (``iter_limit``, ``time_limit`` [s], ``primal_tol``,
     ...) plus ``warm_start``.
     """
@@ -218,33 +239,72 @@ class DaqpBackend(QPSolver):
     name = "daqp"
 
     def __init__(self, options: dict | None = None) -> None:
-        import daqp
-
-        self._daqp = daqp
         settings = validate_options(self.name, options)
         self.warm_start = bool(settings.pop("warm_start", True))
         self.settings = settings
-        self._model = None
-        self._data: np.ndarray | None = None  # buffer of the QP the workspace points into
+        self._library = daqp_abi.native()
+        self._workspace: NativeWorkspace | None = None  # native path
+        self._bound: NativeWorkspace | None = None  # the one a tick program runs
+        self._model = None  # binding path
+        self._data: np.ndarray | None = None  # buffer of the QP the binding's workspace points into
         self._shape: tuple[int, int, int] | None = None
         self._sense = np.zeros(0, dtype=np.int32)
 
+    @property
+    def native(self) -> bool:
+        """Whether DAQP is called through its C API (else through its Python binding;
+        :func:`wbc.daqp_abi.unavailable_reason` says why)."""
+        return self._library is not None
+
+    def reset(self) -> None:
+        """Forget the warm start (the next solve starts cold)."""
+        self._model = None
+        for workspace in {id(w): w for w in (self._workspace, self._bound) if w is not None}.values():
+            workspace.reset()
+
+    def bind_program(self, program: TickProgram, qp: QP) -> bool:
+        """Append the solve of ``qp`` to ``program`` (native path only; False otherwise)."""
+        if self._library is None:
+            return False
+        self._bound = NativeWorkspace(self._library, qp, self.settings, self.warm_start)
+        self._bound.add_op(program)
+        return True
+
+    def collect(self) -> QPSolution:
+        """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
+        return self._native_solution(self._bound, *self._bound.outcome())
+
+    def solve(self, qp: QP) -> QPSolution:
+        if self._library is None:
+            return self._binding_solve(qp)
+        workspace = self._bound if self._bound is not None and self._bound.qp is qp else self._workspace
+        if workspace is None or workspace.qp is not qp:
+            workspace = self._workspace = NativeWorkspace(self._library, qp, self.settings, self.warm_start)
+        return self._native_solution(workspace, *workspace.solve())
+
+    def _native_solution(self, workspace: NativeWorkspace, exitflag: int, defect: float,
+                         elapsed: float) -> QPSolution:
+        if exitflag >= 1 and math.isfinite(defect):
+            return QPSolution(workspace.x.copy(), True, "optimal", elapsed, defect)
+        workspace.reset()  # never warm start from a failed solve
+        status = "answer not finite" if exitflag >= 1 else daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}")
+        return QPSolution(None, False, status, elapsed)
+
+    # ------------------------------------------------- DAQP's Python binding
     def _setup(self, qp: QP) -> int:
+        import daqp
+
         self._shape = (qp.n, qp.n_ineq, qp.n_eq)
         self._sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
-        self._sense[qp.n + qp.n_ineq :] = 5  # equality rows
-        self._model = self._daqp.Model()
+        self._sense[qp.n + qp.n_ineq :] = daqp_abi.SENSE_EQUALITY
+        self._model = daqp.Model()
         if self.settings:
             self._model.settings = self.settings
         exitflag, _ = self._model.setup(qp.H, qp.c, qp.C, qp.upper, qp.lower, self._sense)
         self._data = qp.data
         return exitflag
 
-    def reset(self) -> None:
-        """Forget the workspace (the next solve starts cold)."""
-        self._model = None
-
-    def solve(self, qp: QP) -> QPSolution:
+    def _binding_solve(self, qp: QP) -> QPSolution:
         start = time.perf_counter()
         try:
             sense = None if self.warm_start else self._sense  # passing sense forgets the active set
@@ -266,16 +326,4 @@ class DaqpBackend(QPSolver):
         if exitflag >= 1 and math.isfinite(x.dot(x)):  # NaN, inf or overflow: never returned
             return QPSolution(x, True, "optimal", elapsed)
         self._model = None  # never warm start from a failed solve
-        return QPSolution(None, False, _DAQP_EXITFLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)
-
-
-_DAQP_EXITFLAGS = {
-    -1: "infeasible",
-    -2: "cycling detected",
-    -3: "unbounded",
-    -4: "iteration limit",
-    -5: "nonconvex",
-    -6: "initial point infeasible",
-    -7: "time limit",
-    2: "soft optimal",
-}
+        return QPSolution(None, False, daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)

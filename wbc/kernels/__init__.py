@@ -77,7 +77,21 @@ GRAM_CONDITION = 1e-8
 
 #: opcodes of the tick program (:func:`run_program`)
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST) = range(1, 13)
+ OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE) = range(1, 14)
+
+# ------------------------------------------------------------ native DAQP
+
+#: float64 words of DAQP's C structures (checked against wbc.daqp_abi's ctypes layouts by its probe)
+DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
+#: int32 indices of DAQPResult's exitflag and iter (checked likewise)
+DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
+#: layout of the control vector of the compiled DAQP solve (wbc.daqp_native): the update mask
+#: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
+#: answer), the solve time [s] and DAQP's iterations out
+DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS = range(5)
+DAQP_CONTROL_SIZE = 5
+#: exit flag of a solve that a NaN screen earlier in the program skipped
+DAQP_SKIPPED = 0
 
 # ------------------------------------------------------- compiled functions
 
@@ -89,6 +103,7 @@ COMPILED = {
     "manipulability": ("manipulability_gradient", "barrier_row"),
     "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
                  "qp_defect", "has_nan"),
+    "native_qp": ("daqp_solve",),
     "tick": ("run_program",),
 }
 _MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}

@@ -16,8 +16,13 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from . import (
+    DAQP_CONTROL_SIZE,
+    DAQP_PROBLEM_WORDS,
+    DAQP_RESULT_WORDS,
+    DAQP_WORKSPACE_WORDS,
     FRAME_DATA,
     FRAME_SETTINGS,
+    OP_DAQP_SOLVE,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
@@ -86,4 +91,10 @@ OP_SPECS: dict[int, OpSpec] = {
         ("support", ("nv",)), ("ancestor", ("nv", "nv")), ("jacobian", (6, "nv")), ("origin", (3,)),
         ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (2,)), ("value", (1,)),
         ("first", None), ("last", None), ("nv", None)), ("0 <= first < last <= 6",)),
+    OP_DAQP_SOLVE: OpSpec("DAQP_SOLVE", (
+        ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
+        ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("n", None), ("size", None),
+        ("update_ldp", None), ("solve", None), ("clock_gettime", None), ("clock_id", None), ("steady_mask", None)),
+        ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0", "update_ldp != 0",
+         "solve != 0", "clock_gettime != 0")),
 }

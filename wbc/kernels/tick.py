@@ -14,8 +14,15 @@ from numba import carray, njit, types
 from numba.extending import intrinsic
 
 from . import (
+    DAQP_CONTROL_EXITFLAG,
+    DAQP_CONTROL_SIZE,
+    DAQP_PROBLEM_WORDS,
+    DAQP_RESULT_WORDS,
+    DAQP_SKIPPED,
+    DAQP_WORKSPACE_WORDS,
     FRAME_DATA,
     FRAME_SETTINGS,
+    OP_DAQP_SOLVE,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
@@ -35,6 +42,7 @@ from .assembly import has_nan, merge_bounds, normal_equations, normalise_cost, p
 from .frames import frame_task_rows, position_task_rows
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
+from .native_qp import daqp_solve
 
 prepare_cache()  # before the first @njit below compiles: see wbc.kernels
 
@@ -82,6 +90,9 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
       Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
       settings (gain, min value), value out (1), first row, last row, nv
+    * DAQP_SOLVE: DAQP problem, workspace, result (their words), control, QP data (size), x (n), n,
+      size, addresses of daqp_update_ldp, daqp_solve, clock_gettime, clock id, steady mask;
+      skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN
     """
     found_nan = False
     for r in range(program.shape[0]):
@@ -149,4 +160,13 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
                         _vector(addresses, op[8], 3), _vector(addresses, op[9], nv), _vector(addresses, op[10], nv),
                         _vector(addresses, op[11], 1), _vector(addresses, op[12], 2), _vector(addresses, op[13], 1),
                         op[14], op[15], dt)
+        elif code == OP_DAQP_SOLVE:
+            control = _vector(addresses, op[4], DAQP_CONTROL_SIZE)
+            if found_nan:
+                control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
+            else:
+                daqp_solve(_vector(addresses, op[1], DAQP_PROBLEM_WORDS),
+                           _vector(addresses, op[2], DAQP_WORKSPACE_WORDS),
+                           _vector(addresses, op[3], DAQP_RESULT_WORDS), control, _vector(addresses, op[5], op[8]),
+                           _vector(addresses, op[6], op[7]), op[9], op[10], op[11], op[12], op[13])
     return found_nan

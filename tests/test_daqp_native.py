@@ -1,0 +1,257 @@
+"""DAQP through its C API from compiled code (wbc.daqp_abi, wbc.daqp_native): the layout is
+checked on the installed build, the answers are DAQP's Python binding's (an independent
+code path into the same solver) and optimal by a second solver, and the controller's
+commands are the same on both paths."""
+
+import gc
+import weakref
+from pathlib import Path
+
+import daqp
+import numpy as np
+import pytest
+
+import wbc
+from conftest import TASKS
+from wbc import daqp_abi, kernels
+from wbc.daqp_native import NativeWorkspace
+from wbc.qp import QP
+from wbc.scenario import load_scenario
+from wbc.solvers import DaqpBackend
+
+
+def random_qp(rng: np.random.Generator, n: int, n_ineq: int, n_eq: int) -> QP:
+    """A strictly convex QP whose bounds hold x = 0 (feasible unless the equalities say otherwise)."""
+    qp = QP(n, n_ineq, n_eq)
+    fill_random(rng, qp)
+    return qp
+
+
+def fill_random(rng: np.random.Generator, qp: QP) -> None:
+    n, p = qp.n, qp.n_ineq
+    J = rng.standard_normal((n + 2, n))
+    qp.H[...] = J.T @ J + 1e-3 * np.eye(n)
+    qp.c[...] = 3.0 * rng.standard_normal(n)
+    qp.C[...] = rng.standard_normal(qp.C.shape)
+    qp.ub[...] = rng.uniform(0.1, 2.0, n)
+    qp.lb[...] = -rng.uniform(0.1, 2.0, n)
+    qp.h[...] = rng.uniform(0.0, 1.0, p)
+    qp.b[...] = 0.0
+    qp.sync_equalities()
+
+
+def binding_answer(qp: QP) -> tuple[np.ndarray, int]:
+    sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
+    sense[qp.n + qp.n_ineq:] = daqp_abi.SENSE_EQUALITY
+    x, _, exitflag, _ = daqp.solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense)
+    return x, exitflag
+
+
+def assert_kkt(qp: QP, x: np.ndarray, lam: np.ndarray) -> None:
+    """Optimality written out: ``H x + c + lam_bounds + C^T lam_rows = 0``, a positive
+    multiplier only on a constraint at its upper bound, a negative one at its lower bound."""
+    scale = 1.0 + np.max(np.abs(qp.c)) + np.max(np.abs(qp.H @ x))
+    stationarity = qp.H @ x + qp.c + lam[:qp.n] + qp.C.T @ lam[qp.n:]
+    assert np.max(np.abs(stationarity)) < 1e-9 * scale
+    values = np.concatenate([x, qp.C @ x])
+    assert np.all(np.abs(values - qp.upper)[lam > 1e-12] < 1e-9)
+    assert np.all(np.abs(values - qp.lower)[lam < -1e-12] < 1e-9)
+
+
+def test_the_installed_daqp_passes_the_layout_probe():
+    version = daqp_abi.importlib.metadata.version("daqp")
+    assert version.startswith(daqp_abi.SUPPORTED_VERSIONS), f"pyproject's daqp bound lets in {version}"
+    assert daqp_abi.unavailable_reason() is None
+    assert DaqpBackend().native
+
+
+def test_the_probe_refuses_a_layout_the_kernels_do_not_share(monkeypatch):
+    library = daqp_abi.native()
+    monkeypatch.setattr(kernels, "DAQP_RESULT_EXITFLAG", kernels.DAQP_RESULT_EXITFLAG + 1)
+    assert "result exit flag" in daqp_abi.probe(library)
+    monkeypatch.undo()
+    assert daqp_abi.probe(library) is None
+
+
+def test_an_unknown_daqp_release_uses_the_binding(monkeypatch):
+    daqp_abi._load.cache_clear()
+    daqp_abi._probe_failure.cache_clear()
+    monkeypatch.setattr(daqp_abi.importlib.metadata, "version", lambda name: "0.99.0")
+    try:
+        assert "daqp 0.99.0" in daqp_abi.unavailable_reason()
+        backend = DaqpBackend()
+        assert not backend.native
+        qp = random_qp(np.random.default_rng(1), 5, 3, 1)
+        solution = backend.solve(qp)
+        assert solution.success and np.allclose(solution.x, binding_answer(qp)[0], atol=1e-10)
+    finally:
+        daqp_abi._load.cache_clear()
+        daqp_abi._probe_failure.cache_clear()
+
+
+@pytest.mark.parametrize("warm_start", [True, False])
+def test_native_answers_are_the_bindings_and_optimal(rng, warm_start):
+    """200 random QPs, 5 ticks each on one workspace (warm or cold): the binding's answer and
+    exit status; the answer and multipliers satisfy the KKT conditions; the defect written
+    is the QP's."""
+    library = daqp_abi.native()
+    infeasible = 0
+    for _ in range(200):
+        n, p, e = int(rng.integers(1, 12)), int(rng.integers(0, 6)), int(rng.integers(0, 3))
+        qp = random_qp(rng, n, p, e)
+        workspace = NativeWorkspace(library, qp, {}, warm_start=warm_start)
+        for _tick in range(5):
+            fill_random(rng, qp)
+            exitflag, defect, elapsed = workspace.solve()
+            reference, reference_flag = binding_answer(qp)
+            assert (exitflag >= 1) == (reference_flag >= 1), (exitflag, reference_flag)
+            if exitflag < 1:
+                infeasible += 1
+                workspace.reset()
+                continue
+            assert np.max(np.abs(workspace.x - reference)) < 1e-8
+            assert defect == kernels.qp_defect(qp.data, workspace.x) and defect < 1e-9
+            assert 0.0 < elapsed < 0.1
+            assert_kkt(qp, workspace.x, workspace.lam)
+    assert infeasible < 200  # the equalities with bounds make some infeasible: both paths must say so
+
+
+def test_settings_reach_the_c_solver():
+    rng = np.random.default_rng(3)
+    qp = random_qp(rng, 10, 8, 0)
+    qp.c[...] = 50.0 * rng.standard_normal(10)  # far outside the bounds: many active-set changes
+    capped = DaqpBackend({"iter_limit": 1, "warm_start": False})
+    assert capped.native
+    solution = capped.solve(qp)
+    assert not solution.success and solution.status == "iteration limit"
+    assert DaqpBackend({"warm_start": False}).solve(qp).success
+
+
+def test_a_warm_start_does_not_change_the_answer_and_saves_iterations():
+    """A slowly drifting QP with many active bounds and rows, like a control loop's: the warm
+    workspace gives the cold one's answers in fewer DAQP iterations."""
+    rng = np.random.default_rng(7)
+    base = random_qp(rng, 12, 6, 0)
+    base.c[...] = 20.0 * rng.standard_normal(12)  # the unconstrained optimum far outside the box
+    answers, iterations = {}, {}
+    for warm in (True, False):
+        qp = base.copy()
+        workspace = NativeWorkspace(daqp_abi.native(), qp, {}, warm_start=warm)
+        answers[warm], iterations[warm] = [], 0
+        for k in range(100):
+            qp.c[...] = base.c + np.sin(0.05 * k + np.arange(12))
+            exitflag, _, _ = workspace.solve()
+            assert exitflag == 1
+            answers[warm].append(workspace.x.copy())
+            iterations[warm] += workspace.iterations
+    assert np.max(np.abs(np.array(answers[True]) - np.array(answers[False]))) < 1e-9
+    assert iterations[True] < 0.5 * iterations[False]
+
+
+@pytest.mark.parametrize("scenario_file", sorted(p.name for p in TASKS.glob("*.toml")))
+def test_controller_commands_match_the_binding_path(scenario_file, monkeypatch):
+    """Every shipped scenario, 150 closed-loop ticks: the native path (solve inside the tick
+    program, or alone for the reduced form) and DAQP's Python binding give the same commands."""
+    scenario = load_scenario(TASKS / scenario_file)
+
+    def run() -> tuple[np.ndarray, list, wbc.Controller]:
+        controller = scenario.make_controller("daqp")
+        q, out, outcomes = scenario.q0.copy(), [], []
+        for k in range(150):
+            if scenario.reference_task is not None:
+                scenario.reference_task.set_target(*scenario.reference(k * scenario.dt))
+            out.append(controller.step(q))
+            outcomes.append(controller.last.outcome)
+            q = scenario.robot.integrate(q, out[-1], scenario.dt)
+        return np.array(out), outcomes, controller
+
+    native, native_outcomes, controller = run()
+    assert controller.solver.native and controller._solve_in_program == (not controller.reduced)
+    monkeypatch.setattr(daqp_abi, "native", lambda: None)
+    binding, binding_outcomes, controller = run()
+    assert not controller.solver.native and not controller._solve_in_program
+    assert native_outcomes == binding_outcomes
+    assert np.max(np.abs(native - binding)) < 1e-9
+
+
+class SometimesNan(wbc.Task):
+    """A task whose target is NaN while ``broken``."""
+
+    dim = 1
+    broken = False
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(1.0)
+        target.fill(np.nan if SometimesNan.broken else 0.0)
+
+    def report(self, v, errors):
+        pass
+
+
+def test_a_nan_in_the_qp_skips_the_native_solve(youbot):
+    task = wbc.FrameTask("ee", gain=0.5)
+    home = youbot.neutral()
+    task.set_target(youbot.frame_pose(home, "ee"))
+    controller = wbc.Controller(youbot, [task, SometimesNan()], [wbc.JointVelocityLimits()])
+    controller.step(home)
+    assert controller.last.outcome is wbc.Outcome.OPTIMAL
+    SometimesNan.broken = True
+    try:
+        v = controller.step(home)
+    finally:
+        SometimesNan.broken = False
+    assert controller.last.outcome is wbc.Outcome.ZERO and np.all(v == 0.0)
+    assert controller.solver._bound.control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
+    controller.step(home)
+    assert controller.last.outcome is wbc.Outcome.OPTIMAL
+
+
+def test_an_infeasible_tick_resets_the_workspace_and_the_next_one_solves(youbot):
+    """Conflicting hard rows: DAQP fails, the fallback answers; the workspace starts cold."""
+    qp = random_qp(np.random.default_rng(5), 4, 2, 0)
+    backend = DaqpBackend()
+    assert backend.solve(qp).success
+    qp.C[1] = -qp.C[0]
+    qp.h[...] = (-1.0, -1.0)  # C0 x <= -1 and -C0 x <= -1: infeasible
+    failed = backend.solve(qp)
+    assert not failed.success and failed.status == "infeasible"
+    qp.h[...] = 1.0
+    solution = backend.solve(qp)
+    assert solution.success and np.allclose(solution.x, binding_answer(qp)[0], atol=1e-9)
+
+
+def test_workspaces_are_freed_with_their_controller(youbot):
+    task = wbc.FrameTask("ee")
+    task.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+    controller = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()])
+    controller.step(youbot.neutral())
+    finalizer = controller.solver._bound._finalizer
+    workspace = weakref.ref(controller.solver._bound)
+    assert finalizer.alive
+    del controller
+    gc.collect()
+    assert workspace() is None and not finalizer.alive
+
+
+def test_reassigning_the_solver_rebuilds_the_program(youbot):
+    task = wbc.FrameTask("ee", gain=0.5)
+    home = youbot.neutral()
+    target = youbot.frame_pose(home, "ee")
+    target[:3, 3] += (0.2, 0.1, 0.0)
+    task.set_target(target)
+    controller = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()])
+    v_daqp = controller.step(home)
+    controller.solver = wbc.solvers.make_solver("proxqp")
+    assert not controller._solve_in_program
+    assert np.allclose(controller.step(home), v_daqp, atol=1e-6)
+    with pytest.raises(wbc.InvalidInputError, match="QPSolver"):
+        controller.solver = "daqp"
+
+
+def test_the_kernel_constants_are_the_ctypes_layout():
+    """Written out from DAQP 0.11's types.h: x86-64 / AArch64 (LP64) sizes and offsets."""
+    assert (daqp_abi.words(daqp_abi.Problem), daqp_abi.words(daqp_abi.Workspace),
+            daqp_abi.words(daqp_abi.Result)) == (80 // 8, 328 // 8, 64 // 8)
+    assert daqp_abi.Result.exitflag.offset == 32 and daqp_abi.Result.iter.offset == 36
+    assert daqp_abi.Workspace.sense.offset == 64 and daqp_abi.Workspace.settings.offset == 224
+    assert Path(daqp.__file__).exists()

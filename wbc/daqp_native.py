@@ -1,0 +1,146 @@
+"""One DAQP workspace on one QP's buffers, solved by compiled code (no Python binding).
+
+DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.QP`: H, c, [G; A], upper,
+lower), so a tick hands it nothing: :func:`wbc.kernels.native_qp.daqp_solve` re-forms the
+factorisation (``daqp_update_ldp``), solves (``daqp_solve``), checks the answer against the
+QP's bounds and rows (:func:`wbc.kernels.qp_defect`) and times itself -- as an op of the
+tick program (:meth:`NativeWorkspace.add_op`, the whole tick one native call) or alone
+(:meth:`NativeWorkspace.solve`).
+
+**Warm start.** DAQP's constraint states (``sense``: active, lower, immutable) are the
+warm start. With ``warm_start`` the problem's ``sense`` pointer is the workspace's own
+array, so each tick starts from the previous working set; without it, it is a fresh copy
+of the initial states (equality rows active), so each tick starts cold.
+
+**Memory.** The C structures live in float64 arrays this object owns (and a tick program
+that runs the op keeps alive); DAQP's own allocations are freed when the object is
+collected (``weakref.finalize``) and re-made by :meth:`reset`.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import weakref
+
+import numpy as np
+
+from . import daqp_abi, kernels
+from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
+from .kernels import (
+    DAQP_CONTROL_DEFECT,
+    DAQP_CONTROL_EXITFLAG,
+    DAQP_CONTROL_ITERATIONS,
+    DAQP_CONTROL_MASK,
+    DAQP_CONTROL_SIZE,
+    DAQP_CONTROL_TIME,
+)
+from .program import TickProgram
+from .qp import QP
+
+
+class NativeWorkspace:
+    """DAQP set up once on ``qp``'s buffers (see the module docstring).
+
+    Args:
+        library: the checked C entry points (:func:`wbc.daqp_abi.native`).
+        qp: the QP whose buffers DAQP reads every tick.
+        settings: DAQP settings (keys of :class:`wbc.daqp_abi.Settings`), validated upstream.
+        warm_start: keep the working set from one tick to the next.
+    """
+
+    def __init__(self, library: Library, qp: QP, settings: dict, warm_start: bool) -> None:
+        self.qp, self.warm_start = qp, warm_start
+        self._library = library
+        n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
+        self.x = np.zeros(n)  #: DAQP's answer of the latest solve
+        self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
+        self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
+        self._initial_sense = np.zeros(m, dtype=np.intc)
+        self._initial_sense[qp.n + qp.n_ineq:] = daqp_abi.SENSE_EQUALITY
+        self._fresh_sense = self._initial_sense.copy()  # what a cold tick re-reads
+        # the C structures, in memory this object owns
+        self.problem_words, self.work_words = np.zeros(words(Problem)), np.zeros(words(Workspace))
+        self.result_words, self.settings_words = np.zeros(words(Result)), np.zeros(words(Settings))
+        self.problem: Problem = struct_in(self.problem_words, Problem)
+        self.work: Workspace = struct_in(self.work_words, Workspace)
+        self.result: Result = struct_in(self.result_words, Result)
+        self.settings: Settings = struct_in(self.settings_words, Settings)
+        library.lib.daqp_default_settings(ctypes.addressof(self.settings))
+        for key, value in settings.items():
+            setattr(self.settings, key, value)
+        self.result.x, self.result.lam = self.x.ctypes.data, self.lam.ctypes.data if m else None
+        # neutral data for setup_daqp (H = I, no rows, loose bounds): setup only allocates;
+        # the first tick re-forms everything from the QP's buffers (a cold update)
+        self._neutral_H, self._neutral_f = np.eye(n), np.zeros(n)
+        self._neutral_A = np.zeros((max(m - n, 1), n))
+        self._neutral_upper = np.ones(m)
+        self._neutral_upper[qp.n + qp.n_ineq:] = 0.0
+        self._neutral_lower = -self._neutral_upper
+        self._finalizer = weakref.finalize(self, _free, library.lib, self.work)
+        self.reset()
+        self._program = TickProgram()  # the solve alone, for solve()
+        self._program.add(kernels.OP_DAQP_SOLVE, **self.operands())
+
+    def reset(self) -> None:
+        """Free DAQP's memory and set it up again: the next solve starts cold."""
+        _free(self._library.lib, self.work)
+        self.work_words.fill(0.0)
+        self.work.settings = ctypes.addressof(self.settings)
+        problem, qp = self.problem, self.qp
+        problem.n, problem.m, problem.ms = qp.n, qp.n + qp.n_ineq + qp.n_eq, qp.n
+        problem.break_points, problem.nh, problem.problem_type = None, 0, 0
+        self._fresh_sense[...] = self._initial_sense
+        self._point(self._neutral_H, self._neutral_f, self._neutral_A, self._neutral_upper, self._neutral_lower)
+        problem.sense = self._fresh_sense.ctypes.data
+        flag = self._library.lib.setup_daqp(ctypes.addressof(problem), ctypes.addressof(self.work), None)
+        if flag < 0:  # cannot happen on the neutral problem; never run on a half-made workspace
+            raise RuntimeError(f"DAQP could not set up a {qp.n}-variable workspace (exit flag {flag})")
+        self._point(qp.H, qp.c, qp.C, qp.upper, qp.lower)
+        if self.warm_start:
+            problem.sense = self.work.sense  # the working set carries over from tick to tick
+        self.control[DAQP_CONTROL_MASK] = daqp_abi.COLD_UPDATE
+
+    def _point(self, H: np.ndarray, f: np.ndarray, A: np.ndarray, upper: np.ndarray, lower: np.ndarray) -> None:
+        problem = self.problem
+        problem.H, problem.f, problem.bupper, problem.blower = (H.ctypes.data, f.ctypes.data, upper.ctypes.data,
+                                                                lower.ctypes.data)
+        problem.A = A.ctypes.data if A.size else None
+
+    def operands(self) -> dict:
+        """The operands of the compiled solve (:data:`wbc.kernels.ops.OP_SPECS`, DAQP_SOLVE)."""
+        entry = self._library.entry
+        return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
+                    control=self.control, data=self.qp.data, x=self.x, n=self.qp.n, size=self.qp.data.size,
+                    update_ldp=entry.update_ldp, solve=entry.solve, clock_gettime=entry.clock_gettime,
+                    clock_id=entry.clock_id, steady_mask=daqp_abi.WARM_UPDATE)
+
+    def add_op(self, program: TickProgram) -> None:
+        """Append the solve to ``program``: it runs after the program's NaN screen, and only
+        when that found none (exit flag ``kernels.DAQP_SKIPPED``)."""
+        program.add(kernels.OP_DAQP_SOLVE, **self.operands())
+        program.keep_alive(self)
+
+    def solve(self) -> tuple[int, float, float]:
+        """Solve now (one compiled call): (exit flag, answer defect, solve time [s])."""
+        self._program.run(0.0)
+        return self.outcome()
+
+    def outcome(self) -> tuple[int, float, float]:
+        """(exit flag, answer defect, solve time [s]) of the latest compiled solve."""
+        control = self.control
+        return (int(control[DAQP_CONTROL_EXITFLAG]), float(control[DAQP_CONTROL_DEFECT]),
+                float(control[DAQP_CONTROL_TIME]))
+
+    @property
+    def iterations(self) -> int:
+        """DAQP's iterations in the latest solve."""
+        return int(self.control[DAQP_CONTROL_ITERATIONS])
+
+
+def _free(lib: ctypes.CDLL, work: Workspace) -> None:
+    """Free what DAQP allocated in ``work`` (not the settings: they are wbc's)."""
+    if work.sense or work.lam:
+        settings, work.settings = work.settings, None
+        lib.free_daqp_workspace(ctypes.addressof(work))
+        lib.free_daqp_ldp(ctypes.addressof(work))
+        work.settings = settings
