@@ -9,6 +9,7 @@ from hypothesis import strategies as st
 
 import wbc
 from wbc import kernels
+from wbc.diagnostics import StaleDiagnosticsError
 from wbc.solvers import QPSolution, QPSolver
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
@@ -49,6 +50,19 @@ def test_huge_base_cost_gives_the_limited_base_twist_without_slip():
     assert robot.base.max_linear_speed == 0.5 and robot.base.max_yaw_rate >= 0.5
     np.testing.assert_allclose(robot.base_twist(q, v), [0.5, 0.0, 0.5], atol=1e-7)
     assert controller.last.max_violation <= 1e-9
+
+
+class ZeroRow(wbc.Task):
+    """A Python task (no compiled ops) that asks nothing: 0 v = 0."""
+
+    dim = 1
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(0.0)
+        target.fill(0.0)
+
+    def report(self, v, errors):
+        pass
 
 
 class WrongAnswers(QPSolver):
@@ -376,3 +390,29 @@ def test_the_elastic_fallback_keeps_bounds_that_daqp_soft_mode_misses(youbot):
     limit = youbot.velocity_limit[3:]  # soft damper bounds clipped into the hard speed limits
     assert np.all(v[3:] >= np.clip(scale * margin_low[3:], -limit, limit))
     assert np.all(v[3:] <= np.clip(scale * margin_high[3:], -limit, limit))
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("python_item", [False, True])
+def test_every_non_finite_coordinate_of_q_is_refused(youbot, bad, python_item):
+    """q's finiteness is screened inside the tick program (compiled items only) or up front
+    (a Python task sees the kinematics first): either way each coordinate, even one no task
+    reads (the wrist roll, with a position-only task), raises; the record of
+    the previous tick goes stale instead of reading overwritten buffers; the next tick works."""
+    task = wbc.PositionTask("ee", gain=0.5)
+    task.set_target(youbot.frame_pose(HOME, "ee")[:3, 3])
+    extra = [ZeroRow()] if python_item else []
+    controller = wbc.Controller(youbot, [task, *extra], [wbc.JointVelocityLimits()])
+    assert controller._q_screened is not python_item
+    reference = controller.step(HOME)
+    for i in range(youbot.nq):
+        previous = controller.last
+        q = HOME.copy()
+        q[i] = bad
+        with pytest.raises(wbc.InvalidInputError, match="q contains NaN or inf"):
+            controller.step(q)
+        if not python_item:
+            with pytest.raises(StaleDiagnosticsError):
+                _ = previous.task_errors
+    np.testing.assert_allclose(controller.step(HOME), reference, atol=1e-12)
+    assert controller.last.outcome is wbc.Outcome.OPTIMAL

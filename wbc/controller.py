@@ -198,6 +198,7 @@ class Controller:
         kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
         stack, rows = self._stack_t, self._stack_t.shape[1]
         program = TickProgram()
+        program.add(kernels.OP_HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
         # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
@@ -218,24 +219,28 @@ class Controller:
                      reset=0, Hc=qp.Hc)
         self._bound_policy.add_op(rest, qp)
         rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
-        rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size)
+        rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
         # the solve itself, when the backend can run in the program (native DAQP) and no
         # Python step (the input reduction) stands between the QP and the solver
         self._solve_in_program = not self.reduced and self.solver.bind_program(rest, qp)
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._unready = list(self._task_data)  # checked every tick until each one is ready
+        # Python items see the kinematics before the program runs: for them q is checked up front
+        self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
         """Compute the joint velocity command ``v`` (shape (nv,)) for configuration ``q``.
 
-        Raises InvalidInputError for a malformed ``q``. When the QP cannot be solved the
-        command comes from the fallback chain of the class docstring (``last.status`` says
-        which), or SolverError is raised in strict mode. The command is never NaN.
+        Raises InvalidInputError for a malformed ``q`` (a non-finite one is caught by the
+        program's screen, so the previous tick's lazy diagnostics are stale afterwards).
+        When the QP cannot be solved the command comes from the fallback chain of the class
+        docstring (``last.status`` says which), or SolverError is raised in strict mode. The
+        command is never NaN.
         """
         start = time.perf_counter()
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
-                and math.isfinite(q.dot(q))):  # fast path of check_configuration
+                and (self._q_screened or math.isfinite(q.dot(q)))):  # fast path of check_configuration
             q = self.robot.check_configuration(q)
         kin, dt, qp = self.kinematics, self._dt, self._qp_v
         kin.update(q)
@@ -248,7 +253,10 @@ class Controller:
             constraint.compute(kin, dt, block)
         if qp.n_eq:
             qp.sync_equalities()
-        has_nan = self._program.run(dt)  # compiled items, normal equations, bounds, NaN screen
+        has_nan = self._program.run(dt)  # q screen, compiled items, normal equations, bounds, NaN screen
+        if has_nan and self._q_screened and not math.isfinite(q.dot(q)):
+            self._tick += 1  # this call overwrote the buffers the previous record reads lazily
+            self.robot.check_configuration(q)  # raises, naming what is wrong with q
         if self._program_after_preview is not None:
             for task, jacobian, target in self._python_preview:
                 task.compute_preview(kin, dt, jacobian, target, self._preview)

@@ -27,7 +27,6 @@ import numpy as np
 from . import daqp_abi, kernels
 from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
 from .kernels import (
-    DAQP_CONTROL_DEFECT,
     DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_ITERATIONS,
     DAQP_CONTROL_MASK,
@@ -127,9 +126,8 @@ class NativeWorkspace:
 
     def outcome(self) -> tuple[int, float, float]:
         """(exit flag, answer defect, solve time [s]) of the latest compiled solve."""
-        control = self.control
-        return (int(control[DAQP_CONTROL_EXITFLAG]), float(control[DAQP_CONTROL_DEFECT]),
-                float(control[DAQP_CONTROL_TIME]))
+        exitflag, defect, elapsed = self.control[DAQP_CONTROL_EXITFLAG:DAQP_CONTROL_TIME + 1].tolist()
+        return int(exitflag), defect, elapsed
 
     @property
     def iterations(self) -> int:

@@ -272,7 +272,11 @@ class DaqpBackend(QPSolver):
 
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
-        return self._native_solution(self._bound, *self._bound.outcome())
+        bound = self._bound
+        exitflag, defect, elapsed = bound.outcome()
+        if exitflag >= 1 and defect != math.inf:  # the control loop's path
+            return QPSolution(bound.x.copy(), True, "optimal", elapsed, defect)
+        return self._native_solution(bound, exitflag, defect, elapsed)
 
     def solve(self, qp: QP) -> QPSolution:
         if self._library is None:

@@ -14,6 +14,7 @@ from . import kernels
 from .errors import InvalidInputError
 
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
+_FLOAT64 = np.dtype(np.float64)
 
 
 def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
@@ -52,7 +53,7 @@ def as_vector(value, size: int, name: str) -> np.ndarray:
     with one dot product (``x.x`` is NaN or inf iff some entry is, or on overflow,
     which falls through to the element-wise check).
     """
-    if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (size,):
+    if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (size,):
         array = value
     else:
         array = _real_array(value, (size,), name)
@@ -134,7 +135,7 @@ def as_pose(value, name: str) -> np.ndarray:
     Fast path for the control loop: a float64 (4, 4) array is checked by one compiled call
     (:func:`wbc.kernels.pose_defect`); the messages come from the checks below.
     """
-    if (type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (4, 4)
+    if (type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (4, 4)
             and kernels.pose_defect(value, ROTATION_TOLERANCE) == kernels.POSE_OK):
         return value
     pose = _real_array(value, (4, 4), name)

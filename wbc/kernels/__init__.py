@@ -102,7 +102,7 @@ COMPILED = {
     "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
     "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
-                 "qp_defect", "has_nan"),
+                 "qp_defect", "has_nan", "has_non_finite"),
     "native_qp": ("daqp_solve",),
     "tick": ("run_program",),
 }

@@ -185,3 +185,12 @@ def has_nan(data: np.ndarray) -> bool:
         if math.isnan(value):
             return True
     return False
+
+
+@njit("boolean(float64[:])", cache=True, nogil=True)
+def has_non_finite(data: np.ndarray) -> bool:
+    """True when some entry of ``data`` is NaN or infinite."""
+    for value in data:
+        if not math.isfinite(value):
+            return True
+    return False

@@ -115,16 +115,22 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
 
 
 
-@njit("void(float64[:, :], float64[:], float64[:])", cache=True, nogil=True)
-def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray) -> None:
-    """FrameTask target: R* and p* from the (validated) ``pose``, ``W twist`` (``twist`` of
-    length 6, or empty for none) into the settings vector (layout ``FRAME_*``)."""
+@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=True, nogil=True)
+def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
+    """FrameTask target: R* and p* from ``pose``, ``W twist`` (``twist`` of length 6, or
+    empty for none) into the settings vector (layout ``FRAME_*``) -- when ``pose`` passes
+    :func:`pose_defect` with ``tolerance``; returns its verdict (nothing written unless
+    POSE_OK): the control loop's ``set_target`` is one call."""
+    defect = pose_defect(pose, tolerance)
+    if defect != POSE_OK:
+        return defect
     for a in range(3):
         for b in range(3):
             settings[3 * a + b] = pose[a, b]
         settings[9 + a] = pose[a, 3]
     for a in range(6):
         settings[18 + a] = settings[12 + a] * twist[a] if len(twist) == 6 else 0.0
+    return defect
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "

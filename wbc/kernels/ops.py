@@ -75,7 +75,7 @@ OP_SPECS: dict[int, OpSpec] = {
     OP_MERGE_BOUNDS: OpSpec("MERGE_BOUNDS", (
         ("bounds", ("2 * count", "nv")), ("count", None), ("n_hard", None), ("nv", None), ("upper", ("nv",)),
         ("lower", ("nv",))), ("1 <= count", "0 <= n_hard <= count")),
-    OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None))),
+    OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None), ("infinite", None)), ("0 <= infinite <= 1",)),
     OP_NORMALISE_COST: OpSpec("NORMALISE_COST", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
     OP_HEADING_ROWS: OpSpec("HEADING_ROWS", (
         ("cos_part", ("rows", 2)), ("sin_part", ("rows", 2)), ("q", ("nq",)), ("heading", None),

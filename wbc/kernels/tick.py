@@ -38,7 +38,7 @@ from . import (
     POSITION_SETTINGS,
     prepare_cache,
 )
-from .assembly import has_nan, merge_bounds, normal_equations, normalise_cost, preview_solve
+from .assembly import has_nan, has_non_finite, merge_bounds, normal_equations, normalise_cost, preview_solve
 from .frames import frame_task_rows, position_task_rows
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
@@ -82,7 +82,7 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * STEERING: preview (nv), q (nq), x, y, heading, parameters (3), error (1), stack, first row,
       nv, rows, nq
     * MERGE_BOUNDS: bounds ((2 count) x nv: upper, lower of each bounded constraint), count, n_hard, nv, ub, lb
-    * HAS_NAN: data, size
+    * HAS_NAN: data, size, infinite (1: infinite entries count too)
     * NORMALISE_COST: Hc ((nv + 1) x nv), (damping, damping floor), nv
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
     * POSITION_TASK: J^T, R^T, p, support (nv), settings, frame data, error (3), stack, first row, nv,
@@ -135,7 +135,8 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             merge_bounds(_matrix(addresses, op[1], 2 * count, nv), op[3], _vector(addresses, op[5], nv),
                          _vector(addresses, op[6], nv))
         elif code == OP_HAS_NAN:
-            found_nan = found_nan or has_nan(_vector(addresses, op[1], op[2]))
+            data = _vector(addresses, op[1], op[2])
+            found_nan = found_nan or (has_non_finite(data) if op[3] else has_nan(data))
         elif code == OP_NORMALISE_COST:
             nv = op[3]
             damping = _vector(addresses, op[2], 2)

@@ -10,10 +10,11 @@ from ..kinematics import Kinematics, frame_in_joint
 from ..program import TickProgram
 from ..robot import Robot
 from ..settings import Cost, Operand
-from ..validation import as_gain, as_pose, as_speed_limit, as_vector
+from ..validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
 from .task import Task, TaskData, _norm
 
 _NO_TWIST = np.zeros(0)
+_FLOAT64 = np.dtype(np.float64)
 
 
 class FrameTask(Task):
@@ -70,9 +71,11 @@ class FrameTask(Task):
 
     def set_target(self, pose, twist=None) -> None:
         """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
-        pose = as_pose(pose, "target pose")
         twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
-        kernels.set_frame_target(pose, twist, self._settings)
+        if not (type(pose) is np.ndarray and pose.dtype is _FLOAT64 and pose.shape == (4, 4)
+                and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == kernels.POSE_OK):
+            # not the control loop's fast path: convert, or raise saying what is wrong
+            kernels.set_frame_target(as_pose(pose, "target pose"), twist, self._settings, ROTATION_TOLERANCE)
         self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
