@@ -76,9 +76,9 @@ class NativeWorkspace:
         self._neutral_upper[qp.n + qp.n_ineq:] = 0.0
         self._neutral_lower = -self._neutral_upper
         self._finalizer = weakref.finalize(self, _free, library.lib, self.work)
-        self.reset()
         self._program = TickProgram()  # the solve alone, for solve()
         self._program.add(kernels.OP_DAQP_SOLVE, **self.operands())
+        self.reset()
 
     def reset(self) -> None:
         """Free DAQP's memory and set it up again: the next solve starts cold."""
@@ -94,6 +94,9 @@ class NativeWorkspace:
         flag = self._library.lib.setup_daqp(ctypes.addressof(problem), ctypes.addressof(self.work), None)
         if flag < 0:  # cannot happen on the neutral problem; never run on a half-made workspace
             raise RuntimeError(f"DAQP could not set up a {qp.n}-variable workspace (exit flag {flag})")
+        # one solve of the neutral problem: DAQP's memory is touched now, not in the first tick
+        self.control[DAQP_CONTROL_MASK] = daqp_abi.COLD_UPDATE
+        self._program.run(0.0)
         self._point(qp.H, qp.c, qp.C, qp.upper, qp.lower)
         if self.warm_start:
             problem.sense = self.work.sense  # the working set carries over from tick to tick

@@ -40,6 +40,7 @@ class Kinematics:
         #: world axes (Pinocchio's data.J); a live view, refreshed by :meth:`update`
         self.joint_jacobians = self.data.J
         self._joint_views: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        self.update(pin.neutral(self.model))  # touches Pinocchio's data now, not in the first tick
 
     def update(self, q: np.ndarray) -> None:
         """Recompute for configuration ``q`` (already validated)."""

@@ -17,6 +17,8 @@ an op whose arrays point into memory owned by another object -- the DAQP workspa
 
 from __future__ import annotations
 
+import functools
+from types import CodeType
 from typing import Any
 
 import numpy as np
@@ -36,6 +38,7 @@ class TickProgram:
         self._program = np.zeros((0, _WIDTH), dtype=np.int64)
         self._addresses = np.zeros(0, dtype=np.int64)
         self._owners: list[Any] = []
+        self._address_list: list[int] = []
 
     def keep_alive(self, owner: Any) -> None:
         """Keep ``owner`` (which frees memory an op's operands point to) alive as long as this program."""
@@ -50,6 +53,7 @@ class TickProgram:
             if known is array:
                 return index
         self._arrays.append(array)
+        self._address_list.append(array.__array_interface__["data"][0])
         return len(self._arrays) - 1
 
     def add(self, opcode: int, **operands: Any) -> None:
@@ -65,15 +69,15 @@ class TickProgram:
             raise TypeError(f"{spec.name} op: missing operands {missing}, unknown operands {unknown}")
         sizes = {name: int(operands[name]) for name, shape in spec.operands if shape is None}
         for check in spec.checks:
-            if not eval(check, {"__builtins__": {}}, dict(sizes)):  # noqa: S307 -- the package's own specs
+            if not eval(_compiled(check), {"__builtins__": {}}, sizes):  # noqa: S307 -- the package's own specs
                 raise TypeError(f"{spec.name} op: {check} does not hold for {sizes}")
         row = [opcode]
         for name, shape in spec.operands:
             if shape is None:
                 row.append(sizes[name])
                 continue
-            expected = tuple(dim if isinstance(dim, int) else eval(dim, {"__builtins__": {}}, dict(sizes))
-                             for dim in shape)
+            expected = tuple(dim if isinstance(dim, int) else eval(_compiled(dim), {"__builtins__": {}}, sizes)
+                             for dim in shape)  # noqa: S307 -- the package's own specs
             array = operands[name]
             if not isinstance(array, np.ndarray) or array.shape != expected:
                 raise TypeError(f"{spec.name} op: operand {name} must have shape {expected}, got "
@@ -81,7 +85,7 @@ class TickProgram:
             row.append(self.array(array))
         self._rows.append(row + [0] * (_WIDTH - len(row)))
         self._program = np.array(self._rows, dtype=np.int64)
-        self._addresses = np.array([a.ctypes.data for a in self._arrays], dtype=np.int64)
+        self._addresses = np.array(self._address_list, dtype=np.int64)
 
     def truncate(self, length: int) -> None:
         """Drop the rows after the first ``length`` (registered arrays stay registered)."""
@@ -94,6 +98,12 @@ class TickProgram:
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
         return kernels.run_program(self._program, self._addresses, dt)
+
+
+@functools.cache
+def _compiled(expression: str) -> CodeType:
+    """An op schema's shape or check expression, compiled once per process."""
+    return compile(expression, "<op schema>", "eval")
 
 
 def ops_follow_compute(item: Any, compute: str = "compute", add_ops: str = "add_ops") -> bool:
