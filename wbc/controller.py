@@ -10,7 +10,8 @@ controller is built, by named pieces:
 * the **program** (:class:`wbc.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
   the cost normalisation, the NaN screen and -- with DAQP on its native path
-  (:mod:`wbc.daqp_native`) -- the solve and the check of its answer;
+  (:mod:`wbc.daqp_native`) -- the solve and the check of its answer; at high DOF the QP
+  is assembled in its lifted form (:mod:`wbc.lifting`: the dense task rows as variables);
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
 * the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
@@ -32,6 +33,7 @@ from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .kinematics import Kinematics
 from .layout import ConstraintLayout, TaskStack
+from .lifting import LiftedQP, dense_rows, worth_lifting
 from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -146,7 +148,7 @@ class Controller:
         self._task_data = [self._bind(task) for task in self.tasks]
         self._constraint_data = [self._bind(constraint) for constraint in self.constraints]
 
-        stack = TaskStack(self._task_data, nv)
+        self._task_stack = stack = TaskStack(self._task_data, nv)
         self._stack_t, self._stack, self._damping_rows = stack.stack_t, stack.stack, stack.damping_rows
         self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
         self.damping = self.damping  # writes sqrt(damping) I into its rows
@@ -163,7 +165,6 @@ class Controller:
         self._fallback = Fallback(layout.soft_rows, self.solver.fallback_budget, self.strict)
         self._preview = np.zeros(nv)  # holonomic relaxation -H^-1 c of the plain tasks
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
-        self._build_program()
 
         self._nonholonomic = robot.base.is_nonholonomic
         self._S = robot.input_map(robot.neutral())
@@ -171,7 +172,7 @@ class Controller:
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
-        self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
+        self._build_program()
 
     def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
         """``item``'s data for this controller (:meth:`wbc.item.Item.bind`); from now on only
@@ -204,8 +205,15 @@ class Controller:
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain, reset=1,
-                    Hc=qp.Hc)
+        # high DOF with native DAQP: the dense task rows as variables (wbc.lifting), H never formed
+        self._lifted = None
+        if not self.reduced and not self._preview_blocks and getattr(self.solver, "native", False):
+            diagonal = dense_rows(self._task_stack, nv)
+            if worth_lifting(nv, diagonal):
+                self._lifted = LiftedQP(qp, diagonal)
+        if self._lifted is None:
+            program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain,
+                        reset=1, Hc=qp.Hc)
         self._python_preview = []
         rest = program
         if self._preview_blocks:  # tasks needing the holonomic relaxation -H^-1 c of the others
@@ -218,11 +226,16 @@ class Controller:
             rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain, last=rows,
                      reset=0, Hc=qp.Hc)
         self._bound_policy.add_op(rest, qp)
-        rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
-        rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+        if self._lifted is None:
+            rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
+            rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+            self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
+        else:
+            self._lifted.add_op(rest, stack, self._cost_scaling)
+            self.qp = self._lifted.qp
         # the solve itself, when the backend can run in the program (native DAQP) and no
         # Python step (the input reduction) stands between the QP and the solver
-        self._solve_in_program = not self.reduced and self.solver.bind_program(rest, qp)
+        self._solve_in_program = not self.reduced and self.solver.bind_program(rest, self.qp)
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._unready = list(self._task_data)  # checked every tick until each one is ready
         # Python items see the kinematics before the program runs: for them q is checked up front
@@ -281,14 +294,15 @@ class Controller:
         if not solution.success:
             solution, outcome, status = self._fallback.answer(self.qp, solution, self.solver.name, self._tick,
                                                               has_nan)
+        x = solution.x if self._lifted is None else solution.x[:self.robot.nv]  # lifted: x = (v, w)
         if self._reduction is not None:
-            u = solution.x
+            u = x
             v = S @ u
         elif self._nonholonomic:
-            v = solution.x
+            v = x
             u = S.T @ v
         else:
-            v = u = solution.x
+            v = u = x
         self.last = TickDiagnostics(self, self._tick, outcome, status, solution.solve_time,
                                     time.perf_counter() - start, v, u)
         return v

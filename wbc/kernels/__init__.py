@@ -77,7 +77,8 @@ GRAM_CONDITION = 1e-8
 
 #: opcodes of the tick program (:func:`run_program`)
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE) = range(1, 14)
+ OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE,
+ OP_LIFT) = range(1, 15)
 
 # ------------------------------------------------------------ native DAQP
 
@@ -102,7 +103,7 @@ COMPILED = {
     "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
     "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
-                 "qp_defect", "has_nan", "has_non_finite"),
+                 "qp_defect", "has_nan", "has_non_finite", "lift_qp"),
     "native_qp": ("daqp_solve",),
     "tick": ("run_program",),
 }

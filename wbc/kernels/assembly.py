@@ -194,3 +194,96 @@ def has_non_finite(data: np.ndarray) -> bool:
         if not math.isfinite(value):
             return True
     return False
+
+
+@njit("boolean(float64[:, :], float64[:], float64[::1], float64[::1], int64, int64, int64, int64, float64, float64)",
+      cache=True, nogil=True)
+def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifted: np.ndarray, nv: int, k: int,
+            p: int, e: int, damping: float, damping_floor: float) -> bool:
+    """The lifted form of the QP (:mod:`wbc.lifting`): its dense stack rows as ``k`` auxiliary
+    variables. Returns True when a NaN was met (nothing to solve).
+
+    ``stack_t``: the task stack ``A^T`` ((nv + 1) x rows); ``diagonal[r] = 1`` for a row with
+    one non-zero entry (posture, damping), 0 for a dense one (k of them). ``source``: the
+    v-QP's buffer (:class:`wbc.qp.QP` with nv variables, p inequality and e equality rows;
+    its bounds and rows are read, its H and c are not used). ``lifted``: the buffer of the
+    QP over ``x = (v, w)``, N = nv + k variables, rows ``[G 0; A 0; U -I]``:
+
+        min 1/2 v^T D v + d^T v + 1/2 |w|^2 - t^T w   s.t. U v - w = 0 and the v-QP's limits,
+
+    ``D = sum`` of the squared diagonal entries, ``d = -sum`` of their ``entry * target``;
+    ``U`` the dense rows, ``t`` their targets. Off-diagonal H entries and the w columns of
+    G, A are zero from allocation and never written. As :func:`normalise_cost`: the cost is
+    scaled by the largest curvature of the v-problem ``max_i (D_ii + sum_r U_ri^2)`` and the
+    damping floored at ``damping_floor`` of that scale.
+    """
+    rows = diagonal.shape[0]
+    n = nv + k
+    m_src, m = nv + p + e, n + p + e + k
+    c0, C0 = n * n, n * n + n
+    up0 = C0 + (p + e + k) * n
+    lo0 = up0 + m
+    src_C0 = nv * nv + nv
+    src_up0 = src_C0 + (p + e) * nv
+    src_lo0 = src_up0 + m_src
+    for i in range(n):
+        lifted[i * n + i] = 0.0
+        lifted[c0 + i] = 0.0
+    slot = 0
+    for r in range(rows):
+        target = stack_t[nv, r]
+        if target != target:
+            return True
+        if diagonal[r] != 0.0:
+            for i in range(nv):
+                value = stack_t[i, r]
+                if value != 0.0:
+                    if value != value:
+                        return True
+                    lifted[i * n + i] += value * value
+                    lifted[c0 + i] -= value * target
+            continue
+        row = C0 + (p + e + slot) * n
+        for i in range(nv):
+            value = stack_t[i, r]
+            if value != value:
+                return True
+            lifted[row + i] = value
+        lifted[row + nv + slot] = -1.0
+        lifted[nv * n + nv + slot + slot * n] = 1.0  # H[nv + slot, nv + slot]
+        lifted[c0 + nv + slot] = -target
+        lifted[up0 + n + p + e + slot] = 0.0
+        lifted[lo0 + n + p + e + slot] = 0.0
+        slot += 1
+    # the v-QP's rows and bounds
+    for a in range(p + e):
+        for i in range(nv):
+            value = source[src_C0 + a * nv + i]
+            if value != value:
+                return True
+            lifted[C0 + a * n + i] = value
+    for i in range(nv):
+        lifted[up0 + i], lifted[lo0 + i] = source[src_up0 + i], source[src_lo0 + i]
+    for a in range(p + e):
+        lifted[up0 + n + a], lifted[lo0 + n + a] = source[src_up0 + nv + a], source[src_lo0 + nv + a]
+    for i in range(n + p + e):
+        if lifted[up0 + i] != lifted[up0 + i] or lifted[lo0 + i] != lifted[lo0 + i]:
+            return True
+    # normalisation (see normalise_cost): the v-problem's curvature D_ii + sum_r U_ri^2
+    scale = 0.0
+    for i in range(nv):
+        curvature = lifted[i * n + i]
+        for j in range(k):
+            value = lifted[C0 + (p + e + j) * n + i]
+            curvature += value * value
+        scale = max(scale, curvature)
+    if scale > 0.0 and math.isfinite(scale):
+        inverse = 1.0 / scale
+        for i in range(n):
+            lifted[i * n + i] *= inverse
+            lifted[c0 + i] *= inverse
+        missing = damping_floor - damping * inverse
+        if missing > 0.0:
+            for i in range(nv):
+                lifted[i * n + i] += missing
+    return False

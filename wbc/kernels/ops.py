@@ -26,6 +26,7 @@ from . import (
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
+    OP_LIFT,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -97,4 +98,11 @@ OP_SPECS: dict[int, OpSpec] = {
         ("update_ldp", None), ("solve", None), ("clock_gettime", None), ("clock_id", None), ("steady_mask", None)),
         ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0", "update_ldp != 0",
          "solve != 0", "clock_gettime != 0")),
+    OP_LIFT: OpSpec("LIFT", (
+        ("stack", ("nv + 1", "stack_rows")), ("diagonal", ("rows",)), ("source", ("source_size",)),
+        ("lifted", ("lifted_size",)), ("scaling", (2,)), ("nv", None), ("stack_rows", None), ("rows", None),
+        ("k", None), ("p", None), ("e", None), ("source_size", None), ("lifted_size", None)),
+        ("1 <= nv", "0 <= k <= rows <= stack_rows", "0 <= p", "0 <= e",
+         "source_size == nv * nv + 3 * nv + (p + e) * (nv + 2)",
+         "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
 }

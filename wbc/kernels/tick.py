@@ -26,6 +26,7 @@ from . import (
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
+    OP_LIFT,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -38,7 +39,7 @@ from . import (
     POSITION_SETTINGS,
     prepare_cache,
 )
-from .assembly import has_nan, has_non_finite, merge_bounds, normal_equations, normalise_cost, preview_solve
+from .assembly import has_nan, has_non_finite, lift_qp, merge_bounds, normal_equations, normalise_cost, preview_solve
 from .frames import frame_task_rows, position_task_rows
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
@@ -93,6 +94,8 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * DAQP_SOLVE: DAQP problem, workspace, result (their words), control, QP data (size), x (n), n,
       size, addresses of daqp_update_ldp, daqp_solve, clock_gettime, clock id, steady mask;
       skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN
+    * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
+      rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
     """
     found_nan = False
     for r in range(program.shape[0]):
@@ -161,6 +164,12 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
                         _vector(addresses, op[8], 3), _vector(addresses, op[9], nv), _vector(addresses, op[10], nv),
                         _vector(addresses, op[11], 1), _vector(addresses, op[12], 2), _vector(addresses, op[13], 1),
                         op[14], op[15], dt)
+        elif code == OP_LIFT:
+            nv, rows = op[6], op[8]
+            scaling = _vector(addresses, op[5], 2)
+            found_nan = lift_qp(_matrix(addresses, op[1], nv + 1, op[7]), _vector(addresses, op[2], rows),
+                                _vector(addresses, op[3], op[12]), _vector(addresses, op[4], op[13]), nv, op[9],
+                                op[10], op[11], scaling[0], scaling[1]) or found_nan
         elif code == OP_DAQP_SOLVE:
             control = _vector(addresses, op[4], DAQP_CONTROL_SIZE)
             if found_nan:

@@ -79,6 +79,8 @@ class PostureTaskData(TaskData):
     """A :class:`PostureTask` in one controller: the selected coordinates of the robot, their
     weights and reference, and the error of the last tick."""
 
+    diagonal_rows = True  # row i is W_i e_j for the i-th selected coordinate j
+
     def __init__(self, task: PostureTask, robot: Robot) -> None:
         super().__init__(task)
         model = robot.model

@@ -37,6 +37,10 @@ class TaskData:
     #: True for tasks that need the holonomic preview (see SteeringTask); they are
     #: computed after all others through ``compute_preview``
     uses_preview: bool = False
+    #: True when each row of ``W J`` has at most one non-zero entry, in a fixed column (e.g.
+    #: PostureTask): the row then adds to the diagonal of H only, which the lifted form of
+    #: high-DOF QPs (:mod:`wbc.lifting`) keeps out of its auxiliary variables
+    diagonal_rows: bool = False
 
     def __init__(self, task: Task) -> None:
         self.task, self.name = task, task.name

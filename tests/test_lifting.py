@@ -1,0 +1,150 @@
+"""The lifted form of high-DOF QPs (wbc.lifting): the same minimiser over v as the dense
+normal equations, written out here from the task stack and solved by two other solvers."""
+
+import sys
+
+import numpy as np
+import pytest
+
+import wbc
+from conftest import ROOT
+from wbc import lifting, solvers
+
+if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
+    sys.path.insert(0, str(ROOT))
+
+from benchmarks.peer_setups import WorldVelocityLimits  # noqa: E402
+from benchmarks.scaling import chain_urdf, initial_configuration  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def chain32(tmp_path_factory) -> wbc.Robot:
+    path = tmp_path_factory.mktemp("chain") / "chain32.urdf"
+    path.write_text(chain_urdf(32))
+    return wbc.load_robot(path)
+
+
+def far_target(robot: wbc.Robot, q0: np.ndarray, offset=(0.5, -0.3, 0.2)) -> np.ndarray:
+    target = robot.frame_pose(q0, "ee")
+    target[:3, 3] += offset
+    return target
+
+
+def stack(robot, q0, scale=1.0, constraints=None, **options):
+    ee = wbc.FrameTask("ee", 1.0 * scale, 0.5 * scale, gain=0.5)
+    ee.set_target(far_target(robot, q0))
+    posture = wbc.PostureTask(1e-3 * scale, target=q0, gain=0.05)
+    limits = constraints if constraints is not None else [wbc.JointPositionLimits(gain=0.5), wbc.JointVelocityLimits()]
+    return wbc.Controller(robot, [ee, posture], limits, damping=1e-3 * scale, **options)
+
+
+def dense_minimiser(controller: wbc.Controller, solver: str) -> np.ndarray:
+    """The tick's QP in v, with H and c formed here from the controller's task stack
+    (``H = A^T A`` over the [W J | W r] rows, ``c = -A^T (W r)``) and its limits."""
+    rows = controller._task_stack.stack[:controller._task_stack.n_plain]
+    WJ, Wr = rows[:, :-1], rows[:, -1]
+    qp = controller._qp_v
+    G = qp.G if qp.n_ineq else None
+    A = qp.A if qp.n_eq else None
+    return wbc.solvers.qpsolvers.solve_qp(WJ.T @ WJ, -WJ.T @ Wr, G, qp.h if G is not None else None, A,
+                                          qp.b if A is not None else None, qp.lb, qp.ub, solver=solver,
+                                          **solvers.DEFAULT_SETTINGS.get(solver, {}))
+
+
+def test_high_dof_controllers_solve_the_lifted_qp_and_small_ones_the_dense(chain32, youbot):
+    q0 = initial_configuration(32)
+    controller = stack(chain32, q0)
+    assert controller._lifted is not None and controller._lifted.k == 6
+    assert controller.qp.n == 32 + 6 and controller.qp.n_eq == 6
+    small = wbc.Controller(youbot, [wbc.FrameTask("ee"), wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()])
+    assert small._lifted is None  # 8 DOF, 6 dense rows
+    assert stack(chain32, q0, solver="proxqp")._lifted is None  # a backend that forms its own factorisation
+
+
+@pytest.mark.parametrize("solver", ["proxqp", "daqp"])
+def test_the_lifted_minimiser_is_the_dense_one(chain32, solver):
+    """A far target: position and speed limits active. Every tick's command equals the
+    minimiser of the dense QP written out in the test (ProxQP, DAQP's Python binding)."""
+    q0 = initial_configuration(32)
+    controller = stack(chain32, q0)
+    q, saturated = q0.copy(), 0
+    for _ in range(60):
+        v = controller.step(q)
+        assert controller.last.success
+        reference = dense_minimiser(controller, solver)
+        assert np.max(np.abs(v - reference)) < 1e-6 * (1.0 + np.max(np.abs(reference)))
+        saturated += bool(controller.last.active_constraints)
+        q = chain32.integrate(q, v, 0.01)
+    assert saturated > 10
+
+
+def test_lifted_and_dense_controllers_agree_along_a_closed_loop(chain32, monkeypatch):
+    """200 ticks driven by the lifted controller (world-axis speed box: general rows); at every
+    tick a dense controller gets the same q: the same command and the same outcome."""
+    q0 = initial_configuration(32)
+    controllers = {}
+    for mode, minimum in (("lifted", lifting.LIFT_MIN_DOF), ("dense", 10**6)):
+        monkeypatch.setattr(lifting, "LIFT_MIN_DOF", minimum)
+        controllers[mode] = stack(chain32, q0, constraints=[wbc.JointPositionLimits(gain=0.5), WorldVelocityLimits()])
+        assert (controllers[mode]._lifted is not None) == (mode == "lifted")
+    q, worst = q0.copy(), 0.0
+    for _ in range(200):
+        v = controllers["lifted"].step(q)
+        reference = controllers["dense"].step(q)
+        assert controllers["lifted"].last.outcome is controllers["dense"].last.outcome is wbc.Outcome.OPTIMAL
+        worst = max(worst, np.max(np.abs(v - reference)) / (1.0 + np.max(np.abs(reference))))
+        q = chain32.integrate(q, v, 0.01)
+    assert worst < 1e-7
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e-6, 1e6, 1e9])
+def test_the_lifted_command_does_not_depend_on_the_cost_scale(chain32, scale):
+    q0 = initial_configuration(32)
+    reference = stack(chain32, q0).step(q0)
+    controller = stack(chain32, q0, scale=scale)
+    v = controller.step(q0)
+    assert controller.last.success and controller._lifted is not None
+    assert np.max(np.abs(v - reference)) < 1e-6 * (1.0 + np.max(np.abs(reference)))
+
+
+class NanRow(wbc.Task):
+    """A Python task (dense: one row over every coordinate) whose target is NaN while ``broken``."""
+
+    dim = 1
+    broken = False
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(1e-3)
+        target.fill(np.nan if NanRow.broken else 0.0)
+
+    def report(self, v, errors):
+        pass
+
+
+def test_a_nan_in_the_stack_gives_the_zero_command(chain32):
+    q0 = initial_configuration(32)
+    ee = wbc.FrameTask("ee", gain=0.5)
+    ee.set_target(far_target(chain32, q0))
+    controller = wbc.Controller(chain32, [ee, NanRow(), wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()])
+    assert controller._lifted is not None and controller._lifted.k == 7
+    controller.step(q0)
+    assert controller.last.success
+    NanRow.broken = True
+    try:
+        v = controller.step(q0)
+    finally:
+        NanRow.broken = False
+    assert controller.last.outcome is wbc.Outcome.ZERO and np.all(v == 0.0) and "NaN" in controller.last.status
+    controller.step(q0)
+    assert controller.last.success
+
+
+def test_diagnostics_of_a_lifted_tick_are_about_v(chain32):
+    q0 = initial_configuration(32)
+    controller = stack(chain32, q0)
+    v = controller.step(q0)
+    assert v.shape == (32,) and controller.last.max_violation <= 1e-9
+    assert set(controller.last.task_errors) == {"FrameTask(ee).position", "FrameTask(ee).orientation",
+                                               "PostureTask"}
+    names = controller.last.active_constraints
+    assert names and all(name.startswith(("JointPositionLimits", "JointVelocityLimits")) for name in names)

@@ -1,0 +1,62 @@
+"""The lifted form of a high-DOF QP: the dense task rows as auxiliary variables.
+
+The normal equations ``H = sum_r a_r a_r^T`` of the task stack are dense: forming them costs
+``k nv^2`` for k dense rows (FrameTask: 6), and DAQP then factorises H from scratch every
+tick (``nv^3 / 3``) -- at 64 DOF that is most of the tick. Yet H is *diagonal plus low rank*:
+the posture and damping rows each touch one coordinate. Introducing ``w = U v`` for the k
+dense rows ``U`` (targets ``t``) gives the same minimiser over v from
+
+    min 1/2 v^T D v + d^T v + 1/2 |w|^2 - t^T w   s.t.  U v - w = 0,  the controller's limits,
+
+whose Hessian ``diag(D, I)`` DAQP inverts in O(nv) and whose k equality rows cost O(k nv)
+to form (:func:`wbc.kernels.lift_qp`). The controller uses it (:data:`LIFT_MIN_DOF`,
+:func:`worth_lifting`) with DAQP's native path, when no Python step needs H itself (the
+input reduction, the steering preview). ``controller.qp`` is then this QP over ``(v, w)``;
+the command is its first nv entries.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from .layout import TaskStack
+from .program import TickProgram
+from .qp import QP
+
+#: smallest number of velocity coordinates at which the lifted form is used: below it the
+#: dense QP is as fast (measured: benchmarks/README.md, "Scaling")
+LIFT_MIN_DOF = 16
+
+
+def dense_rows(stack: TaskStack, nv: int) -> np.ndarray:
+    """1.0 for each row of the stack's ordinary block (tasks, then damping) whose entries
+    lie on one fixed coordinate (``TaskData.diagonal_rows``, the damping), else 0.0."""
+    diagonal = np.zeros(stack.n_plain)
+    diagonal[stack.n_plain - nv:] = 1.0  # sqrt(damping) I
+    for task, _, _, start in stack.blocks:
+        if task.diagonal_rows:
+            diagonal[start:start + task.dim] = 1.0
+    return diagonal
+
+
+def worth_lifting(nv: int, diagonal: np.ndarray) -> bool:
+    """Whether the lifted form is the faster one: nv >= LIFT_MIN_DOF and at most nv / 2 dense rows."""
+    return nv >= LIFT_MIN_DOF and 2 * int(np.count_nonzero(diagonal == 0.0)) <= nv
+
+
+class LiftedQP:
+    """The lifted QP of one controller over ``x = (v, w)`` and the op that fills it."""
+
+    def __init__(self, source: QP, diagonal: np.ndarray) -> None:
+        self.source, self.diagonal = source, diagonal
+        self.k = k = int(np.count_nonzero(diagonal == 0.0))  #: auxiliary variables (dense rows)
+        self.qp = QP(source.n + k, source.n_ineq, source.n_eq + k)  #: what the solver sees
+
+    def add_op(self, program: TickProgram, stack_t: np.ndarray, scaling: np.ndarray) -> None:
+        """Fill :attr:`qp` from the stack and the v-QP's limits every tick (a NaN met counts
+        as the NaN screen's); ``scaling`` = (damping, damping floor)."""
+        source, qp = self.source, self.qp
+        program.add(kernels.OP_LIFT, stack=stack_t, diagonal=self.diagonal, source=source.data, lifted=qp.data,
+                    scaling=scaling, nv=source.n, stack_rows=stack_t.shape[1], rows=self.diagonal.size, k=self.k,
+                    p=source.n_ineq, e=source.n_eq, source_size=source.data.size, lifted_size=qp.data.size)
