@@ -148,3 +148,31 @@ def test_diagnostics_of_a_lifted_tick_are_about_v(chain32):
                                                "PostureTask"}
     names = controller.last.active_constraints
     assert names and all(name.startswith(("JointPositionLimits", "JointVelocityLimits")) for name in names)
+
+
+class FalselyDiagonal(wbc.Task):
+    """A task that declares diagonal rows (through its data) but writes a dense one."""
+
+    dim = 1
+
+    def bind(self, robot):
+        data = super().bind(robot)
+        data.diagonal_rows = True
+        return data
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(1e-3)
+        target.fill(0.0)
+
+    def report(self, v, errors):
+        pass
+
+
+def test_a_row_declared_diagonal_but_dense_is_refused_not_misread(chain32):
+    q0 = initial_configuration(32)
+    ee = wbc.FrameTask("ee", gain=0.5)
+    ee.set_target(far_target(chain32, q0))
+    controller = wbc.Controller(chain32, [ee, FalselyDiagonal()], [wbc.JointVelocityLimits()])
+    assert controller._lifted is not None and controller._lifted.k == 6
+    v = controller.step(q0)
+    assert controller.last.outcome is wbc.Outcome.ZERO and np.all(v == 0.0)

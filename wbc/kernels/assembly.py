@@ -235,13 +235,17 @@ def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifte
         if target != target:
             return True
         if diagonal[r] != 0.0:
+            column = -1
             for i in range(nv):
                 value = stack_t[i, r]
                 if value != 0.0:
-                    if value != value:
+                    if value != value or column >= 0:  # NaN, or a second entry: not a diagonal row
                         return True
-                    lifted[i * n + i] += value * value
-                    lifted[c0 + i] -= value * target
+                    column = i
+            if column >= 0:
+                value = stack_t[column, r]
+                lifted[column * n + column] += value * value
+                lifted[c0 + column] -= value * target
             continue
         row = C0 + (p + e + slot) * n
         for i in range(nv):
