@@ -19,12 +19,15 @@ from __future__ import annotations
 
 import functools
 from types import CodeType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from . import kernels
 from .kernels.ops import OP_SPECS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .compiled_op import CompiledOp
 
 _WIDTH = 1 + max(len(spec.operands) for spec in OP_SPECS.values())  # opcode + the longest operand list
 
@@ -45,10 +48,10 @@ class TickProgram:
         if not any(known is owner for known in self._owners):
             self._owners.append(owner)
 
-    def array(self, array: np.ndarray) -> int:
-        """Register ``array`` (C-contiguous float64, any shape) and return its operand index."""
-        if not isinstance(array, np.ndarray) or array.dtype != np.float64 or not array.flags.c_contiguous:
-            raise TypeError("program operands must be C-contiguous float64 arrays")
+    def array(self, array: np.ndarray, dtype: str = "float64") -> int:
+        """Register ``array`` (C-contiguous ``dtype``, any shape) and return its operand index."""
+        if not isinstance(array, np.ndarray) or array.dtype != dtype or not array.flags.c_contiguous:
+            raise TypeError(f"program operands must be C-contiguous {dtype} arrays")
         for index, known in enumerate(self._arrays):
             if known is array:
                 return index
@@ -56,13 +59,17 @@ class TickProgram:
         self._address_list.append(array.__array_interface__["data"][0])
         return len(self._arrays) - 1
 
-    def add(self, opcode: int, **operands: Any) -> None:
-        """Append one op, its operands given by name (:data:`wbc.kernels.ops.OP_SPECS`).
+    def add(self, opcode: int | CompiledOp, **operands: Any) -> None:
+        """Append one op, its operands given by name: one of wbc's (:data:`wbc.kernels.ops.OP_SPECS`)
+        or a third-party :class:`wbc.compiled_op.CompiledOp`.
 
         Raises TypeError for a missing or unknown operand, an array that is not C-contiguous
-        float64 of the declared shape, or int operands that break the op's conditions.
+        float64 (or the declared dtype) of the declared shape, or int operands that break the
+        op's conditions.
         """
-        spec = OP_SPECS[opcode]
+        external = not isinstance(opcode, int)
+        spec = opcode.spec if external else OP_SPECS[opcode]
+        dtypes = opcode.dtypes if external else {}
         names = [name for name, _ in spec.operands]
         if set(operands) != set(names):
             missing, unknown = sorted(set(names) - set(operands)), sorted(set(operands) - set(names))
@@ -71,7 +78,8 @@ class TickProgram:
         for check in spec.checks:
             if not eval(_compiled(check), {"__builtins__": {}}, sizes):  # noqa: S307 -- the package's own specs
                 raise TypeError(f"{spec.name} op: {check} does not hold for {sizes}")
-        row = [opcode]
+        row = [kernels.OP_EXTERNAL, opcode.address] if external else [opcode]
+        arrays = []
         for name, shape in spec.operands:
             if shape is None:
                 row.append(sizes[name])
@@ -82,15 +90,28 @@ class TickProgram:
             if not isinstance(array, np.ndarray) or array.shape != expected:
                 raise TypeError(f"{spec.name} op: operand {name} must have shape {expected}, got "
                                 f"{getattr(array, 'shape', type(array).__name__)}")
-            row.append(self.array(array))
-        self._rows.append(row + [0] * (_WIDTH - len(row)))
-        self._program = np.array(self._rows, dtype=np.int64)
+            dtype = dtypes.get(name, "float64")
+            if array.dtype != dtype or not array.flags.c_contiguous:
+                raise TypeError(f"{spec.name} op: operand {name} must be a C-contiguous {dtype} array")
+            arrays.append((len(row), array, dtype))
+            row.append(-1)
+        for position, array, dtype in arrays:  # registered only once the whole op checks
+            row[position] = self.array(array, dtype)
+        if external:
+            self.keep_alive(opcode)  # its callback's address is in the row
+        self._rows.append(row)
+        self._pack()
+
+    def _pack(self) -> None:
+        width = max(_WIDTH, *(len(row) for row in self._rows)) if self._rows else _WIDTH
+        self._program = np.array([row + [0] * (width - len(row)) for row in self._rows], dtype=np.int64)
+        self._program = self._program.reshape(-1, width)
         self._addresses = np.array(self._address_list, dtype=np.int64)
 
     def truncate(self, length: int) -> None:
         """Drop the rows after the first ``length`` (registered arrays stay registered)."""
         del self._rows[length:]
-        self._program = np.array(self._rows, dtype=np.int64).reshape(-1, _WIDTH)
+        self._pack()
 
     def __len__(self) -> int:
         return len(self._rows)

@@ -79,6 +79,8 @@ GRAM_CONDITION = 1e-8
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
  OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE,
  OP_LIFT) = range(1, 15)
+#: a third-party op (wbc.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
+OP_EXTERNAL = 100
 
 # ------------------------------------------------------------ native DAQP
 

@@ -10,6 +10,7 @@ of :mod:`wbc.kernels`, the layouts those of the kernels of the topic modules.
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import ir
 from numba import carray, njit, types
 from numba.extending import intrinsic
 
@@ -23,6 +24,7 @@ from . import (
     FRAME_DATA,
     FRAME_SETTINGS,
     OP_DAQP_SOLVE,
+    OP_EXTERNAL,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
@@ -54,6 +56,22 @@ def _as_pointer(typingctx, address):
 
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
+
+    return signature, codegen
+
+
+@intrinsic
+def _call_external(typingctx, callback, addresses, row, dt):
+    """``void callback(int64* addresses, int64* row, double dt)``: a CompiledOp's C callback."""
+    signature = types.void(types.int64, types.int64, types.int64, types.float64)
+
+    def codegen(context, builder, signature, args):
+        int_pointer = ir.IntType(64).as_pointer()
+        function = ir.FunctionType(ir.VoidType(), [int_pointer, int_pointer, ir.DoubleType()])
+        callee = builder.inttoptr(args[0], function.as_pointer())
+        builder.call(callee, [builder.inttoptr(args[1], int_pointer), builder.inttoptr(args[2], int_pointer),
+                              args[3]])
+        return context.get_dummy_value()
 
     return signature, codegen
 
@@ -94,6 +112,7 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * DAQP_SOLVE: DAQP problem, workspace, result (their words), control, QP data (size), x (n), n,
       size, addresses of daqp_update_ldp, daqp_solve, clock_gettime, clock id, steady mask;
       skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN
+    * EXTERNAL: address of a CompiledOp's C callback, then its operands (its own declaration)
     * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
       rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
     """
@@ -170,6 +189,9 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             found_nan = lift_qp(_matrix(addresses, op[1], nv + 1, op[7]), _vector(addresses, op[2], rows),
                                 _vector(addresses, op[3], op[12]), _vector(addresses, op[4], op[13]), nv, op[9],
                                 op[10], op[11], scaling[0], scaling[1]) or found_nan
+        elif code == OP_EXTERNAL:
+            # the callback unpacks its operands, from position 2 of the row on
+            _call_external(op[1], np.int64(addresses.ctypes.data), np.int64(op.ctypes.data) + np.int64(16), dt)
         elif code == OP_DAQP_SOLVE:
             control = _vector(addresses, op[4], DAQP_CONTROL_SIZE)
             if found_nan:
