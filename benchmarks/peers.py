@@ -9,9 +9,11 @@ up to solve the same QP) two passes run:
 
 1. **shared q** (timed, ``--repeats`` times after a warm-up): at every tick all
    controllers get the same target and the same configuration q (driven by wbc's
-   command), in an order rotated each tick; the wall time of each ``step(q)`` call is
-   recorded (kinematics update + QP assembly + DAQP solve + whatever the library adds)
-   and every command is compared with wbc's;
+   command), in a random order each tick (seeded; every controller follows every other
+   equally often: under a fixed rotation wbc always followed mink, whose Python and
+   MuJoCo work evicts the caches, and paid ~3 µs a tick for it); the wall time of each
+   ``step(q)`` call is recorded (kinematics update + QP assembly + DAQP solve + whatever
+   the library adds) and every command is compared with wbc's;
 2. **own closed loop**: each controller integrates its own commands (interleaved as
    well); tracking error of the tool (position, orientation) against the reference.
 
@@ -145,8 +147,9 @@ def make_setups(scenario, spec: StackSpec, peers: bool = True, placo: Placo | No
 
 
 def shared_q_pass(scenario, setups: list, ticks: int, record: bool = True) -> dict:
-    """All setups step the same q (driven by wbc) each tick; times and commands per setup."""
+    """All setups step the same q (driven by wbc) each tick, in a random order; times and commands per setup."""
     robot, dt = scenario.robot, scenario.dt
+    order = np.random.default_rng(0)
     names = [s.name for s in setups]
     times = {name: np.zeros(ticks) for name in names}
     commands = {name: np.zeros((ticks, robot.nv)) for name in names}
@@ -156,8 +159,8 @@ def shared_q_pass(scenario, setups: list, ticks: int, record: bool = True) -> di
     clock = time.perf_counter
     for k in range(ticks):
         pose = np.array(scenario.reference(k * dt)[0])
-        shift = k % len(setups)
-        for setup in setups[shift:] + setups[:shift]:
+        for index in order.permutation(len(setups)):
+            setup = setups[index]
             setup.set_target(pose)
             start = clock()
             v = setup.step(q)
@@ -564,7 +567,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["# wbc vs Pink, mink and placo", "", f"Measured {machine_note()}. Command: `{command}`.", "",
              "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "", placo_note + ".", "",
              "Same task stack, gains, costs, dt, damping and solver (DAQP) in every controller; all stepped on "
-             "the same q in one process, order rotated each tick. Ratios > 1: slower than wbc. "
+             "the same q in one process, in a random order each tick. Ratios > 1: slower than wbc. "
              "'per-tick ratio' is the median over ticks of (controller time / wbc time at the same tick). "
              "See benchmarks/README.md for the setup mapping and the explained differences.", ""]
     for result in results:
