@@ -203,15 +203,21 @@ def _pose_error(robot, q: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
             float(np.linalg.norm(pin.log3(pose[:3, :3] @ current[:3, :3].T))))
 
 
+def placo_input(spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
+                closed_loop: bool) -> dict:
+    """The input document of :mod:`benchmarks.placo_peer` (JSON-ready: lists, no arrays)."""
+    return {"stack": placo_stack(spec),
+            "run": {"configurations": configurations.tolist(), "targets": targets.tolist(), "warmup": warmup,
+                    "closed_loop": closed_loop}}
+
+
 def run_placo(placo: Placo, spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
               closed_loop: bool) -> dict:
     """One placo run of :func:`benchmarks.placo_peer.run` (in this process or in placo's interpreter)."""
-    stack = placo_stack(spec)
-    run_spec = {"configurations": configurations, "targets": targets, "warmup": warmup, "closed_loop": closed_loop}
     if placo.in_process:
-        return placo_peer.run(stack, run_spec)
-    document = {"stack": stack,
-                "run": {**run_spec, "configurations": configurations.tolist(), "targets": targets.tolist()}}
+        return placo_peer.run(placo_stack(spec), {"configurations": configurations, "targets": targets,
+                                                  "warmup": warmup, "closed_loop": closed_loop})
+    document = placo_input(spec, configurations, targets, warmup, closed_loop)
     process = subprocess.run([placo.python, "-m", "benchmarks.placo_peer"], input=json.dumps(document),
                              capture_output=True, text=True, cwd=ROOT)
     if process.returncode != 0:
