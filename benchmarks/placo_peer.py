@@ -4,8 +4,8 @@
 
 Depends on numpy, placo and :mod:`benchmarks.common` (standard library + numpy) only, never
 on wbc: it runs in placo's own interpreter when placo's Pinocchio cannot share a virtual
-environment with wbc's. The input (a file or
-standard input) is the JSON that :func:`benchmarks.peers.placo_input` writes:
+environment with wbc's. The input (a file or standard input) is the JSON that
+:func:`benchmarks.peers.placo_input` writes:
 
 * ``stack``: ``urdf``, ``frame``, ``position_weight``, ``orientation_weight``,
   ``posture_weight``, ``posture_target`` (joint name -> value), ``regularization``,
