@@ -2,7 +2,7 @@
 
     python -m benchmarks.dataset    # record the QP of every tick of every tasks/*.toml
     python -m benchmarks.solvers    # qpsolvers backends on the recorded QPs
-    python -m benchmarks.peers      # wbc vs Pink vs mink, interleaved tick by tick
+    python -m benchmarks.peers      # wbc vs Pink, mink and placo, interleaved tick by tick
     python -m benchmarks.scaling    # tick cost vs DOF and vs number of tasks
     pytest benchmarks/test_micro.py --benchmark-only   # hot-path micro-benchmarks
 

@@ -1,4 +1,4 @@
-"""The same youBot task stack set up in wbc, Pink, mink and by hand, for :mod:`benchmarks.peers`.
+"""The same youBot task stack set up in wbc, Pink, mink, placo and by hand, for :mod:`benchmarks.peers`.
 
 Every setup exposes ``name``, ``set_target(pose)`` (4x4 world pose of the tool) and
 ``step(q) -> v``. They are built from one :class:`StackSpec` so that gains, costs, dt,
@@ -17,12 +17,16 @@ peers' source, see benchmarks/README.md):
   Jacobian; Pink and mink: the body twist ``log6(T_b^-1 T*)`` with the Jacobian
   ``Jlog6 J_body``. These are different tasks away from zero error (the position part of
   log6 follows a screw, not a straight line). :class:`Log6FrameTask` is a wbc task with
-  the peers' convention: with it wbc solves exactly the peers' QP.
+  the peers' convention: with it wbc solves exactly the peers' QP;
+* **placo** (:mod:`benchmarks.placo_peer`) — wbc's pose error and Jacobian, weights =
+  wbc's costs, regularisation task = ``damping``, but no gains: every task and the
+  position limits remove their whole error in one tick (gain 1). :func:`placo_gains`
+  is the spec with those gains: wbc on it solves placo's QP.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +41,7 @@ from wbc.tasks import FrameTask, PostureTask
 from wbc.tasks.frame_task import FrameTaskData
 
 from .common import MODELS
+from .placo_peer import PlacoStack
 
 URDF = MODELS / "youbot" / "youbot.urdf"
 MJCF = MODELS / "youbot" / "youbot.xml"
@@ -295,3 +300,32 @@ class MinkSetup:
         self.configuration.update(q)
         return self._mink.solve_ik(self.configuration, self.tasks, self.dt, "daqp", damping=self.damping,
                                    limits=self.limits)
+
+
+def placo_gains(spec: StackSpec) -> StackSpec:
+    """``spec`` with placo's fixed gains: frame task, posture task and position limits at 1."""
+    return replace(spec, gain=1.0, posture_gain=1.0, limit_gain=1.0)
+
+
+def placo_stack(spec: StackSpec, urdf: Path = URDF) -> dict:
+    """The JSON description of the stack that :class:`~benchmarks.placo_peer.PlacoStack` builds.
+
+    Weights are wbc's costs (placo minimises ``weight |A dq - e|^2``, wbc ``cost |J v - gain e/dt|^2``:
+    the same up to dt^2); the regularisation task's magnitude is ``damping``; the posture covers
+    the arm joints only (wbc's PostureTask leaves the base free). Gains are not expressible.
+    """
+    base = set(spec.base_indices)
+    return {"urdf": str(urdf), "frame": spec.frame, "position_weight": spec.position_cost,
+            "orientation_weight": spec.orientation_cost, "posture_weight": spec.posture_cost,
+            "posture_target": {name: float(spec.posture_target[i]) for i, name in enumerate(spec.joint_names)
+                               if i not in base},
+            "regularization": spec.damping, "dt": spec.dt,
+            "velocity_limits": dict(zip(spec.joint_names, map(float, spec.velocity_limit), strict=True)),
+            "joint_names": list(spec.joint_names)}
+
+
+class PlacoSetup(PlacoStack):
+    """placo in this process (when ``import placo`` works next to wbc's Pinocchio)."""
+
+    def __init__(self, spec: StackSpec, name: str = "placo", urdf: Path = URDF) -> None:
+        super().__init__(placo_stack(spec, urdf), name)

@@ -1,7 +1,7 @@
-"""wbc vs Pink vs mink on the same youBot task stack, interleaved tick by tick in one process.
+"""wbc vs Pink, mink and placo on the same youBot task stack, interleaved tick by tick in one process.
 
     python -m benchmarks.peers [--scenarios youbot_circle youbot_reach] [--repeats 3]
-                               [--out benchmarks/output/peers]
+                               [--placo-python PATH] [--out benchmarks/output/peers]
 
 For each scenario (FrameTask + PostureTask + position limits + velocity limits, taken
 from ``tasks/<name>.toml``; see :mod:`benchmarks.peer_setups` for how every peer is set
@@ -9,9 +9,11 @@ up to solve the same QP) two passes run:
 
 1. **shared q** (timed, ``--repeats`` times after a warm-up): at every tick all
    controllers get the same target and the same configuration q (driven by wbc's
-   command), in an order rotated each tick; the wall time of each ``step(q)`` call is
-   recorded (kinematics update + QP assembly + DAQP solve + whatever the library adds)
-   and every command is compared with wbc's;
+   command), in a random order each tick (seeded; every controller follows every other
+   equally often: under a fixed rotation wbc always followed mink, whose Python and
+   MuJoCo work evicts the caches, and paid ~3 µs a tick for it); the wall time of each
+   ``step(q)`` call is recorded (kinematics update + QP assembly + DAQP solve + whatever
+   the library adds) and every command is compared with wbc's;
 2. **own closed loop**: each controller integrates its own commands (interleaved as
    well); tracking error of the tool (position, orientation) against the reference.
 
@@ -22,6 +24,19 @@ only, to show what the full stack costs), ``hand-rolled`` (Pinocchio + DAQP in 3
 a floor for a Python tick), ``Pink``, ``mink``. Targets are poses only (no feed-forward
 twist, which the peers' FrameTask does not take).
 
+**placo** runs in this process when ``import placo`` works here (it then joins both passes
+like Pink and mink); else in the interpreter given by ``--placo-python`` (default: the
+environment variable ``WBC_PLACO_PYTHON``), e.g. a venv of its own, since placo ships its own
+Pinocchio build (:mod:`benchmarks.placo_peer`); else it is reported as "not run" with the
+reason. When it runs, ``wbc (placo's QP)`` (wbc with placo's fixed gains 1: the same QP)
+joins both passes, and a third pass runs:
+
+3. **placo alternation** (``--repeats`` times): tight-loop runs over the shared pass's
+   configurations and targets, alternating ``wbc``, ``wbc (placo's QP)`` and placo (in its
+   own process: a fresh one per run); a tick is ``set_target`` + ``step(q)`` (placo: set the
+   target, q in, ``update_kinematics``, ``solve(True)``, which integrates). The first placo
+   run also gives placo's commands (agreement) and its own closed loop (tracking).
+
 Output: ``report.md``, ``results.json``, ``latency.png``, ``agreement.png`` in ``--out``.
 """
 
@@ -29,8 +44,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -39,11 +57,70 @@ import pinocchio as pin
 import wbc
 from wbc.scenario import load_scenario
 
-from .common import OUTPUT, TASKS, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
-from .peer_setups import HandRolledSetup, Log6FrameTask, MinkSetup, PinkSetup, StackSpec, WbcSetup, spec_from_scenario
+from . import placo_peer
+from .common import OUTPUT, ROOT, TASKS, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
+from .peer_setups import (
+    HandRolledSetup,
+    Log6FrameTask,
+    MinkSetup,
+    PinkSetup,
+    PlacoSetup,
+    StackSpec,
+    WbcSetup,
+    placo_gains,
+    placo_stack,
+    spec_from_scenario,
+)
 
 WBC, LOG6, FULL, HAND = "wbc", "wbc (log6 task)", "wbc (scenario stack)", "hand-rolled pinocchio + daqp"
 BARRIER = "wbc (scenario stack + barrier)"
+PLACO, PLACO_QP = "placo", "wbc (placo's QP)"
+
+
+@dataclass(frozen=True)
+class Placo:
+    """Where placo runs: ``python`` None = in this process; ``status`` says how, or why not."""
+
+    status: str
+    python: str | None = None
+    version: str = "-"
+
+    @property
+    def runs(self) -> bool:
+        return not self.status.startswith("not run")
+
+    @property
+    def in_process(self) -> bool:
+        return self.runs and self.python is None
+
+
+_PROBE = "import numpy, placo\nfrom importlib.metadata import version\nprint(version('placo'))"
+
+
+def find_placo(python: str | None) -> Placo:
+    """placo in this interpreter if ``import placo`` works, else in ``python``, else not run (with the reason)."""
+    try:
+        import placo  # noqa: F401
+    except Exception as exc:  # noqa: BLE001 - any failure to import means: not here
+        here = f"{type(exc).__name__}: {exc}"
+    else:
+        return Placo("in this process", None, package_versions(["placo"])["placo"])
+    if not python:
+        return Placo(f"not run: `import placo` fails here ({here}) and neither --placo-python nor "
+                     "WBC_PLACO_PYTHON names a Python with placo")
+    try:
+        probe = subprocess.run([python, "-c", _PROBE], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return Placo(f"not run: {python}: {type(exc).__name__}: {exc}")
+    if probe.returncode != 0:
+        last = (probe.stderr.strip().splitlines() or [f"exit status {probe.returncode}"])[-1]
+        return Placo(f"not run: {python} cannot import placo ({last})")
+    return Placo(f"own process: {python}", python, probe.stdout.strip())
+
+
+def reference_poses(scenario) -> np.ndarray:
+    """(ticks, 4, 4) target poses of the scenario (the reference's buffer is reused: copied per tick)."""
+    return np.array([np.array(scenario.reference(k * scenario.dt)[0]) for k in range(scenario.ticks)])
 
 
 def _with_barrier(scenario) -> wbc.Controller:
@@ -55,18 +132,24 @@ def _with_barrier(scenario) -> wbc.Controller:
                           dt=fresh.dt, damping=fresh.damping)
 
 
-def make_setups(scenario, spec: StackSpec, peers: bool = True) -> list:
+def make_setups(scenario, spec: StackSpec, peers: bool = True, placo: Placo | None = None) -> list:
+    """The interleaved controllers; with placo running, also wbc on placo's QP (and placo if in process)."""
     setups = [WbcSetup(spec, WBC), WbcSetup(spec, LOG6, Log6FrameTask),
               WbcSetup(spec, FULL, controller=scenario.make_controller("daqp")),
               WbcSetup(spec, BARRIER, controller=_with_barrier(scenario)), HandRolledSetup(spec, HAND)]
+    if placo is not None and placo.runs:
+        setups.append(WbcSetup(placo_gains(spec), PLACO_QP))
     if peers:
         setups += [PinkSetup(spec), MinkSetup(spec)]
+    if placo is not None and placo.in_process:
+        setups.append(PlacoSetup(spec, PLACO))
     return setups
 
 
 def shared_q_pass(scenario, setups: list, ticks: int, record: bool = True) -> dict:
-    """All setups step the same q (driven by wbc) each tick; times and commands per setup."""
+    """All setups step the same q (driven by wbc) each tick, in a random order; times and commands per setup."""
     robot, dt = scenario.robot, scenario.dt
+    order = np.random.default_rng(0)
     names = [s.name for s in setups]
     times = {name: np.zeros(ticks) for name in names}
     commands = {name: np.zeros((ticks, robot.nv)) for name in names}
@@ -76,8 +159,8 @@ def shared_q_pass(scenario, setups: list, ticks: int, record: bool = True) -> di
     clock = time.perf_counter
     for k in range(ticks):
         pose = np.array(scenario.reference(k * dt)[0])
-        shift = k % len(setups)
-        for setup in setups[shift:] + setups[:shift]:
+        for index in order.permutation(len(setups)):
+            setup = setups[index]
             setup.set_target(pose)
             start = clock()
             v = setup.step(q)
@@ -120,12 +203,63 @@ def _pose_error(robot, q: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
             float(np.linalg.norm(pin.log3(pose[:3, :3] @ current[:3, :3].T))))
 
 
-def run_scenario(path: Path, repeats: int, warmup: int, peers: bool, show_progress: bool) -> dict:
+def placo_input(spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
+                closed_loop: bool) -> dict:
+    """The input document of :mod:`benchmarks.placo_peer` (JSON-ready: lists, no arrays)."""
+    return {"stack": placo_stack(spec),
+            "run": {"configurations": configurations.tolist(), "targets": targets.tolist(), "warmup": warmup,
+                    "closed_loop": closed_loop}}
+
+
+def run_placo(placo: Placo, spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
+              closed_loop: bool) -> dict:
+    """One placo run of :func:`benchmarks.placo_peer.run` (in this process or in placo's interpreter)."""
+    if placo.in_process:
+        return placo_peer.run(placo_stack(spec), {"configurations": configurations, "targets": targets,
+                                                  "warmup": warmup, "closed_loop": closed_loop})
+    document = placo_input(spec, configurations, targets, warmup, closed_loop)
+    process = subprocess.run([placo.python, "-m", "benchmarks.placo_peer"], input=json.dumps(document),
+                             capture_output=True, text=True, cwd=ROOT)
+    if process.returncode != 0:
+        raise RuntimeError(f"placo_peer exited with {process.returncode}: {process.stderr.strip()[-2000:]}")
+    return json.loads(process.stdout)
+
+
+def placo_alternation(scenario, spec: StackSpec, placo: Placo, configurations: np.ndarray, repeats: int,
+                      warmup: int) -> dict:
+    """Tight-loop runs alternating wbc, wbc on placo's QP and placo, on the same q and targets.
+
+    Returns the tick times per run (``runs``), placo's commands and closed loop of its first
+    run, its versions, or ``failure`` when a placo run raised.
+    """
+    targets = reference_poses(scenario)
+    warmup = min(warmup, len(targets))
+    wbc_setups = [WbcSetup(spec, WBC), WbcSetup(placo_gains(spec), PLACO_QP)]
+    runs: dict[str, list[np.ndarray]] = {WBC: [], PLACO_QP: [], PLACO: []}
+    out: dict = {"runs": runs}
+    for repeat in range(repeats):
+        for setup in wbc_setups:
+            placo_peer.timed_ticks(setup, configurations[:warmup], targets[:warmup])
+            runs[setup.name].append(placo_peer.timed_ticks(setup, configurations, targets)[0])
+        try:
+            result = run_placo(placo, spec, configurations, targets, warmup, closed_loop=repeat == 0)
+        except Exception as exc:  # noqa: BLE001 - a failing peer is reported, not fatal
+            out["failure"] = f"run {repeat + 1}: {type(exc).__name__}: {exc}"
+            break
+        runs[PLACO].append(np.asarray(result["times"]))
+        if repeat == 0:
+            out.update(commands=np.asarray(result["commands"]), versions=result["versions"],
+                       closed_loop_q=result.get("closed_loop_q"))
+    return out
+
+
+def run_scenario(path: Path, repeats: int, warmup: int, peers: bool, show_progress: bool,
+                 placo: Placo | None = None) -> dict:
     from wbc.scenario import load_scenario
 
     scenario = load_scenario(path)
     spec = spec_from_scenario(scenario)
-    setups = make_setups(scenario, spec, peers)
+    setups = make_setups(scenario, spec, peers, placo)
     names = [s.name for s in setups]
     shared_q_pass(scenario, setups, min(warmup, scenario.ticks), record=False)  # warm-up, discarded
     times = {name: [] for name in names}
@@ -138,11 +272,20 @@ def run_scenario(path: Path, repeats: int, warmup: int, peers: bool, show_progre
         for name in names:
             times[name].append(shared["times"][name])
     # the closed loop starts the peers from scratch (fresh setups, same spec)
-    own = own_loop_pass(scenario, make_setups(scenario, spec, peers), scenario.ticks)
+    own = own_loop_pass(scenario, make_setups(scenario, spec, peers, placo), scenario.ticks)
+    commands = dict(shared["commands"])
+    alternation = None
+    if placo is not None and placo.runs:
+        alternation = placo_alternation(scenario, spec, placo, shared["q"], repeats, warmup)
+        if not placo.in_process and "commands" in alternation:  # in process, placo took part in both passes
+            commands[PLACO] = alternation["commands"]
+            reference = reference_poses(scenario)
+            own["errors"][PLACO] = np.array([_pose_error(scenario.robot, np.asarray(q), pose)
+                                             for q, pose in zip(alternation["closed_loop_q"], reference, strict=True)])
     return {"scenario": scenario, "spec": spec, "names": names,
             "times": {name: np.concatenate(values) for name, values in times.items()},
-            "commands": shared["commands"], "wbc_errors": shared["errors"], "q": shared["q"], "own": own,
-            "diagnosis": diagnose(scenario, spec, shared, peers)}
+            "commands": commands, "wbc_errors": shared["errors"], "q": shared["q"], "own": own,
+            "diagnosis": diagnose(scenario, spec, shared, peers), "placo": alternation}
 
 
 #: below this orientation error mink 1.3's SE3.jlog() takes its small-angle branch (theta^2 < 1e-10)
@@ -240,14 +383,36 @@ def scenario_summary(result: dict) -> dict:
         latency[name] = stats
     commands = result["commands"]
     agree = {name: {"vs_wbc": agreement(commands, name, WBC), "vs_log6": agreement(commands, name, LOG6)}
-             for name in names}
+             for name in commands}
+    if PLACO_QP in commands:
+        for name in commands:
+            agree[name]["vs_placo_qp"] = agreement(commands, name, PLACO_QP)
     tracking = {}
     for name, errors in result["own"]["errors"].items():
         tracking[name] = {"position_rms_mm": float(np.sqrt(np.mean(errors[:, 0] ** 2)) * 1e3),
                           "position_max_mm": float(errors[:, 0].max() * 1e3),
                           "orientation_rms_mrad": float(np.sqrt(np.mean(errors[:, 1] ** 2)) * 1e3),
                           "final_position_mm": float(errors[-1, 0] * 1e3)}
-    return {"latency": latency, "agreement": agree, "tracking": tracking, "failures": result["own"]["failures"]}
+    return {"latency": latency, "agreement": agree, "tracking": tracking, "failures": result["own"]["failures"],
+            "placo": placo_summary(result["placo"])}
+
+
+def placo_summary(alternation: dict | None) -> dict | None:
+    """Percentiles per run and over all runs, and the per-run ratios of wbc's medians and p99 to placo's."""
+    if alternation is None:
+        return None
+    runs = alternation["runs"]
+    out = {"failure": alternation.get("failure"), "versions": alternation.get("versions", {}),
+           "runs": {name: [percentiles_us(times) for times in values] for name, values in runs.items()},
+           "all": {name: percentiles_us(np.concatenate(values)) for name, values in runs.items() if values},
+           "median_ratio_vs_placo": {}, "p99_ratio_vs_placo": {}}
+    placo_runs = out["runs"][PLACO]
+    for name in (WBC, PLACO_QP):
+        for key in ("median", "p99"):
+            # strict=False: a placo run that failed leaves its wbc runs without a partner
+            out[f"{key}_ratio_vs_placo"][name] = [run[key] / placo[key] for run, placo
+                                                  in zip(out["runs"][name], placo_runs, strict=False)]
+    return out
 
 
 def report_scenario(result: dict, summary: dict) -> list[str]:
@@ -263,21 +428,24 @@ def report_scenario(result: dict, summary: dict) -> list[str]:
                               fmt(lat[n]["max"]), f"{lat[n]['median_ratio_vs_wbc']:.2f}",
                               f"{lat[n]['p99_ratio_vs_wbc']:.2f}", f"{lat[n]['per_tick_ratio_median']:.2f}"]
                              for n in names]), ""]
+    lines += report_placo(result, summary["placo"])
     agree = summary["agreement"]
+    extra = [("vs_placo_qp", f"vs {PLACO_QP}: max", "median")] if PLACO_QP in result["commands"] else []
     lines += ["### Command agreement (shared q; ‖Δv‖∞ per tick, [m/s, rad/s])", "",
               markdown_table(["controller", "vs wbc: max", "median", "p99", "max relative",
-                              "vs wbc (log6 task): max", "median"],
+                              "vs wbc (log6 task): max", "median"] + [h for _, *hs in extra for h in hs],
                              [[n, f"{agree[n]['vs_wbc']['max']:.1e}", f"{agree[n]['vs_wbc']['median']:.1e}",
                                f"{agree[n]['vs_wbc']['p99']:.1e}", f"{agree[n]['vs_wbc']['relative_max']:.1e}",
                                f"{agree[n]['vs_log6']['max']:.1e}", f"{agree[n]['vs_log6']['median']:.1e}"]
-                              for n in names]), ""]
+                              + [f"{agree[n][key][m]:.1e}" for key, *_ in extra for m in ("max", "median")]
+                              for n in agree]), ""]
     track = summary["tracking"]
     lines += ["### Tracking (each controller in its own closed loop)", "",
               markdown_table(["controller", "position rms mm", "position max mm", "orientation rms mrad",
                               "final position mm"],
                              [[n, f"{track[n]['position_rms_mm']:.3f}", f"{track[n]['position_max_mm']:.3f}",
                                f"{track[n]['orientation_rms_mrad']:.3f}", f"{track[n]['final_position_mm']:.2e}"]
-                              for n in names]), ""]
+                              for n in track]), ""]
     diagnosis = result.get("diagnosis") or {}
     if diagnosis:
         lines += ["### Diagnosis of the peers' differences to `wbc (log6 task)`", "",
@@ -297,6 +465,38 @@ def report_scenario(result: dict, summary: dict) -> list[str]:
     for name, failure in summary["failures"].items():
         lines += [f"- {name} failed in its own closed loop at {failure}"]
     return lines
+
+
+def _spread(values: list[float]) -> str:
+    return f"{np.median(values):.2f} ({min(values):.2f}–{max(values):.2f})" if values else "-"
+
+
+def report_placo(result: dict, summary: dict | None) -> list[str]:
+    """The alternating tight-loop table of wbc and placo, with the per-run ratios' spread."""
+    if summary is None:
+        return []
+    runs, ticks = summary["runs"], result["scenario"].ticks
+    lines = ["### placo: alternating tight-loop runs", "",
+             f"{len(runs[PLACO])} runs of {ticks} ticks each (after a warm-up) on the shared pass's configurations "
+             f"and targets, order {WBC} → {PLACO_QP} → {PLACO}. Tick: wbc `set_target` + `step(q)` (kinematics, "
+             "QP, DAQP, answer check, diagnostics; no integration); placo `T_world_frame` + q in + "
+             "`update_kinematics()` + `solve(True)` (its QP with eiquadprog, then it integrates). "
+             f"`{PLACO_QP}` is wbc with placo's fixed gains (1): the same QP.", ""]
+    if not runs[PLACO]:
+        return lines + [f"placo failed: {summary['failure']}", ""]
+    header = ["run"] + [f"{name} {key} µs" for name in (WBC, PLACO_QP, PLACO) for key in ("median", "p99")]
+    rows = [[str(i + 1)] + [fmt(runs[name][i][key]) for name in (WBC, PLACO_QP, PLACO) for key in ("median", "p99")]
+            for i in range(len(runs[PLACO]))]
+    rows.append(["all"] + [fmt(summary["all"][name][key]) for name in (WBC, PLACO_QP, PLACO)
+                           for key in ("median", "p99")])
+    lines += [markdown_table(header, rows), ""]
+    for name in (WBC, PLACO_QP):
+        lines.append(f"- {name} / placo, median of the runs (min–max): median tick "
+                     f"{_spread(summary['median_ratio_vs_placo'][name])}, p99 "
+                     f"{_spread(summary['p99_ratio_vs_placo'][name])}")
+    if summary["failure"]:
+        lines.append(f"- placo failed at {summary['failure']}")
+    return lines + [""]
 
 
 def plot(results: list[dict], out: Path) -> None:
@@ -326,7 +526,7 @@ def plot(results: list[dict], out: Path) -> None:
         t = np.arange(sc.ticks) * sc.dt
         for row, against in enumerate((WBC, LOG6)):
             ax = axes[row, column]
-            for name in result["names"]:
+            for name in commands:
                 if name in (against, FULL):
                     continue
                 diff = np.abs(commands[name] - commands[against]).max(axis=1)
@@ -348,22 +548,32 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=3, help="timed runs of each scenario (default 3)")
     parser.add_argument("--warmup", type=int, default=200, help="warm-up ticks, discarded (default 200)")
     parser.add_argument("--no-peers", action="store_true", help="wbc variants only (Pink/mink not installed)")
+    parser.add_argument("--placo-python", default=os.environ.get("WBC_PLACO_PYTHON"), metavar="PATH",
+                        help="a Python that imports placo, when this one does not (default: $WBC_PLACO_PYTHON); "
+                             "e.g. python3 -m venv /work/venv-placo && /work/venv-placo/bin/pip install placo numpy")
     parser.add_argument("--out", type=Path, default=OUTPUT / "peers")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     command = "python -m benchmarks.peers " + " ".join(argv if argv is not None else sys.argv[1:])
     args.out.mkdir(parents=True, exist_ok=True)
+    placo = find_placo(args.placo_python)
     results, summaries = [], {}
     for name in args.scenarios:
         result = run_scenario(TASKS / f"{name}.toml", args.repeats, args.warmup, not args.no_peers,
-                              not args.no_progress)
+                              not args.no_progress, placo)
         results.append(result)
         summaries[name] = scenario_summary(result)
     versions = package_versions(["wbc", "pin", "pin-pink", "mink", "mujoco", "qpsolvers", "daqp", "numpy"])
-    lines = ["# wbc vs Pink vs mink", "", f"Measured {machine_note()}. Command: `{command}`.", "",
-             "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
+    versions["placo"] = placo.version
+    placo_versions = next((s["placo"]["versions"] for s in summaries.values() if s["placo"] and s["placo"]["versions"]),
+                          {})
+    placo_note = f"placo: {placo.status}" + (
+        f" (placo {placo_versions.get('placo')}, pin {placo_versions.get('pin')}, "
+        f"numpy {placo_versions.get('numpy')})" if placo_versions and not placo.in_process else "")
+    lines = ["# wbc vs Pink, mink and placo", "", f"Measured {machine_note()}. Command: `{command}`.", "",
+             "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "", placo_note + ".", "",
              "Same task stack, gains, costs, dt, damping and solver (DAQP) in every controller; all stepped on "
-             "the same q in one process, order rotated each tick. Ratios > 1: slower than wbc. "
+             "the same q in one process, in a random order each tick. Ratios > 1: slower than wbc. "
              "'per-tick ratio' is the median over ticks of (controller time / wbc time at the same tick). "
              "See benchmarks/README.md for the setup mapping and the explained differences.", ""]
     for result in results:
@@ -371,12 +581,15 @@ def main(argv: list[str] | None = None) -> int:
     lines += ["![latency](latency.png)", "", "![agreement](agreement.png)", ""]
     (args.out / "report.md").write_text("\n".join(lines))
     serial = {name: {"latency": s["latency"], "tracking": s["tracking"], "failures": s["failures"],
+                     "placo": s["placo"],
                      "diagnosis": next(r["diagnosis"] for r in results if r["scenario"].name == name),
                      "agreement": {n: {k: {m: x for m, x in a.items() if m != "per_tick"} for k, a in d.items()}
                                    for n, d in s["agreement"].items()}}
               for name, s in summaries.items()}
-    (args.out / "results.json").write_text(json.dumps({"machine": machine_note(), "command": command,
-                                                       "versions": versions, "scenarios": serial}, indent=2))
+    (args.out / "results.json").write_text(json.dumps(
+        {"machine": machine_note(), "command": command, "versions": versions,
+         "placo": {"status": placo.status, "python": placo.python, "versions": placo_versions}, "scenarios": serial},
+        indent=2))
     plot(results, args.out)
     print("\n".join(lines[6:-4]))
     print(f"report written to {args.out / 'report.md'}")

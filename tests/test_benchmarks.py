@@ -1,6 +1,7 @@
 """The benchmark harnesses in benchmarks/ work (correctness only: no timing assertions here)."""
 
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -141,3 +142,86 @@ def test_cli_bench_finds_the_checkout():
     assert find_benchmarks(ROOT) == ROOT
     args = build_parser().parse_args(["bench", "solvers", "--ticks", "3"])
     assert args.suite == "solvers" and args.options == ["--ticks", "3"]
+
+
+def _placo_run(ticks: int = 40):
+    """The youbot_circle peer spec, the configurations and targets of its first ticks."""
+    from benchmarks import peers
+    from benchmarks.peer_setups import spec_from_scenario
+    from wbc.scenario import load_scenario
+
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    spec = spec_from_scenario(scenario)
+    configurations = peers.shared_q_pass(scenario, [peers.WbcSetup(spec, peers.WBC)], ticks)["q"]
+    return scenario, spec, configurations, peers.reference_poses(scenario)[:ticks]
+
+
+def test_placo_peer_reads_its_input(tmp_path, capsys):
+    """The placo side parses what the harness writes, and rejects malformed input (placo not needed)."""
+    from benchmarks import peers, placo_peer
+
+    _, spec, configurations, targets = _placo_run(5)
+    document = peers.placo_input(spec, configurations, targets, warmup=3, closed_loop=True)
+    stack, run = placo_peer.read_input(json.dumps(document))
+    assert stack["joint_names"] == spec.joint_names and stack["regularization"] == spec.damping
+    assert set(stack["posture_target"]) == set(spec.joint_names[3:])  # the base is free, as in wbc's PostureTask
+    np.testing.assert_array_equal(run["configurations"], configurations)
+    np.testing.assert_array_equal(run["targets"], targets)
+    assert run["warmup"] == 3 and run["closed_loop"] is True
+    for broken, message in [("{", "not JSON"), ("[]", "'stack' and 'run'"),
+                            ({**document, "stack": {k: v for k, v in document["stack"].items() if k != "dt"}},
+                             "lacks dt"),
+                            ({**document, "stack": {**document["stack"], "velocity_limits": {"wheel": 1.0}}},
+                             "not in joint_names"),
+                            ({**document, "run": {**document["run"], "targets": targets[:4].tolist()}},
+                             r"run.targets must be \(5, 4, 4\)"),
+                            ({**document, "run": {**document["run"], "configurations": [[0.0, 1.0]] * 5}},
+                             r"run.configurations must be \(ticks, 8\)")]:
+        with pytest.raises(ValueError, match=message):
+            placo_peer.read_input(broken if isinstance(broken, str) else json.dumps(broken))
+    (tmp_path / "bad.json").write_text("{}")
+    assert placo_peer.main([str(tmp_path / "bad.json")]) == 2
+    assert "placo_peer: input needs" in capsys.readouterr().err
+
+
+def test_peers_reports_placo_not_run(tmp_path, monkeypatch):
+    """Without placo the benchmark runs and says why placo did not."""
+    from benchmarks import peers
+
+    monkeypatch.setitem(sys.modules, "placo", None)  # `import placo` fails here, whatever is installed
+    assert peers.find_placo(None).status.startswith("not run: `import placo` fails here")
+    fake = tmp_path / "python"
+    fake.write_text("#!/bin/sh\necho \"ModuleNotFoundError: No module named 'placo'\" >&2\nexit 1\n")
+    fake.chmod(0o755)
+    placo = peers.find_placo(str(fake))
+    assert not placo.runs and "No module named 'placo'" in placo.status
+    assert not peers.find_placo(str(tmp_path / "missing")).runs
+    out = tmp_path / "out"
+    assert peers.main(["--scenarios", "youbot_circle", "--repeats", "1", "--warmup", "5", "--no-peers",
+                       "--placo-python", str(fake), "--no-progress", "--out", str(out)]) == 0
+    results = json.loads((out / "results.json").read_text())
+    assert results["placo"]["status"] == placo.status
+    assert results["scenarios"]["youbot_circle"]["placo"] is None
+    assert peers.PLACO_QP not in results["scenarios"]["youbot_circle"]["latency"]
+    assert f"placo: {placo.status}" in (out / "report.md").read_text()
+
+
+def test_placo_solves_wbc_on_placo_gains():
+    """placo's commands equal wbc's on placo's QP (runs where placo does: here or $WBC_PLACO_PYTHON)."""
+    from benchmarks import peers
+    from benchmarks.peer_setups import WbcSetup, placo_gains
+
+    placo = peers.find_placo(os.environ.get("WBC_PLACO_PYTHON"))
+    if not placo.runs:
+        pytest.skip(placo.status)
+    scenario, spec, configurations, targets = _placo_run()
+    result = peers.run_placo(placo, spec, configurations, targets, warmup=2, closed_loop=True)
+    wbc_on_placo_qp = WbcSetup(placo_gains(spec), peers.PLACO_QP)
+    reference = np.array([(wbc_on_placo_qp.set_target(pose), wbc_on_placo_qp.step(q))[1]
+                          for q, pose in zip(configurations, targets, strict=True)])
+    assert np.abs(np.asarray(result["commands"]) - reference).max() < 1e-9
+    assert len(result["times"]) == len(configurations)
+    # placo's own closed loop starts at the first configuration and follows its own commands
+    loop = np.asarray(result["closed_loop_q"])
+    np.testing.assert_allclose(loop[0], configurations[0])
+    assert np.abs(loop[1] - scenario.robot.integrate(configurations[0], reference[0], spec.dt)).max() < 1e-9
