@@ -5,11 +5,13 @@ Row i: ``w_i (v_i - gain/dt (m_i - q_i))`` with ``m_i`` the middle of joint i's 
 ``w_i = sqrt(cost) / (1 - s_i^2)``, ``s_i = (q_i - m_i) / half_range_i`` (clipped to 0.99):
 a soft joint-limit avoidance that costs little in mid-range.
 
-The arithmetic is one ``@njit`` kernel with an explicit signature (compiled when this module
-is imported, cached on disk, never inside a tick); the data's ``compute`` calls it on the
-task's settings and the controller's buffers (views, nothing allocated per tick). wbc's own
-compiled items run inside the controller's single native call; a third-party kernel runs as
-one extra compiled call per tick (about 0.3 us). See docs/extending.md.
+The arithmetic is one ``@njit`` kernel, declared as a :class:`wbc.compiled_op.CompiledOp`
+(its operands, their shapes, the conditions on its ints) so that it runs *inside* the
+controller's tick program, in the same native call as wbc's own items: the data's
+``add_ops`` registers it with the task's settings and the controller's buffers (checked
+against the declaration there, when the controller is built), and it writes its rows
+straight into the controller's task stack. The op is compiled once per process, when this
+module is imported (~0.5 s). See docs/extending.md.
 
 Run: ``python examples/custom_compiled_task.py``
 """
@@ -20,25 +22,36 @@ import numpy as np
 from numba import njit
 
 import wbc
+from wbc.compiled_op import CompiledOp
 from wbc.kinematics import Kinematics
+from wbc.program import TickProgram
 from wbc.settings import Operand
 from wbc.tasks.task import TaskData
 from wbc.validation import as_gain, as_nonnegative
 
 
-@njit("void(float64[:], int64[:], int64[:], float64[:], float64[:], float64, float64, float64, "
-      "float64[:, :], float64[:], float64[:])", cache=True, nogil=True)
-def centering_rows(q, q_index, v_index, middle, half_range, cost, gain, dt, jacobian, target, error):
-    """Rows of CenteringTask (layout in the module docstring)."""
-    root = np.sqrt(cost)
-    for i in range(len(q_index)):
+@njit(nogil=True)
+def centering_rows(q, q_index, v_index, middle, half_range, settings, error, stack_t, start, dim, nv, rows, nq, dt):
+    """Rows of CenteringTask (layout in the module docstring) into the stack ``A^T``:
+    column ``start + i`` holds row i, ``W J`` in entries ``:nv``, ``W r`` in entry ``nv``."""
+    root, gain = np.sqrt(settings[0]), settings[1]
+    for i in range(dim):
         offset = q[q_index[i]] - middle[i]
         s = min(abs(offset) / half_range[i], 0.99)
         weight = root / (1.0 - s * s)
         error[i] = -offset
-        jacobian[i, :] = 0.0
-        jacobian[i, v_index[i]] = weight
-        target[i] = weight * gain / dt * error[i]
+        column = start + i
+        for j in range(nv):
+            stack_t[j, column] = 0.0
+        stack_t[v_index[i], column] = weight
+        stack_t[nv, column] = weight * gain / dt * error[i]
+
+
+CENTERING = CompiledOp("CENTERING", centering_rows, (
+    ("q", ("nq",)), ("q_index", ("dim",), "int64"), ("v_index", ("dim",), "int64"), ("middle", ("dim",)),
+    ("half_range", ("dim",)), ("settings", (2,)), ("error", ("dim",)), ("stack_t", ("nv + 1", "rows")),
+    ("start", None), ("dim", None), ("nv", None), ("rows", None), ("nq", None)),
+    checks=("0 <= start", "start + dim <= rows"))
 
 
 class CenteringTask(wbc.Task):
@@ -71,10 +84,12 @@ class CenteringTaskData(TaskData):
         self.dim = len(joints)
         self.error = np.zeros(self.dim)
 
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        cost, gain = self.task._settings
-        centering_rows(kin.q, self._q_index, self._v_index, self._middle, self._half_range, cost, gain, dt,
-                       jacobian, target, self.error)
+    def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
+        """Run the kernel inside the controller's tick program (one native call for all items)."""
+        program.add(CENTERING, q=kin.q, q_index=self._q_index, v_index=self._v_index, middle=self._middle,
+                    half_range=self._half_range, settings=self.task._settings, error=self.error, stack_t=stack_t,
+                    start=start, dim=self.dim, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1], nq=kin.q.size)
+        return True
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = float(np.max(np.abs(self.error)))

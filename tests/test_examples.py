@@ -46,3 +46,44 @@ def test_custom_compiled_task_centres_the_joints():
     w2 = 1.0 / (1.0 - np.minimum(np.abs(e) / half, 0.99) ** 2) ** 2
     np.testing.assert_allclose(v[3:], w2 / (w2 + controller.damping) * 0.5 / controller.dt * e, rtol=1e-9)
     assert task.name in controller.last.task_errors
+    # it runs inside the tick program (no Python compute for it), through its C callback
+    assert not controller._python_tasks and any(row[0] == 100 for row in controller._program._program)
+
+
+def test_compiled_ops_are_checked_against_their_declaration():
+    import pytest
+
+    import wbc
+    from wbc.compiled_op import CompiledOp
+    from wbc.program import TickProgram
+
+    module = runpy.run_path(str(EXAMPLES / "custom_compiled_task.py"))
+    op, program = module["CENTERING"], TickProgram()
+    good = dict(q=np.zeros(8), q_index=np.arange(5), v_index=np.arange(5), middle=np.zeros(5), half_range=np.ones(5),
+                settings=np.ones(2), error=np.zeros(5), stack_t=np.zeros((9, 20)), start=0, dim=5, nv=8, rows=20,
+                nq=8)
+    program.add(op, **good)
+    for wrong, message in ((dict(q_index=np.arange(5.0)), "q_index must be a C-contiguous int64"),
+                           (dict(middle=np.zeros(4)), "middle must have shape \\(5,\\)"),
+                           (dict(start=18), "start \\+ dim <= rows"),
+                           (dict(stack_t=np.zeros((20, 9)).T), "stack_t must be a C-contiguous float64")):
+        with pytest.raises(TypeError, match=message):
+            program.add(op, **{**good, **wrong})
+    assert len(program) == 1
+    with pytest.raises(TypeError, match="not int operands"):
+        CompiledOp("BAD", module["centering_rows"], (("x", ("m",)), ("n", None)))
+    with pytest.raises(TypeError, match="reserved"):
+        CompiledOp("BAD", module["centering_rows"], (("dt", (1,)),))
+    # the rows written by the op are the kernel's, called directly on the same data
+    q = np.array([0.0, 0.0, 0.0, 2.8, 1.4, -2.4, 1.6, 2.7])
+    robot = wbc.load_robot("youbot")
+    task = module["CenteringTask"](cost=0.3, gain=0.2)
+    controller = wbc.Controller(robot, [task])
+    controller.step(q)
+    data = controller.data(task)
+    stack_t = np.zeros_like(controller._stack_t)
+    error = np.zeros(data.dim)
+    module["centering_rows"](q, data._q_index, data._v_index, data._middle, data._half_range, task._settings,
+                             error, stack_t, 0, data.dim, 8, stack_t.shape[1], 8, controller.dt)
+    np.testing.assert_array_equal(controller._stack_t[:, :data.dim], stack_t[:, :data.dim])
+    np.testing.assert_array_equal(data.error, error)
