@@ -46,6 +46,15 @@ def test_errors_exit_with_status_2(tmp_path, capsys):
     assert main(["run", str(TASKS / "youbot_circle.toml"), "--solver", "nope"]) == 2
 
 
+def test_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"wbc {version('wbc')}\n"
+
+
 def test_solvers_command(capsys):
     assert main(["solvers"]) == 0
     assert "daqp" in capsys.readouterr().out

@@ -11,6 +11,7 @@ import os
 import sys
 from pathlib import Path
 
+from . import __version__
 from .errors import WbcError
 
 if sys.version_info >= (3, 11):
@@ -195,6 +196,7 @@ def _import_suite(root: Path, suite: str):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
+    parser.add_argument("--version", action="version", version=f"wbc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run_parser = sub.add_parser("run", help="run scenarios (tasks/*.toml) in closed loop")
     run_parser.add_argument("scenario", nargs="+", help="path of a scenario TOML file; give several to compare")
