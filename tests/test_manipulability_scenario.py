@@ -121,8 +121,9 @@ def test_cli_runs_both_files_side_by_side(tmp_path, capsys):
     plot = tmp_path / "stretch.png"
     assert main(["run", str(UNGUARDED), str(GUARDED), "--duration", "3.0", "--no-progress", "--json",
                  "--plot", str(plot)]) == 0
-    out = capsys.readouterr().out
-    summaries = json.loads(out[:out.rindex("plot written")])
+    captured = capsys.readouterr()
+    summaries = json.loads(captured.out)  # stdout holds the JSON alone
+    assert "plot written" in captured.err
     assert [s["scenario"] for s in summaries] == ["youbot_stretch_no_barrier", "youbot_stretch"]
     assert summaries[1]["position_error_max_m"] > summaries[0]["final_position_error_m"]
     assert plot.stat().st_size > 10_000

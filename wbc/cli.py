@@ -33,19 +33,18 @@ def _run(args: argparse.Namespace) -> int:
     runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
                            simulation=_simulation(args, scenario)))
             for scenario in scenarios]
-    summaries = [result.summary() for _, result in runs]
+    summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary() for scenario, result in runs]
     if args.json:
-        named = [{"scenario": scenario.name} | summary for (scenario, _), summary in zip(runs, summaries, strict=True)]
-        print(json.dumps(summaries[0] if len(runs) == 1 else named, indent=2))
+        print(json.dumps(summaries, indent=2))
     else:
-        print("\n".join(format_summary(scenario.name, result.solver, summary)
-                        for (scenario, result), summary in zip(runs, summaries, strict=True)))
+        print("\n".join(format_summary(summary["scenario"], summary["solver"], summary) for summary in summaries))
     if args.plot:
         from .plotting import manipulability_traces, plot_runs
 
         path = plot_runs([result for _, result in runs], args.plot, scenarios[0].robot.joint_names,
                          manipulability_traces(runs))
-        print(f"plot written to {path}")
+        # with --json, stdout holds the JSON alone
+        print(f"plot written to {path}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -203,7 +202,10 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run(s), overlaid")
     run_parser.add_argument("--solver", help="override the scenario's QP solver")
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
-    run_parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run_parser.add_argument("--json", action="store_true",
+                            help="print the summaries as JSON: always a list with one object per scenario, in "
+                                 "the order given, each with 'scenario', 'solver' and the numbers of the text "
+                                 "summary (units in the key names: _m, _rad, _us); stdout then holds the JSON alone")
     run_parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     run_parser.add_argument("--sim", choices=["kinematic", "mujoco"], default="kinematic",
                             help="close the loop by integrating v (default) or through MuJoCo velocity servos")
