@@ -46,6 +46,8 @@ def test_json_has_one_shape_for_one_file_and_several(tmp_path, capsys):
     assert [s["scenario"] for s in alone] == ["youbot_reach"]
     assert [s["scenario"] for s in both] == ["deluca_parking", "youbot_reach"]
     assert set(alone[0]) == set(both[1])
+    # a PositionTask has no orientation to report
+    assert "orientation_error_max_rad" in both[1] and "orientation_error_max_rad" not in both[0]
 
 
 @pytest.mark.parametrize("solver", ["osqp", "proxqp"])
@@ -62,6 +64,12 @@ def test_errors_exit_with_status_2(tmp_path, capsys):
     assert main(["run", str(bad)]) == 2
     assert "NoSuchTask" in capsys.readouterr().err
     assert main(["run", str(TASKS / "youbot_circle.toml"), "--solver", "nope"]) == 2
+
+
+def test_text_summary_of_a_position_only_task(capsys):
+    assert main(["run", str(TASKS / "deluca_parking.toml"), "--duration", "0.2", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "orientation err            not tracked" in out and "mrad" not in out
 
 
 def test_version(capsys):

@@ -4,42 +4,11 @@ and the manipulability m(t) when a scenario watches it. Several runs are overlai
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .closed_loop import RunResult
-from .constraints import ManipulabilityBarrier
-from .manipulability import manipulability
-from .scenario import Scenario
-from .tasks import ManipulabilityTask
-
-
-@dataclass
-class ManipulabilityTrace:
-    """m(t) of one frame in every run, and the floor of the barrier that defines it (if any)."""
-
-    frame: str
-    rows: str
-    min_value: float | None
-    series: list[np.ndarray]  #: one (T+1,) array per run, m at each recorded configuration
-
-
-def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> ManipulabilityTrace | None:
-    """m(t) of every run for the frame of the first ManipulabilityBarrier (else ManipulabilityTask)
-    found in the scenarios, or None if none has one. Runs without it are evaluated all the same,
-    which is what a with/without comparison needs."""
-    items = [item for scenario, _ in runs for item in scenario.constraints + scenario.tasks]
-    barriers = [item for item in items if isinstance(item, ManipulabilityBarrier)]
-    objectives = [item for item in items if isinstance(item, ManipulabilityTask)]
-    if not barriers and not objectives:
-        return None
-    first = (barriers or objectives)[0]
-    floor = first.min_value if barriers else None
-    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows) for q in result.q])
-              for scenario, result in runs]
-    return ManipulabilityTrace(first.frame, first.rows, floor, series)
+from .closed_loop import ManipulabilityTrace, RunResult, manipulability_traces  # noqa: F401 (was defined here)
 
 
 def plot_run(result: RunResult, path: str | Path, joint_names: list[str] | None = None) -> Path:
@@ -116,6 +85,8 @@ def plot_runs(results: Sequence[RunResult], path: str | Path, joint_names: list[
     if trace is not None:
         ax = axes["m"]
         for k, (result, series) in enumerate(zip(results, trace.series, strict=False)):
+            if series is None:
+                continue
             ax.plot(np.arange(series.size) * result.dt, series, color=colors[k % len(colors)],
                     label=result.scenario)
         if trace.min_value is not None:
