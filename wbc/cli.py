@@ -44,9 +44,8 @@ def _run(args: argparse.Namespace) -> int:
     if args.plot:
         from .plotting import plot_runs
 
-        path = plot_runs([result for _, result in runs], args.plot, scenarios[0].robot.joint_names, trace)
         # with --json, stdout holds the JSON alone
-        print(f"plot written to {path}", file=sys.stderr if args.json else sys.stdout)
+        print(f"plot written to {plot_runs(runs, args.plot)}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
