@@ -105,6 +105,18 @@ def test_frame_task_without_orientation_cost_draws_no_orientation(tmp_path, pane
     assert "orientation" not in panels([(scenario, result)])
 
 
+def test_scenario_without_reference_says_so(tmp_path, panels):
+    path = tmp_path / "posture_only.toml"
+    path.write_text('[robot]\nname = "youbot"\ninitial_configuration = [0, 0, 0, 0, 0.5, 1.0, 1.2, 0]\n'
+                    '[[tasks]]\ntype = "PostureTask"\ncost = 1.0\ngain = 0.1\n'
+                    '[[constraints]]\ntype = "JointVelocityLimits"\n')
+    scenario = load_scenario(path)
+    assert scenario.reference_task is None
+    axes = panels([(scenario, run(scenario, duration=0.2))])
+    assert data_lines(axes["position"]) == []
+    assert [t.get_text() for t in axes["position"].texts] == ["no tracking error recorded"]
+
+
 def test_overlay_draws_orientation_only_for_runs_that_track_it(circle, parking, panels):
     axes = panels([circle, parking])
     assert [line.get_label() for line in data_lines(axes["orientation"])] == ["youbot_circle"]

@@ -112,18 +112,18 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
 
     frames = {scenario.reference_task.frame for scenario, _ in runs if scenario.reference_task is not None}
     of_frame = f" of '{next(iter(frames))}'" if len(frames) == 1 else ""
-    tracked = [(r, c) for r, c in zip(results, colors, strict=True) if r.tool_path is not None]
+    with_reference = [(r, c) for r, c in zip(results, colors, strict=True) if r.tool_path is not None]
     _error_panel(axes["position"], f"Position error{of_frame}", "‖p* − p‖ [mm]",
-                 [(r.time, r.position_error * 1e3, c, r.scenario) for r, c in tracked], "mm")
+                 [(r.time, r.position_error * 1e3, c, r.scenario) for r, c in with_reference], "mm")
     if "orientation" in axes:
         _error_panel(axes["orientation"], f"Orientation error{of_frame}", "‖log3(R* Rᵀ)‖ [mrad]",
-                     [(r.time, r.orientation_error * 1e3, c, r.scenario) for r, c in tracked
+                     [(r.time, r.orientation_error * 1e3, c, r.scenario) for r, c in with_reference
                       if r.orientation_tracked], "mrad")
 
     for key in speed_keys:
         ax = axes[key]
         top = 1.0
-        for (result, color), run_groups in zip(zip(results, colors, strict=True), groups, strict=True):
+        for result, color, run_groups in zip(results, colors, groups, strict=True):
             group = next((g for g in run_groups if g.key == key), None)
             if group is None:
                 continue
