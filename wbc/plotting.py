@@ -191,7 +191,7 @@ def _error_panel(ax: Axes, title: str, ylabel: str, lines: list[tuple[np.ndarray
     ax.set_ylim(bottom=floor)
     if any(np.min(error) < floor for _, error, _, _ in lines):
         ax.text(0.01, 0.02, f"errors below {floor:.0e} {unit} drawn at the axis", transform=ax.transAxes,
-                fontsize=7, color="0.35")
+                fontsize=7, color="0.35", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
     if len(lines) > 1:
         ax.legend(fontsize=7)
 
