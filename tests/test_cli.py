@@ -25,9 +25,27 @@ def test_run_prints_summary_and_writes_plot(tmp_path, capsys):
 
 def test_run_json_summary(capsys):
     assert main(["run", str(TASKS / "youbot_reach.toml"), "--duration", "0.5", "--no-progress", "--json"]) == 0
-    summary = json.loads(capsys.readouterr().out)
+    (summary,) = json.loads(capsys.readouterr().out)
+    assert summary["scenario"] == "youbot_reach" and summary["solver"] == "daqp"
     assert summary["ticks"] == 50
     assert summary["worst_position_limit_violation"] == 0.0
+
+
+def test_json_has_one_shape_for_one_file_and_several(capsys):
+    """Always a list of objects, one per file in the order given, the same keys for the same
+    scenario (with --plot too: tests/test_manipulability_scenario.py)."""
+    reach, parking = str(TASKS / "youbot_reach.toml"), str(TASKS / "deluca_parking.toml")
+    options = ["--duration", "0.2", "--no-progress", "--json"]
+    assert main(["run", reach, *options]) == 0
+    alone = json.loads(capsys.readouterr().out)
+    assert main(["run", parking, reach, *options]) == 0
+    both = json.loads(capsys.readouterr().out)
+    assert isinstance(alone, list) and isinstance(both, list)
+    assert [s["scenario"] for s in alone] == ["youbot_reach"]
+    assert [s["scenario"] for s in both] == ["deluca_parking", "youbot_reach"]
+    assert set(alone[0]) == set(both[1])
+    # a PositionTask has no orientation to report
+    assert "orientation_error_max_rad" in both[1] and "orientation_error_max_rad" not in both[0]
 
 
 @pytest.mark.parametrize("solver", ["osqp", "proxqp"])
@@ -44,6 +62,21 @@ def test_errors_exit_with_status_2(tmp_path, capsys):
     assert main(["run", str(bad)]) == 2
     assert "NoSuchTask" in capsys.readouterr().err
     assert main(["run", str(TASKS / "youbot_circle.toml"), "--solver", "nope"]) == 2
+
+
+def test_text_summary_of_a_position_only_task(capsys):
+    assert main(["run", str(TASKS / "deluca_parking.toml"), "--duration", "0.2", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "orientation err            not tracked" in out and "mrad" not in out
+
+
+def test_version(capsys):
+    from importlib.metadata import version
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"wbc {version('wbc')}\n"
 
 
 def test_solvers_command(capsys):

@@ -167,6 +167,7 @@ cache.prepare(Path(__file__).parent, ("callee", "caller"))
 """
 
 
+@pytest.mark.slow  # three subprocesses compiling with numba: ~10 s
 @pytest.mark.parametrize("where", ["in-tree", "NUMBA_CACHE_DIR", "user-wide"])
 def test_changed_callee_in_another_file_is_recompiled(tmp_path, where):
     """A caller cached by numba keeps a changed callee of another file (numba alone would load

@@ -121,19 +121,38 @@ def test_cli_runs_both_files_side_by_side(tmp_path, capsys):
     plot = tmp_path / "stretch.png"
     assert main(["run", str(UNGUARDED), str(GUARDED), "--duration", "3.0", "--no-progress", "--json",
                  "--plot", str(plot)]) == 0
-    out = capsys.readouterr().out
-    summaries = json.loads(out[:out.rindex("plot written")])
+    captured = capsys.readouterr()
+    summaries = json.loads(captured.out)  # stdout holds the JSON alone
+    assert "plot written" in captured.err
     assert [s["scenario"] for s in summaries] == ["youbot_stretch_no_barrier", "youbot_stretch"]
     assert summaries[1]["position_error_max_m"] > summaries[0]["final_position_error_m"]
+    # the point of the scenario, in both summaries: the barrier holds m >= m_min, without it m drops below
+    unguarded, guarded = summaries
+    assert guarded["manipulability_floor"] == M_MIN and "manipulability_floor" not in unguarded
+    assert guarded["manipulability_min"] >= M_MIN * (1 - 1e-9) > unguarded["manipulability_min"]
     assert plot.stat().st_size > 10_000
+
+
+def test_cli_prints_the_minimum_manipulability(capsys):
+    assert main(["run", str(GUARDED), "--duration", "3.0", "--no-progress"]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if "manipulability" in line)
+    assert float(line.split()[2]) == pytest.approx(M_MIN, rel=1e-3) and "m_min 0.04" in line
 
 
 def test_manipulability_trace_uses_the_barrier_of_either_run(runs):
     trace = manipulability_traces(list(runs.values()))
     assert (trace.frame, trace.rows, trace.min_value) == ("ee", "all", M_MIN)
+    assert trace.guarded == [False, True]
     unguarded, guarded = trace.series
     assert unguarded.min() < M_MIN <= guarded.min() + 1e-12
     assert manipulability_traces([runs["youbot_stretch_no_barrier"]]) is None
+
+
+def test_summary_minimum_is_the_product_of_the_singular_values(runs):
+    trace = manipulability_traces(list(runs.values()))
+    for k, (scenario, result) in enumerate(runs.values()):
+        m = [np.prod(np.linalg.svd(scenario.robot.frame_jacobian(q, "ee"), compute_uv=False)) for q in result.q]
+        assert trace.summary(k)["manipulability_min"] == pytest.approx(min(m), rel=1e-9)
 
 
 def test_docs_figure_is_small(runs, tmp_path):

@@ -85,6 +85,7 @@ def test_euler_rate_map_is_singular_exactly_at_theta_e_0_or_pi(kapustina):
     assert sp.simplify(rate_map.det() + sp.sin(theta_e)) == 0
 
 
+@pytest.mark.slow  # sympy derivation
 def test_euler_jacobian_minors_give_kapustinas_set_theta2_theta3_zero(kapustina):
     """Her J (rows X_E, Y_E, Z_E, psi, theta_E, phi) has rank < 6 iff sin(theta2) = sin(theta2 + theta3) = 0."""
     euler_jacobian, _, _, _ = kapustina
@@ -143,6 +144,7 @@ def _arm_frame(J, phi1):
     return sp.diag(turn, turn) * J
 
 
+@pytest.mark.slow  # sympy derivation
 def test_youbot_arm_alone_set(youbot, kapustina):
     """Base fixed (columns theta1..theta5, 6 x 5): the six 5 x 5 minors are a2 a3 sin(theta3) times
     (ell sin(theta_E), ell cos(theta_E), sin(theta_E)) up to sign, ell = horizontal distance of E from axis 1.
@@ -209,6 +211,7 @@ def gierlak_eq15():
         [1, 0, 0, 0, s[3]]])
 
 
+@pytest.mark.slow  # sympy derivation
 def test_scorbot_jacobian_is_gierlaks_eq15_and_pinocchios(scorbot_jacobian_q, rng):
     assert sp.simplify(scorbot_jacobian_q - gierlak_eq15()) == sp.zeros(6, 5)
     robot = wbc.load_robot("scorbot_er4pc")
@@ -220,6 +223,7 @@ def test_scorbot_jacobian_is_gierlaks_eq15_and_pinocchios(scorbot_jacobian_q, rn
                                    rtol=0, atol=1e-12)
 
 
+@pytest.mark.slow  # sympy derivation
 def test_gierlaks_minors_eq20_are_right(scorbot_jacobian_q):
     poly, s, co = trig_to_symbols(scorbot_jacobian_q, QS)
     R = l1s + l2s * co[1] + l3s * co[2] + d5s * co[3]
@@ -232,6 +236,7 @@ def test_gierlaks_minors_eq20_are_right(scorbot_jacobian_q):
         assert remainder == 0  # equal modulo sin^2 q1 + cos^2 q1 = 1
 
 
+@pytest.mark.slow  # sympy derivation
 def test_scorbot_true_singular_set(scorbot_jacobian_q):
     """Rows turned into the arm plane: the minors are l2 l3 sin(q3 - q2) (R cos q4, R sin q4, cos q4) up to sign.
     They vanish together iff sin(q3 - q2) = 0, or cos q4 = 0 and R = 0 (tool vertical on axis 1) -- not, as
@@ -298,6 +303,7 @@ def puma_frames():
     return dh_frames(puma_table(TH6, dict(a2=a2p, a3=a3p, d3=d3p, d4=d4p), pi=pi), lib=sp)
 
 
+@pytest.mark.slow  # sympy derivation
 def test_puma_determinant(puma_frames, rng):
     """At the wrist centre (= the ee origin, d6 = 0) the wrist joints add no linear velocity, so
     det J = det J11 det J22 = a2 (a3 s3 + d4 c3)(a2 c2 + a3 c23 - d4 s23) s5: elbow, shoulder, wrist."""

@@ -3,6 +3,7 @@ sideways) whose straight line passes the wrist singularity theta5 = 0
 (tasks/puma_wrist_pass_naive.toml) and the same move planned around it
 (tasks/puma_wrist_pass.toml): IK samples and closed loop."""
 
+import json
 import sys
 
 import numpy as np
@@ -162,7 +163,8 @@ def test_cli_overlays_naive_and_planned(tmp_path, capsys):
     assert main(["run", str(NAIVE), str(PLANNED), "--duration", "1.0", "--no-progress", "--json",
                  "--plot", str(plot)]) == 0
     assert plot.stat().st_size > 10_000
-    assert '"scenario": "puma_wrist_pass_naive"' in capsys.readouterr().out
+    summaries = json.loads(capsys.readouterr().out)
+    assert [s["scenario"] for s in summaries] == ["puma_wrist_pass_naive", "puma_wrist_pass"]
 
 
 def test_bad_planned_references_raise_scenario_errors(tmp_path):

@@ -11,6 +11,7 @@ import os
 import sys
 from pathlib import Path
 
+from . import __version__
 from .errors import WbcError
 
 if sys.version_info >= (3, 11):
@@ -24,7 +25,7 @@ class CommandLineError(WbcError, ValueError):
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .closed_loop import run
+    from .closed_loop import manipulability_traces, run
     from .scenario import load_scenario
 
     _check_run_options(args)
@@ -32,19 +33,19 @@ def _run(args: argparse.Namespace) -> int:
     runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
                            simulation=_simulation(args, scenario)))
             for scenario in scenarios]
-    summaries = [result.summary() for _, result in runs]
+    trace = manipulability_traces(runs)
+    summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
+                 | ({} if trace is None else trace.summary(k))
+                 for k, (scenario, result) in enumerate(runs)]
     if args.json:
-        named = [{"scenario": scenario.name} | summary for (scenario, _), summary in zip(runs, summaries, strict=True)]
-        print(json.dumps(summaries[0] if len(runs) == 1 else named, indent=2))
+        print(json.dumps(summaries, indent=2))
     else:
-        print("\n".join(format_summary(scenario.name, result.solver, summary)
-                        for (scenario, result), summary in zip(runs, summaries, strict=True)))
+        print("\n".join(format_summary(summary["scenario"], summary["solver"], summary) for summary in summaries))
     if args.plot:
-        from .plotting import manipulability_traces, plot_runs
+        from .plotting import plot_runs
 
-        path = plot_runs([result for _, result in runs], args.plot, scenarios[0].robot.joint_names,
-                         manipulability_traces(runs))
-        print(f"plot written to {path}")
+        # with --json, stdout holds the JSON alone
+        print(f"plot written to {plot_runs(runs, args.plot)}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -86,23 +87,33 @@ def _simulation(args: argparse.Namespace, scenario):
 
 
 def format_summary(name: str, solver: str, s: dict) -> str:
-    return "\n".join([
+    """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``)."""
+    tracked = "orientation_error_rms_rad" in s
+    lines = [
         f"scenario {name}  (solver {solver})",
         f"  ticks                      {s['ticks']}  ({s['fallback_ticks']} answered by a fallback)",
         f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / "
         f"{s['position_error_max_m'] * 1e3:.4f} mm",
         f"  orientation err  rms / max {s['orientation_error_rms_rad'] * 1e3:.4f} / "
-        f"{s['orientation_error_max_rad'] * 1e3:.4f} mrad",
+        f"{s['orientation_error_max_rad'] * 1e3:.4f} mrad" if tracked else
+        "  orientation err            not tracked (no orientation cost in the reference task)",
         f"  final error      pos / ori {s['final_position_error_m'] * 1e3:.2e} mm / "
-        f"{s['final_orientation_error_rad'] * 1e3:.2e} mrad",
+        f"{s['final_orientation_error_rad'] * 1e3:.2e} mrad" if tracked else
+        f"  final error      pos       {s['final_position_error_m'] * 1e3:.2e} mm",
         f"  worst limit violation      position {s['worst_position_limit_violation']:.2e}, "
         f"velocity {s['worst_velocity_limit_violation']:.2e}",
         f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
         f"  (solve median {s['solve_time_median_us']:.1f} µs)",
-    ] + ([f"  worst wheel speed          {s['worst_wheel_speed_ratio'] * 100:.1f} % of its limit"]
-         if "worst_wheel_speed_ratio" in s else [])
-      + ([f"  max lateral base slip      {s['max_lateral_slip_m_s']:.2e} m/s"]
-         if "max_lateral_slip_m_s" in s else []))
+    ]
+    if "worst_wheel_speed_ratio" in s:
+        lines.append(f"  worst wheel speed          {s['worst_wheel_speed_ratio'] * 100:.1f} % of its limit")
+    if "max_lateral_slip_m_s" in s:
+        lines.append(f"  max lateral base slip      {s['max_lateral_slip_m_s']:.2e} m/s")
+    if "manipulability_min" in s:
+        floor = f"  (barrier floor m_min {s['manipulability_floor']:g})" if "manipulability_floor" in s else ""
+        lines.append(f"  manipulability   min       {s['manipulability_min']:.4g}  "
+                     f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}")
+    return "\n".join(lines)
 
 
 def _solvers(args: argparse.Namespace) -> int:
@@ -195,13 +206,17 @@ def _import_suite(root: Path, suite: str):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
+    parser.add_argument("--version", action="version", version=f"wbc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     run_parser = sub.add_parser("run", help="run scenarios (tasks/*.toml) in closed loop")
     run_parser.add_argument("scenario", nargs="+", help="path of a scenario TOML file; give several to compare")
     run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run(s), overlaid")
     run_parser.add_argument("--solver", help="override the scenario's QP solver")
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
-    run_parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    run_parser.add_argument("--json", action="store_true",
+                            help="print the summaries as JSON: always a list with one object per scenario, in "
+                                 "the order given, each with 'scenario', 'solver' and the numbers of the text "
+                                 "summary (units in the key names: _m, _rad, _us); stdout then holds the JSON alone")
     run_parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     run_parser.add_argument("--sim", choices=["kinematic", "mujoco"], default="kinematic",
                             help="close the loop by integrating v (default) or through MuJoCo velocity servos")

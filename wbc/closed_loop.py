@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
 
+from .constraints import ManipulabilityBarrier
 from .controller import Controller
+from .manipulability import manipulability
 from .scenario import Scenario
+from .tasks import FrameTask, ManipulabilityTask
 
 
 @dataclass
@@ -33,30 +37,36 @@ class RunResult:
     tool_path: np.ndarray | None = None  #: (T+1, 3) world position [m] of the reference task's frame
     wheel_ratio: np.ndarray | None = None  #: (T, n_wheels) |u_i| / u_max, if the base has wheels
     lateral_slip: np.ndarray | None = None  #: (T,) |base-frame v_y| [m/s] of a nonholonomic base
+    #: whether the reference task weighs the orientation (a FrameTask with an orientation cost > 0);
+    #: if not, ``orientation_error`` is not a tracking error (0, or an unweighted error)
+    orientation_tracked: bool = True
 
     def summary(self) -> dict[str, float]:
-        """The numbers ``wbc run`` prints."""
+        """The numbers ``wbc run`` prints (the orientation errors only if the orientation is tracked)."""
         us = 1e6
-        extra = {}
-        if self.wheel_ratio is not None:
-            extra["worst_wheel_speed_ratio"] = float(self.wheel_ratio.max())
-        if self.lateral_slip is not None:
-            extra["max_lateral_slip_m_s"] = float(self.lateral_slip.max())
-        return extra | {
+        summary = {
             "ticks": int(self.time.size),
             "fallback_ticks": self.fallback_ticks,
             "position_error_rms_m": float(np.sqrt(np.mean(self.position_error ** 2))),
             "position_error_max_m": float(self.position_error.max()),
-            "orientation_error_rms_rad": float(np.sqrt(np.mean(self.orientation_error ** 2))),
-            "orientation_error_max_rad": float(self.orientation_error.max()),
             "final_position_error_m": float(self.position_error[-1]),
-            "final_orientation_error_rad": float(self.orientation_error[-1]),
+        }
+        if self.orientation_tracked:
+            summary["orientation_error_rms_rad"] = float(np.sqrt(np.mean(self.orientation_error ** 2)))
+            summary["orientation_error_max_rad"] = float(self.orientation_error.max())
+            summary["final_orientation_error_rad"] = float(self.orientation_error[-1])
+        summary |= {
             "worst_position_limit_violation": float(self.position_violation.max()),
             "worst_velocity_limit_violation": float(self.velocity_violation.max()),
             "tick_latency_median_us": float(np.median(self.tick_time) * us),
             "tick_latency_p99_us": float(np.percentile(self.tick_time, 99) * us),
             "solve_time_median_us": float(np.median(self.solve_time) * us),
         }
+        if self.wheel_ratio is not None:
+            summary["worst_wheel_speed_ratio"] = float(self.wheel_ratio.max())
+        if self.lateral_slip is not None:
+            summary["max_lateral_slip_m_s"] = float(self.lateral_slip.max())
+        return summary
 
 
 def run(scenario: Scenario, solver: str | None = None, duration: float | None = None,
@@ -117,7 +127,49 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         tool_path=None if task is None else np.array([robot.frame_pose(q, task.frame)[:3, 3] for q in qs]),
         wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
         lateral_slip=lateral_slip(robot, qs[:-1], vs),
+        orientation_tracked=isinstance(task, FrameTask) and bool(np.any(task.orientation_cost > 0)),
     )
+
+
+@dataclass
+class ManipulabilityTrace:
+    """m(t) of one frame in every run of the same robot, and the floor of the barrier that defines it (if any)."""
+
+    frame: str
+    rows: str
+    min_value: float | None
+    #: one (T+1,) array per run, m at each recorded configuration; None for a run of another robot
+    series: list[np.ndarray | None]
+    guarded: list[bool]  #: per run, whether its scenario has a barrier with that floor on this frame and rows
+
+    def summary(self, run: int) -> dict[str, float | str]:
+        """The smallest m of run number ``run``, the frame and rows it refers to, and the floor
+        of the barrier if that run has it (empty for a run of another robot)."""
+        if self.series[run] is None:
+            return {}
+        floor = {"manipulability_floor": self.min_value} if self.guarded[run] else {}
+        return {"manipulability_frame": self.frame, "manipulability_rows": self.rows,
+                "manipulability_min": float(self.series[run].min())} | floor
+
+
+def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> ManipulabilityTrace | None:
+    """m(t) of every run for the frame of the first ManipulabilityBarrier (else ManipulabilityTask)
+    found in the scenarios, or None if none has one. Runs of the same robot without it are
+    evaluated all the same, which is what a with/without comparison needs."""
+    watched = [(scenario.robot.name, item) for scenario, _ in runs for item in scenario.constraints + scenario.tasks
+               if isinstance(item, (ManipulabilityBarrier, ManipulabilityTask))]
+    if not watched:
+        return None
+    robot_name, first = next((pair for pair in watched if isinstance(pair[1], ManipulabilityBarrier)), watched[0])
+    floor = first.min_value if isinstance(first, ManipulabilityBarrier) else None
+    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows) for q in result.q])
+              if scenario.robot.name == robot_name else None
+              for scenario, result in runs]
+    guarded = [floor is not None and any(isinstance(item, ManipulabilityBarrier) and item.min_value == floor
+                                         and (item.frame, item.rows) == (first.frame, first.rows)
+                                         for item in scenario.constraints)
+               for scenario, _ in runs]
+    return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded)
 
 
 def _true_error(robot, task, q: np.ndarray, target: np.ndarray) -> np.ndarray:
