@@ -106,17 +106,19 @@ def test_check_configuration(benchmark, circle):
 
 @pytest.mark.parametrize("kind", ["FrameTask", "PostureTask"])
 def test_task_compute(benchmark, circle, kind):
-    """One task writing its weighted rows (kinematics already updated)."""
+    """One task's data writing its weighted rows through its Python path (kinematics already
+    updated; in a controller the same rows come from the tick program)."""
     benchmark.group = "pieces"
     robot = circle.scenario.robot
     task = next(t for t in circle.scenario.tasks if type(t).__name__ == kind)
+    data = task.bind(robot)
     kin = Kinematics(robot)
     q, target = circle.states[len(circle.states) // 2]
     kin.update(q)
     if kind == "FrameTask":
         task.set_target(*target)
-    jacobian, rhs = np.zeros((task.dim, robot.nv)), np.zeros(task.dim)
-    benchmark(task.compute, kin, circle.scenario.dt, jacobian, rhs)
+    jacobian, rhs = np.zeros((data.dim, robot.nv)), np.zeros(data.dim)
+    benchmark(data.compute, kin, circle.scenario.dt, jacobian, rhs)
 
 
 def test_hessian_assembly(benchmark, circle):
