@@ -15,7 +15,7 @@ from wbc.program import TickProgram
 
 CONSTANTS = {name: getattr(kernels, name) for name in ("FRAME_SETTINGS", "FRAME_DATA", "POSITION_SETTINGS",
                                                        "DAQP_PROBLEM_WORDS", "DAQP_WORKSPACE_WORDS",
-                                                       "DAQP_RESULT_WORDS", "DAQP_CONTROL_SIZE")}
+                                                       "DAQP_RESULT_WORDS", "DAQP_CONTROL_SIZE", "CHAIN_COLUMNS")}
 
 
 def _decoder_blocks() -> dict[str, str]:

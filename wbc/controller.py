@@ -200,6 +200,7 @@ class Controller:
         stack, rows = self._stack_t, self._stack_t.shape[1]
         program = TickProgram()
         program.add(kernels.OP_HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
+        kin.add_op(program)  # the compiled forward kinematics (native chains), before every item
         # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
@@ -240,6 +241,8 @@ class Controller:
         self._unready = list(self._task_data)  # checked every tick until each one is ready
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
+        # ... and, with no Python reader, the kinematics are left to the program's first op
+        self._deferred_kinematics = self._q_screened and kin.native
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
@@ -256,7 +259,7 @@ class Controller:
                 and (self._q_screened or math.isfinite(q.dot(q)))):  # fast path of check_configuration
             q = self.robot.check_configuration(q)
         kin, dt, qp = self.kinematics, self._dt, self._qp_v
-        kin.update(q)
+        kin.update(q, self._deferred_kinematics)
         if self._unready:
             self._check_ready()
 

@@ -50,7 +50,7 @@ class TickDiagnostics:
     def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
                  tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
         self._controller = controller
-        self.tick, self.solver, self.outcome, self.status = tick, controller.solver.name, outcome, status
+        self.tick, self.solver, self.outcome, self.status = tick, controller._solver.name, outcome, status
         self.success = outcome is _OPTIMAL
         self.solve_time, self.tick_time, self.v, self.u = solve_time, tick_time, v, u
         self._task_errors: dict[str, float] | None = None

@@ -17,10 +17,19 @@ _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 class Kinematics:
     """Forward kinematics and joint Jacobians of one configuration.
 
-    :meth:`update` runs ``computeJointJacobians`` (which includes forward
-    kinematics) once per tick; frame placements and Jacobians are then read
-    without recomputing the chain. Kinematic Hessians are computed on the first
-    :meth:`frame_hessian` call of a tick only. Conventions as in :mod:`wbc.robot`.
+    :meth:`update` computes the joint placements and joint Jacobians once per tick; frame
+    placements and Jacobians are then read without recomputing the chain. Kinematic
+    Hessians are computed on the first :meth:`frame_hessian` call of a tick only.
+    Conventions as in :mod:`wbc.robot`.
+
+    **Native mode** (every joint 1-DOF revolute or prismatic, :func:`native_chain`; all
+    shipped robots): the compiled :func:`wbc.kernels.forward_kinematics` computes the joint
+    placements and Jacobians into this object's buffers (the layouts of Pinocchio's
+    ``data.oMi`` and ``data.J``, which the kernels read), and Pinocchio's own ``data`` is
+    brought up to date only when something reads it (:attr:`data`, :meth:`frame_placement`,
+    :meth:`frame_jacobian`, Hessians). A controller whose items are all compiled defers even
+    that: ``update(q, deferred=True)`` only stores q, and the tick program's first op
+    (:meth:`add_op`) computes the chain in the same native call as the rest.
     """
 
     def __init__(self, robot: Robot) -> None:
@@ -29,24 +38,62 @@ class Kinematics:
         kernels.load()
         self.robot = robot
         self.model = robot.model
-        self.data = robot.model.createData()
+        self._data = robot.model.createData()
         self.q = np.zeros(robot.nq)
         self._hessians_current = False
+        self._pinocchio_current = False
         self._column_major = _hessian_buffer_is_column_major()
         if not _binding_returns_live_views():
             raise ModelError(f"pinocchio {pin.__version__}: data.J / data.oMi are not returned as live "
                              "views of the model data, which the compiled tasks read")
-        #: every joint's Jacobian columns (6 x nv): spatial velocity at the world origin,
-        #: world axes (Pinocchio's data.J); a live view, refreshed by :meth:`update`
-        self.joint_jacobians = self.data.J
+        self.chain = native_chain(self.model) if NATIVE_FORWARD_KINEMATICS else None
+        if self.chain is not None:
+            #: per joint: world rotation (column-major, 9) and translation (3)
+            self.placements = np.zeros((self.model.njoints, 12))
+            self._jacobians_t = np.zeros((self.model.nv, 6))
+            #: every joint's Jacobian columns (6 x nv): spatial velocity at the world origin,
+            #: world axes (Pinocchio's data.J); a live view, refreshed by :meth:`update`
+            self.joint_jacobians = self._jacobians_t.T
+        else:
+            self.joint_jacobians = self._data.J
         self._joint_views: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.update(pin.neutral(self.model))  # touches Pinocchio's data now, not in the first tick
+        self.update(pin.neutral(self.model))  # touches the buffers now, not in the first tick
+        _ = self.data
 
-    def update(self, q: np.ndarray) -> None:
-        """Recompute for configuration ``q`` (already validated)."""
+    @property
+    def native(self) -> bool:
+        """Whether the joint placements and Jacobians come from the compiled forward kinematics."""
+        return self.chain is not None
+
+    @property
+    def data(self) -> pin.Data:
+        """Pinocchio's data for the current ``q`` (forward kinematics and joint Jacobians)."""
+        if not self._pinocchio_current:
+            pin.computeJointJacobians(self.model, self._data, self.q)
+            self._pinocchio_current = True
+        return self._data
+
+    def update(self, q: np.ndarray, deferred: bool = False) -> None:
+        """Recompute for configuration ``q`` (already validated). ``deferred`` (native mode,
+        a controller's tick program with :meth:`add_op` first): only store q."""
         self.q[:] = q
-        pin.computeJointJacobians(self.model, self.data, self.q)
         self._hessians_current = False
+        if self.chain is None:
+            pin.computeJointJacobians(self.model, self._data, self.q)
+            self._pinocchio_current = True
+            return
+        self._pinocchio_current = False
+        if not deferred:
+            kernels.forward_kinematics(self.q, self.chain, self.placements, self._jacobians_t)
+
+    def add_op(self, program) -> bool:
+        """Append the compiled forward kinematics to a tick program (native mode; False otherwise)."""
+        if self.chain is None:
+            return False
+        program.add(kernels.OP_FORWARD_KINEMATICS, q=self.q, chain=self.chain, placements=self.placements,
+                    jacobians_t=self._jacobians_t, nq=self.q.size, joints=self.chain.shape[0],
+                    nv=self._jacobians_t.shape[0])
+        return True
 
     def joint_views(self, joint_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every joint's Jacobian columns (:attr:`joint_jacobians`) and the world rotation
@@ -54,8 +101,13 @@ class Kinematics:
         :meth:`update` (the kernels read them in place). Fetched once per joint."""
         views = self._joint_views.get(joint_id)
         if views is None:
-            placement = self.data.oMi[joint_id]
-            views = self._joint_views[joint_id] = (self.joint_jacobians, placement.rotation, placement.translation)
+            if self.chain is not None:
+                row = self.placements[joint_id]
+                rotation, translation = row[:9].reshape(3, 3).T, row[9:12]
+            else:
+                placement = self._data.oMi[joint_id]
+                rotation, translation = placement.rotation, placement.translation
+            views = self._joint_views[joint_id] = (self.joint_jacobians, rotation, translation)
         return views
 
     def frame_placement(self, frame_id: int) -> pin.SE3:
@@ -92,6 +144,36 @@ class Kinematics:
             return np.dot(raw.reshape(nv, 6 * nv), weights_t.reshape(-1), out=out)
         tensor = _hessian_tensor(raw, self._column_major)
         return np.einsum("ja,aji->i", weights_t, tensor, out=out)
+
+
+#: use the compiled forward kinematics where the chain allows it (False: Pinocchio always)
+NATIVE_FORWARD_KINEMATICS = True
+
+_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+def native_chain(model: pin.Model) -> np.ndarray | None:
+    """The chain description of :func:`wbc.kernels.forward_kinematics` (one row per joint,
+    ``CHAIN_COLUMNS``), or None when a joint is not 1-DOF revolute / prismatic about a fixed
+    axis (Pinocchio's RX/RY/RZ/PX/PY/PZ and their unaligned forms)."""
+    chain = np.zeros((model.njoints, kernels.CHAIN_COLUMNS))
+    for j in range(1, model.njoints):
+        joint = model.joints[j]
+        name = joint.shortname()
+        if name in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+            axis = np.asarray(joint.extract().axis, dtype=float)
+        elif len(name) == len("JointModelRX") and name[:-2] == "JointModel" and name[-2] in "RP" \
+                and name[-1] in _AXES:
+            axis = np.array(_AXES[name[-1]])
+        else:
+            return None
+        kind = kernels.CHAIN_PRISMATIC if "Prismatic" in name or name[-2] == "P" else kernels.CHAIN_REVOLUTE
+        placement = model.jointPlacements[j]
+        chain[j, :4] = (model.parents[j], kind, joint.idx_q, joint.idx_v)
+        chain[j, 4:7] = axis / np.linalg.norm(axis)
+        chain[j, 7:16] = placement.rotation.ravel()
+        chain[j, 16:19] = placement.translation
+    return chain
 
 
 def frame_in_joint(model: pin.Model, frame_id: int) -> tuple[int, np.ndarray, np.ndarray]:

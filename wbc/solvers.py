@@ -20,7 +20,7 @@ import numpy as np
 import qpsolvers
 import scipy.sparse as sp
 
-from . import daqp_abi
+from . import daqp_abi, kernels
 from .daqp_native import NativeWorkspace
 from .errors import UnknownSolverError
 from .program import TickProgram
@@ -217,6 +217,10 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
     return max(dual, gap)
 
 
+#: (exit flag, defect, time [s]): consecutive in the native solve's control vector
+_OUTCOME = slice(kernels.DAQP_CONTROL_EXITFLAG, kernels.DAQP_CONTROL_TIME + 1)
+
+
 class DaqpBackend(QPSolver):
     """DAQP on a persistent workspace that points into the QP's own buffers (no copy).
 
@@ -273,10 +277,10 @@ class DaqpBackend(QPSolver):
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
         bound = self._bound
-        exitflag, defect, elapsed = bound.outcome()
-        if exitflag >= 1 and defect != math.inf:  # the control loop's path
+        exitflag, defect, elapsed = bound.control[_OUTCOME].tolist()
+        if exitflag >= 1.0 and defect != math.inf:  # the control loop's path
             return QPSolution(bound.x.copy(), True, "optimal", elapsed, defect)
-        return self._native_solution(bound, exitflag, defect, elapsed)
+        return self._native_solution(bound, int(exitflag), defect, elapsed)
 
     def solve(self, qp: QP) -> QPSolution:
         if self._library is None:

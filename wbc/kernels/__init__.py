@@ -81,6 +81,15 @@ GRAM_CONDITION = 1e-8
  OP_LIFT) = range(1, 15)
 #: a third-party op (wbc.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
 OP_EXTERNAL = 100
+#: forward kinematics of a chain of 1-DOF joints (wbc.kinematics' native mode)
+OP_FORWARD_KINEMATICS = 15
+
+# ------------------------------------------------------------------ chains
+
+#: columns of a joint's row in the chain description (:func:`forward_kinematics`): parent, kind,
+#: q index, v index, axis (3), placement in the parent: rotation row-major (9), translation (3)
+CHAIN_COLUMNS = 19
+CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 
 # ------------------------------------------------------------ native DAQP
 
@@ -107,6 +116,7 @@ COMPILED = {
     "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
                  "qp_defect", "has_nan", "has_non_finite", "lift_qp"),
     "native_qp": ("daqp_solve",),
+    "chain": ("forward_kinematics",),
     "tick": ("run_program",),
 }
 _MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}

@@ -20,7 +20,8 @@ def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc
     ``stack_t`` is ``A^T`` ((nv + 1) x rows); rows ``first:last`` of ``A`` are used:
     ``H = sum_rows (WJ)_r^T (WJ)_r``, ``c = -sum_rows (WJ)_r^T (W r)_r``, one rank-1 update
     per row over its non-zero entries only -- posture and damping rows have one, so the cost
-    grows with the dense rows (nv^2 each), not with nv^2 times every row. ``reset=False``
+    grows with the dense rows (nv^2 / 2 each), not with nv^2 times every row (and nothing is
+    allocated). ``reset=False``
     adds to ``Hc`` instead of overwriting it (the preview rows).
     """
     nv = Hc.shape[1]
@@ -28,20 +29,16 @@ def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc
         for i in range(nv + 1):
             for j in range(nv):
                 Hc[i, j] = 0.0
-    nonzero = np.empty(nv, dtype=np.int64)
     for r in range(first, last):
-        count = 0
-        for i in range(nv):
-            if stack_t[i, r] != 0.0:
-                nonzero[count] = i
-                count += 1
         target = stack_t[nv, r]
-        for a in range(count):
-            i = nonzero[a]
+        for i in range(nv):
             value = stack_t[i, r]
-            for b in range(a, count):
-                j = nonzero[b]
-                Hc[i, j] += value * stack_t[j, r]
+            if value == 0.0:
+                continue
+            for j in range(i, nv):
+                other = stack_t[j, r]
+                if other != 0.0:
+                    Hc[i, j] += value * other
             Hc[nv, i] -= target * value
     for i in range(nv):  # mirror the upper triangle
         for j in range(i):

@@ -16,6 +16,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from . import (
+    CHAIN_COLUMNS,
     DAQP_CONTROL_SIZE,
     DAQP_PROBLEM_WORDS,
     DAQP_RESULT_WORDS,
@@ -23,6 +24,7 @@ from . import (
     FRAME_DATA,
     FRAME_SETTINGS,
     OP_DAQP_SOLVE,
+    OP_FORWARD_KINEMATICS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
@@ -105,4 +107,7 @@ OP_SPECS: dict[int, OpSpec] = {
         ("1 <= nv", "0 <= k <= rows <= stack_rows", "0 <= p", "0 <= e",
          "source_size == nv * nv + 3 * nv + (p + e) * (nv + 2)",
          "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
+    OP_FORWARD_KINEMATICS: OpSpec("FORWARD_KINEMATICS", (
+        ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),
+        ("jacobians_t", ("nv", 6)), ("nq", None), ("joints", None), ("nv", None)), ("1 <= joints",)),
 }

@@ -15,6 +15,7 @@ from numba import carray, njit, types
 from numba.extending import intrinsic
 
 from . import (
+    CHAIN_COLUMNS,
     DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_SIZE,
     DAQP_PROBLEM_WORDS,
@@ -25,6 +26,7 @@ from . import (
     FRAME_SETTINGS,
     OP_DAQP_SOLVE,
     OP_EXTERNAL,
+    OP_FORWARD_KINEMATICS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
@@ -42,6 +44,7 @@ from . import (
     prepare_cache,
 )
 from .assembly import has_nan, has_non_finite, lift_qp, merge_bounds, normal_equations, normalise_cost, preview_solve
+from .chain import forward_kinematics
 from .frames import frame_task_rows, position_task_rows
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
@@ -112,6 +115,8 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * DAQP_SOLVE: DAQP problem, workspace, result (their words), control, QP data (size), x (n), n,
       size, addresses of daqp_update_ldp, daqp_solve, clock_gettime, clock id, steady mask;
       skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN
+    * FORWARD_KINEMATICS: q (nq), chain (joints x CHAIN_COLUMNS), placements (joints x 12), joint
+      Jacobians transposed (nv x 6), nq, joints, nv
     * EXTERNAL: address of a CompiledOp's C callback, then its operands (its own declaration)
     * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
       rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
@@ -189,6 +194,10 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
             found_nan = lift_qp(_matrix(addresses, op[1], nv + 1, op[7]), _vector(addresses, op[2], rows),
                                 _vector(addresses, op[3], op[12]), _vector(addresses, op[4], op[13]), nv, op[9],
                                 op[10], op[11], scaling[0], scaling[1]) or found_nan
+        elif code == OP_FORWARD_KINEMATICS:
+            joints = op[6]
+            forward_kinematics(_vector(addresses, op[1], op[5]), _matrix(addresses, op[2], joints, CHAIN_COLUMNS),
+                               _matrix(addresses, op[3], joints, 12), _matrix(addresses, op[4], op[7], 6))
         elif code == OP_EXTERNAL:
             # the callback unpacks its operands, from position 2 of the row on
             _call_external(op[1], np.int64(addresses.ctypes.data), np.int64(op.ctypes.data) + np.int64(16), dt)
