@@ -283,21 +283,16 @@ class Controller:
             S = self.robot.input_map(q, out=self._S)
             if self._reduction is not None and not has_nan and not self._reduction.reduce(qp, S):
                 has_nan, qp_failure = True, "reduced form: a constraint bounded the coupled base rates x, y"
-        if has_nan:
-            solution = QPSolution(None, False, qp_failure, 0.0)
-        else:  # solved in the program already (native DAQP), or now
-            solution = self.solver.collect() if self._solve_in_program else self.solver.solve(self.qp)
-            if solution.success:  # checked against the QP's bounds and rows:
-                defect = solution.defect if solution.defect is not None else kernels.qp_defect(self.qp.data,
-                                                                                                solution.x)
-                if defect > ANSWER_TOLERANCE:
-                    solution = self._rejected(solution, defect)
+        # solved in the program already (native DAQP: answer checked there too), or now
+        answer = (self._solver.collect_optimal(ANSWER_TOLERANCE) if self._solve_in_program and not has_nan
+                  else None)
         self._tick += 1
-        outcome, status = _OPTIMAL, "optimal"
-        if not solution.success:
-            solution, outcome, status = self._fallback.answer(self.qp, solution, self.solver.name, self._tick,
-                                                              has_nan)
-        x = solution.x if self._lifted is None else solution.x[:self.robot.nv]  # lifted: x = (v, w)
+        if answer is not None:  # the control loop's path
+            (x, solve_time), outcome, status = answer, _OPTIMAL, "optimal"
+        else:
+            x, solve_time, outcome, status = self._answer(has_nan, qp_failure)
+        if self._lifted is not None:
+            x = x[:self.robot.nv]  # lifted: x = (v, w)
         if self._reduction is not None:
             u = x
             v = S @ u
@@ -306,9 +301,25 @@ class Controller:
             u = S.T @ v
         else:
             v = u = x
-        self.last = TickDiagnostics(self, self._tick, outcome, status, solution.solve_time,
-                                    time.perf_counter() - start, v, u)
+        self.last = TickDiagnostics(self, self._tick, outcome, status, solve_time, time.perf_counter() - start, v, u)
         return v
+
+    def _answer(self, has_nan: bool, qp_failure: str) -> tuple[np.ndarray, float, Outcome, str]:
+        """(x, solve time [s], outcome, status) of this tick off the fast path: the backend's
+        answer checked against the QP's bounds and rows, or the fallback chain's."""
+        if has_nan:
+            solution = QPSolution(None, False, qp_failure, 0.0)
+        else:
+            solution = self._solver.collect() if self._solve_in_program else self._solver.solve(self.qp)
+            if solution.success:
+                defect = solution.defect if solution.defect is not None else kernels.qp_defect(self.qp.data,
+                                                                                                solution.x)
+                if defect > ANSWER_TOLERANCE:
+                    solution = self._rejected(solution, defect)
+        if solution.success:
+            return solution.x, solution.solve_time, _OPTIMAL, "optimal"
+        solution, outcome, status = self._fallback.answer(self.qp, solution, self._solver.name, self._tick, has_nan)
+        return solution.x, solution.solve_time, outcome, status
 
     def _rejected(self, solution: QPSolution, defect: float) -> QPSolution:
         """A backend's answer that violates a bound or row of the QP it solved by ``defect`` >

@@ -104,6 +104,12 @@ class QPSolver(ABC):
         """The answer of the solve that the bound tick program ran (see :meth:`bind_program`)."""
         raise NotImplementedError(f"{self.name} does not run inside a tick program")
 
+    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
+        """The control loop's fast path of :meth:`collect`: ``(x, solve time [s])`` when the
+        bound solve succeeded and its answer's defect is at most ``tolerance``; None
+        otherwise (then :meth:`collect` says what happened)."""
+        return None
+
     @property
     def fallback_budget(self) -> dict:
         """DAQP settings (``time_limit`` [s], ``iter_limit``) for the elastic fallback solve:
@@ -281,6 +287,13 @@ class DaqpBackend(QPSolver):
         if exitflag >= 1.0 and defect != math.inf:  # the control loop's path
             return QPSolution(bound.x.copy(), True, "optimal", elapsed, defect)
         return self._native_solution(bound, int(exitflag), defect, elapsed)
+
+    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
+        bound = self._bound
+        exitflag, defect, elapsed = bound.control[_OUTCOME].tolist()
+        if exitflag >= 1.0 and defect <= tolerance:
+            return bound.x.copy(), elapsed
+        return None
 
     def solve(self, qp: QP) -> QPSolution:
         if self._library is None:

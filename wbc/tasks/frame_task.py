@@ -15,6 +15,7 @@ from .task import Task, TaskData, _norm
 
 _NO_TWIST = np.zeros(0)
 _FLOAT64 = np.dtype(np.float64)
+_POSE_OK = kernels.POSE_OK
 
 
 class FrameTask(Task):
@@ -73,10 +74,11 @@ class FrameTask(Task):
         """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
         twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
         if not (type(pose) is np.ndarray and pose.dtype is _FLOAT64 and pose.shape == (4, 4)
-                and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == kernels.POSE_OK):
+                and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == _POSE_OK):
             # not the control loop's fast path: convert, or raise saying what is wrong
             kernels.set_frame_target(as_pose(pose, "target pose"), twist, self._settings, ROTATION_TOLERANCE)
-        self._has_target = True
+        if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
+            self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q) -> None:
         """Hold the frame at the pose it has in configuration ``q``."""
