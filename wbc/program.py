@@ -38,6 +38,7 @@ class TickProgram:
     def __init__(self) -> None:
         self._arrays: list[np.ndarray] = []
         self._rows: list[list[int]] = []
+        self._packed = np.array([0, _WIDTH], dtype=np.int64)
         self._program = np.zeros((0, _WIDTH), dtype=np.int64)
         self._addresses = np.zeros(0, dtype=np.int64)
         self._owners: list[Any] = []
@@ -104,9 +105,12 @@ class TickProgram:
 
     def _pack(self) -> None:
         width = max(_WIDTH, *(len(row) for row in self._rows)) if self._rows else _WIDTH
-        self._program = np.array([row + [0] * (width - len(row)) for row in self._rows], dtype=np.int64)
-        self._program = self._program.reshape(-1, width)
-        self._addresses = np.array(self._address_list, dtype=np.int64)
+        rows = [row + [0] * (width - len(row)) for row in self._rows]
+        #: what the native call receives, one array: [rows, width, the rows..., the addresses...]
+        self._packed = np.array([len(rows), width, *(value for row in rows for value in row), *self._address_list],
+                                dtype=np.int64)
+        self._program = self._packed[2:2 + len(rows) * width].reshape(-1, width)
+        self._addresses = self._packed[2 + len(rows) * width:]
 
     def truncate(self, length: int) -> None:
         """Drop the rows after the first ``length`` (registered arrays stay registered)."""
@@ -118,7 +122,7 @@ class TickProgram:
 
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
-        return kernels.run_program(self._program, self._addresses, dt)
+        return kernels.run_program(self._packed, dt)
 
 
 @functools.cache

@@ -89,9 +89,12 @@ def _matrix(addresses: np.ndarray, index: int, rows: int, columns: int) -> np.nd
     return carray(_as_pointer(addresses[index]), (rows, columns))
 
 
-@njit("boolean(int64[:, :], int64[:], float64)", cache=True, nogil=True)
-def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
-    """Run the rows of ``program`` in order; returns True when a HAS_NAN row found a NaN.
+@njit("boolean(int64[::1], float64)", cache=True, nogil=True)
+def run_program(packed: np.ndarray, dt: float) -> bool:
+    """Run the rows of a program in order; returns True when a HAS_NAN row found a NaN.
+
+    ``packed`` = [rows, width, the rows (rows x width, row-major), the operand addresses]
+    (one array: each argument of a native call costs ~0.1 us to pass).
 
     Rows (array operands by index into ``addresses``):
 
@@ -121,8 +124,11 @@ def run_program(program: np.ndarray, addresses: np.ndarray, dt: float) -> bool:
     * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
       rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
     """
+    rows, width = packed[0], packed[1]
+    program = packed[2:2 + rows * width].reshape((rows, width))
+    addresses = packed[2 + rows * width:]
     found_nan = False
-    for r in range(program.shape[0]):
+    for r in range(rows):
         op = program[r]
         code = op[0]
         if code == OP_FRAME_TASK:
