@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["# Scaling of the tick", "", f"Measured {machine_note()}. Command: `{command}`.", "",
              "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
              f"{args.ticks} measured ticks per case after {args.warmup} warm-up ticks; all cases of a sweep "
-             "stepped round-robin in one process.", "",
+             "stepped in one process, in a random order each tick (seeded).", "",
              "## Tick latency vs DOF (FrameTask + PostureTask + position and velocity limits)", "",
              markdown_table(dof_header, dof_rows), "",
              "## Tick latency vs number of FrameTasks (24 DOF, + PostureTask)", "",
