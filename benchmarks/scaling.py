@@ -11,8 +11,11 @@ matching MJCF are generated in a temporary folder.
 * **DOF sweep**: FrameTask(ee) + PostureTask + position limits + velocity limits (the
   peer stack of :mod:`benchmarks.peers`, world-axis speed box), the tool following a
   horizontal circle (r = 5 cm, 4 s) in closed loop; wbc and, unless ``--no-peers``, Pink
-  (URDF) and mink (MJCF) — every robot and library stepped tick by tick, in a random order
-  each tick (seeded). From 16 DOF wbc solves the lifted QP (``wbc.lifting``).
+  (URDF) and mink (MJCF): at each DOF the three libraries alternate in blocks of ``--block``
+  consecutive ticks (50), the blocks in a random order each round (seeded), so noise hits
+  them alike and each runs like a control loop (a library stepped right after another one
+  at 128 DOF finds its data evicted from the caches). From 16 DOF wbc solves the lifted QP
+  (``wbc.lifting``).
 * **task sweep**: on the 24-DOF chain, k FrameTasks on frames spread along the chain
   (each on its own small circle) + PostureTask, k in ``--tasks``; wbc only.
 
@@ -165,14 +168,19 @@ def task_cases(folder: Path, counts: list[int], dof: int = 24, dt: float = 0.01)
     return cases
 
 
-def run_interleaved(cases: list[Case], ticks: int, warmup: int, label: str, show_progress: bool) -> None:
-    iterator = range(warmup + ticks)
+def run_interleaved(cases: list[Case], ticks: int, warmup: int, label: str, show_progress: bool,
+                    block: int = 1) -> None:
+    """Every case's ticks in blocks of ``block`` consecutive ticks, the cases' blocks in a random
+    order (seeded) each round: machine noise hits all cases alike; within a block a case runs
+    like a control loop (its own data in cache, not the previous case's)."""
+    iterator = range(0, warmup + ticks, block)
     if show_progress:
-        iterator = progress(iterator, desc=label, unit="tick")
-    order = np.random.default_rng(0)  # a random order each tick (seeded): every case follows every other
-    for k in iterator:
+        iterator = progress(iterator, desc=label, unit=f"{block} ticks")
+    order = np.random.default_rng(0)
+    for first in iterator:
         for index in order.permutation(len(cases)):
-            cases[index].tick(k, record=k >= warmup)
+            for k in range(first, min(first + block, warmup + ticks)):
+                cases[index].tick(k, record=k >= warmup)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -183,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ticks", type=int, default=1000, help="measured ticks per case (default 1000)")
     parser.add_argument("--warmup", type=int, default=50)
     parser.add_argument("--no-peers", action="store_true", help="wbc only in the DOF sweep")
+    parser.add_argument("--block", type=int, default=50,
+                        help="DOF sweep: consecutive ticks of one library between switches (default 50)")
     parser.add_argument("--out", type=Path, default=OUTPUT / "scaling")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
@@ -190,8 +200,10 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        dof = [case for n in args.dofs for case in dof_cases(folder, n, not args.no_peers)]
-        run_interleaved(dof, args.ticks, args.warmup, "DOF sweep", not args.no_progress)
+        dof = []
+        for n in args.dofs:  # wbc, Pink and mink at one DOF: alternating blocks of ticks
+            dof += (group := dof_cases(folder, n, not args.no_peers))
+            run_interleaved(group, args.ticks, args.warmup, f"{n} DOF", not args.no_progress, block=args.block)
         tasks = task_cases(folder, args.tasks)
         run_interleaved(tasks, args.ticks, args.warmup, "task sweep", not args.no_progress)
 
@@ -218,8 +230,9 @@ def main(argv: list[str] | None = None) -> int:
     versions = package_versions(["wbc", "pin", "daqp", "pin-pink", "mink", "mujoco", "numpy"])
     lines = ["# Scaling of the tick", "", f"Measured {machine_note()}. Command: `{command}`.", "",
              "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
-             f"{args.ticks} measured ticks per case after {args.warmup} warm-up ticks; all cases of a sweep "
-             "stepped in one process, in a random order each tick (seeded).", "",
+             f"{args.ticks} measured ticks per case after {args.warmup} warm-up ticks, in one process. DOF "
+             f"sweep: at each DOF the libraries alternate in blocks of {args.block} ticks (random order each round, "
+             "seeded); task sweep: the cases tick by tick in a random order.", "",
              "## Tick latency vs DOF (FrameTask + PostureTask + position and velocity limits)", "",
              markdown_table(dof_header, dof_rows), "",
              "## Tick latency vs number of FrameTasks (24 DOF, + PostureTask)", "",
