@@ -255,3 +255,21 @@ def test_the_kernel_constants_are_the_ctypes_layout():
     assert daqp_abi.Result.exitflag.offset == 32 and daqp_abi.Result.iter.offset == 36
     assert daqp_abi.Workspace.sense.offset == 64 and daqp_abi.Workspace.settings.offset == 224
     assert Path(daqp.__file__).exists()
+
+
+def test_qps_of_one_shape_share_one_workspace_and_its_warm_start():
+    """Recorded QPs (other objects than the controller's) are copied into one workspace of
+    their shape: no set-up per solve, and the binding's answers."""
+    rng = np.random.default_rng(11)
+    backend = DaqpBackend()
+    qps = [random_qp(rng, 6, 4, 1) for _ in range(30)]
+    for qp in qps:
+        solution = backend.solve(qp)
+        reference, flag = binding_answer(qp)
+        assert solution.success == (flag >= 1)
+        if solution.success:
+            assert np.max(np.abs(solution.x - reference)) < 1e-8
+    workspace = backend._workspace
+    assert workspace is not None and all(workspace.qp is not qp for qp in qps)
+    backend.solve(random_qp(rng, 5, 4, 1))  # another shape: another workspace
+    assert backend._workspace is not workspace

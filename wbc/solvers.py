@@ -298,9 +298,15 @@ class DaqpBackend(QPSolver):
     def solve(self, qp: QP) -> QPSolution:
         if self._library is None:
             return self._binding_solve(qp)
-        workspace = self._bound if self._bound is not None and self._bound.qp is qp else self._workspace
-        if workspace is None or workspace.qp is not qp:
-            workspace = self._workspace = NativeWorkspace(self._library, qp, self.settings, self.warm_start)
+        if self._bound is not None and self._bound.qp is qp:
+            workspace = self._bound
+        else:  # any other QP: copied into a workspace of its shape, which keeps its warm start
+            workspace = self._workspace
+            if workspace is None or (workspace.qp.n, workspace.qp.n_ineq, workspace.qp.n_eq) != (qp.n, qp.n_ineq,
+                                                                                             qp.n_eq):
+                workspace = self._workspace = NativeWorkspace(self._library, QP(qp.n, qp.n_ineq, qp.n_eq),
+                                                              self.settings, self.warm_start)
+            workspace.qp.data[...] = qp.data
         return self._native_solution(workspace, *workspace.solve())
 
     def _native_solution(self, workspace: NativeWorkspace, exitflag: int, defect: float,
