@@ -225,3 +225,12 @@ def test_placo_solves_wbc_on_placo_gains():
     loop = np.asarray(result["closed_loop_q"])
     np.testing.assert_allclose(loop[0], configurations[0])
     assert np.abs(loop[1] - scenario.robot.integrate(configurations[0], reference[0], spec.dt)).max() < 1e-9
+
+
+def test_cold_costs_are_measured_in_a_fresh_process():
+    from benchmarks import cold
+
+    run = cold.measure(TASKS / "youbot_circle.toml")
+    assert set(run) == {"import_s", "first_build_s", "first_tick_s", "steady_s", "build_s", "later_first_tick_s"}
+    assert all(value > 0.0 for value in run.values())
+    assert run["steady_s"] < run["first_tick_s"]  # a first tick pays for code run the first time

@@ -1,0 +1,87 @@
+"""Cold costs: the first tick of a process and of a controller, and building a controller.
+
+    python -m benchmarks.cold [--scenario tasks/youbot_circle.toml] [--processes 5]
+
+Each measurement runs in a fresh Python process (the first tick of a *process* pays for
+code paths run once: Pinocchio's and numba's dispatch caches, first touches of memory):
+``import wbc``, the scenario loaded, a controller built (the first one: it loads the
+compiled kernels from numba's cache), its first tick, 2000 steady ticks (median), then 50
+more controllers built (median) and the first tick of 20 of them (median). Ratios are to
+the steady tick of the same process; the table shows the median (min–max) over processes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+_CHILD = """
+import json, sys, time
+start = time.perf_counter()
+import numpy as np
+import wbc
+from wbc.scenario import load_scenario
+imported = time.perf_counter()
+scenario = load_scenario(sys.argv[1])
+q = scenario.q0.copy()
+scenario.reference_task.set_target(*scenario.reference(0.0))
+a = time.perf_counter(); controller = scenario.make_controller(); b = time.perf_counter()
+controller.step(q); c = time.perf_counter()
+ticks = []
+for k in range(1, 2001):
+    scenario.reference_task.set_target(*scenario.reference(k * scenario.dt))
+    t = time.perf_counter(); controller.step(q); ticks.append(time.perf_counter() - t)
+builds, firsts = [], []
+for k in range(50):
+    t = time.perf_counter(); other = scenario.make_controller(); builds.append(time.perf_counter() - t)
+    if k < 20:
+        t = time.perf_counter(); other.step(q); firsts.append(time.perf_counter() - t)
+print(json.dumps(dict(import_s=imported - start, first_build_s=b - a, first_tick_s=c - b,
+                      steady_s=float(np.median(ticks)), build_s=float(np.median(builds)),
+                      later_first_tick_s=float(np.median(firsts)))))
+"""
+
+
+def measure(scenario: Path) -> dict:
+    """One fresh process's cold costs (see the module docstring)."""
+    result = subprocess.run([sys.executable, "-c", _CHILD, str(scenario)], capture_output=True, text=True,
+                            check=True, cwd=Path.home())
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks.cold", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenario", type=Path, default=ROOT / "tasks" / "youbot_circle.toml")
+    parser.add_argument("--processes", type=int, default=5)
+    args = parser.parse_args(argv)
+    runs = [measure(args.scenario.resolve()) for _ in range(args.processes)]
+
+    def spread(values: list[float], unit: float, digits: int = 1) -> str:
+        values = np.array(values) * unit
+        return f"{np.median(values):.{digits}f} ({values.min():.{digits}f}–{values.max():.{digits}f})"
+
+    steady = [r["steady_s"] for r in runs]
+    rows = [("import wbc [s]", spread([r["import_s"] for r in runs], 1, 2)),
+            ("first controller built [ms]", spread([r["first_build_s"] for r in runs], 1e3)),
+            ("steady tick [µs]", spread(steady, 1e6)),
+            ("first tick of the process [µs]", spread([r["first_tick_s"] for r in runs], 1e6)),
+            ("… / steady tick", spread([r["first_tick_s"] / s for r, s in zip(runs, steady, strict=True)], 1)),
+            ("a later controller built [ms]", spread([r["build_s"] for r in runs], 1e3, 2)),
+            ("its first tick / steady tick",
+             spread([r["later_first_tick_s"] / s for r, s in zip(runs, steady, strict=True)], 1))]
+    print(f"{args.scenario.name}, {args.processes} fresh processes: median (min–max)")
+    for name, value in rows:
+        print(f"  {name:34s} {value}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
