@@ -121,11 +121,15 @@ class NanRow(wbc.Task):
         pass
 
 
+def reaching(robot: wbc.Robot, q0: np.ndarray, *tasks: wbc.Task) -> wbc.Controller:
+    ee = wbc.FrameTask("ee", gain=0.5)
+    ee.set_target(far_target(robot, q0))
+    return wbc.Controller(robot, [ee, *tasks], [wbc.JointVelocityLimits()])
+
+
 def test_a_nan_in_the_stack_gives_the_zero_command(chain32):
     q0 = initial_configuration(32)
-    ee = wbc.FrameTask("ee", gain=0.5)
-    ee.set_target(far_target(chain32, q0))
-    controller = wbc.Controller(chain32, [ee, NanRow(), wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()])
+    controller = reaching(chain32, q0, NanRow(), wbc.PostureTask(1e-3))
     assert controller._lifted is not None and controller._lifted.k == 7
     controller.step(q0)
     assert controller.last.success
@@ -150,29 +154,18 @@ def test_diagnostics_of_a_lifted_tick_are_about_v(chain32):
     assert names and all(name.startswith(("JointPositionLimits", "JointVelocityLimits")) for name in names)
 
 
-class FalselyDiagonal(wbc.Task):
-    """A task that declares diagonal rows (through its data) but writes a dense one."""
-
-    dim = 1
+class FalselyDiagonal(NanRow):
+    """A dense row (never NaN) whose data declares diagonal rows."""
 
     def bind(self, robot):
         data = super().bind(robot)
         data.diagonal_rows = True
         return data
 
-    def compute(self, kin, dt, jacobian, target):
-        jacobian.fill(1e-3)
-        target.fill(0.0)
-
-    def report(self, v, errors):
-        pass
-
 
 def test_a_row_declared_diagonal_but_dense_is_refused_not_misread(chain32):
     q0 = initial_configuration(32)
-    ee = wbc.FrameTask("ee", gain=0.5)
-    ee.set_target(far_target(chain32, q0))
-    controller = wbc.Controller(chain32, [ee, FalselyDiagonal()], [wbc.JointVelocityLimits()])
+    controller = reaching(chain32, q0, FalselyDiagonal())
     assert controller._lifted is not None and controller._lifted.k == 6
     v = controller.step(q0)
     assert controller.last.outcome is wbc.Outcome.ZERO and np.all(v == 0.0)
