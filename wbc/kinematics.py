@@ -144,8 +144,8 @@ def jacobian_derivative(jacobian: np.ndarray, ancestry_t: np.ndarray) -> np.ndar
 
 def _levi_civita_pairs() -> np.ndarray:
     """The (6, 36) matrix ``E`` with ``E @ (x y^T).ravel() = (l x m + w x n; m x w)`` for
-    ``x = (l; w)``, ``y = (m; n)``: the cross products of :func:`contract_jacobian_derivative`
-    as one product (one numpy call per column block instead of one per component)."""
+    ``x = (l; w)``, ``y = (m; n)``: the cross products of :func:`contract_jacobian_derivative`,
+    for every column at once, as one matrix product (not one numpy call per component)."""
     epsilon = np.zeros((3, 3, 3))
     for k, p, r in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
         epsilon[k, p, r], epsilon[k, r, p] = 1.0, -1.0  # (a x b)_k = eps[k, p, r] a_p b_r
@@ -200,9 +200,9 @@ def hessian_ancestry(model: pin.Model, frame_id: int) -> np.ndarray:
     for position, joint_id in enumerate(chain):
         joint = model.joints[joint_id]
         if joint.shortname() not in HESSIAN_JOINTS:
-            raise ModelError(f"frame {frame.name!r}: no kinematic Hessian through joint "
-                             f"{model.names[joint_id]!r} ({joint.shortname()}, a configuration-dependent "
-                             f"motion subspace); supported joint types: {', '.join(sorted(HESSIAN_JOINTS))}")
+            raise ModelError(f"frame {frame.name!r}: no kinematic Hessian through joint {model.names[joint_id]!r} "
+                             f"({joint.shortname()}, whose motion subspace is not constant in the joint frame); "
+                             f"supported joint types: {', '.join(sorted(HESSIAN_JOINTS))}")
         columns = slice(joint.idx_v, joint.idx_v + joint.nv)
         for carrier_id in chain[:position + 1]:
             carrier = model.joints[carrier_id]
