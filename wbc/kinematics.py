@@ -13,6 +13,10 @@ from .robot import Robot
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
+#: whether this Pinocchio's Python binding has kinematic Hessians (pin >= 4; not pin 3.x);
+#: without them :class:`Kinematics` computes the same tensor itself (:func:`jacobian_derivative`)
+PINOCCHIO_HESSIANS = hasattr(pin, "computeJointKinematicHessians") and hasattr(pin, "getFrameKinematicHessian")
+
 
 class Kinematics:
     """Forward kinematics and joint Jacobians of one configuration.
@@ -40,9 +44,11 @@ class Kinematics:
         self.model = robot.model
         self._data = robot.model.createData()
         self.q = np.zeros(robot.nq)
+        self._masks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._pinocchio_hessians = PINOCCHIO_HESSIANS
         self._hessians_current = False
         self._pinocchio_current = False
-        self._column_major = _hessian_buffer_is_column_major()
+        self._column_major = _hessian_buffer_is_column_major() if self._pinocchio_hessians else False
         if not _binding_returns_live_views():
             raise ModelError(f"pinocchio {pin.__version__}: data.J / data.oMi are not returned as live "
                              "views of the model data, which the compiled tasks read")
@@ -122,9 +128,31 @@ class Kinematics:
         """Derivative of :meth:`frame_jacobian`: a (6, nv, nv) array ``T`` with
         ``T[a, j, i] = d J[a, j] / d q_i`` (``q_i`` moved along the i-th tangent direction,
         i.e. ``pin.integrate(q, t e_i)``), so ``dJ/dt = sum_i T[:, :, i] v_i``.
-        """
-        return _hessian_tensor(self._raw_frame_hessian(frame_id), self._column_major)
 
+        Pinocchio's kinematic Hessian where its binding has one (pin >= 4), else the same
+        tensor from the frame Jacobian (:func:`jacobian_derivative`). Raises
+        :class:`ModelError` when a joint carrying the frame is not one of :data:`HESSIAN_JOINTS`.
+        """
+        ancestry_t, _ = self._hessian_masks(frame_id)
+        if self._pinocchio_hessians:
+            return _hessian_tensor(self._raw_frame_hessian(frame_id), self._column_major)
+        return jacobian_derivative(self.frame_jacobian(frame_id), ancestry_t)
+
+    def contract_frame_hessian(self, frame_id: int, weights_t: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """``out[i] = sum_{a, j} W[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``, given
+        ``weights_t = W^T`` (nv x 6, C-contiguous): the derivative of ``<W, J>`` along each
+        tangent direction. With Pinocchio's Hessian, one matrix-vector product on its buffer
+        in its own memory order ([i][j][a] in pin 4.1, which is exactly W^T flattened); else
+        :func:`contract_jacobian_derivative`, without forming ``T``."""
+        ancestry_t, others_t = self._hessian_masks(frame_id)
+        if not self._pinocchio_hessians:
+            return contract_jacobian_derivative(self.frame_jacobian(frame_id), weights_t, ancestry_t, others_t, out)
+        raw = self._raw_frame_hessian(frame_id)
+        nv = self.model.nv
+        if self._column_major and raw.flags.c_contiguous:
+            return np.dot(raw.reshape(nv, 6 * nv), weights_t.reshape(-1), out=out)
+        tensor = _hessian_tensor(raw, self._column_major)
+        return np.einsum("ja,aji->i", weights_t, tensor, out=out)
 
     def _raw_frame_hessian(self, frame_id: int) -> np.ndarray:
         """Pinocchio's frame Hessian as its binding returns it (joint Hessians once per tick)."""
@@ -133,17 +161,106 @@ class Kinematics:
             self._hessians_current = True
         return pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
 
-    def contract_frame_hessian(self, frame_id: int, weights_t: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """``out[i] = sum_{a, j} W[a, j] T[a, j, i]`` for ``T = frame_hessian(frame_id)``, given
-        ``weights_t = W^T`` (nv x 6, C-contiguous): the derivative of ``<W, J>`` along each
-        tangent direction. One matrix-vector product on Pinocchio's buffer in its own memory
-        order ([i][j][a] in pin 4.1, which is exactly W^T flattened): no copy, no einsum."""
-        raw = self._raw_frame_hessian(frame_id)
-        nv = self.model.nv
-        if self._column_major and raw.flags.c_contiguous:
-            return np.dot(raw.reshape(nv, 6 * nv), weights_t.reshape(-1), out=out)
-        tensor = _hessian_tensor(raw, self._column_major)
-        return np.einsum("ja,aji->i", weights_t, tensor, out=out)
+    def _hessian_masks(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:
+        """``A^T`` and ``(1 - A)^T`` (C-contiguous) for ``A = hessian_ancestry(model, frame_id)``,
+        built on the frame's first use (which checks its joints)."""
+        masks = self._masks.get(frame_id)
+        if masks is None:
+            ancestry_t = hessian_ancestry(self.model, frame_id).T
+            masks = self._masks[frame_id] = (np.ascontiguousarray(ancestry_t), np.ascontiguousarray(1.0 - ancestry_t))
+        return masks
+
+
+def jacobian_derivative(jacobian: np.ndarray, ancestry_t: np.ndarray) -> np.ndarray:
+    """:meth:`Kinematics.frame_hessian` from the frame Jacobian alone, exactly.
+
+    With columns ``J_j = (l_j; w_j)`` of ``jacobian`` (velocity of the frame origin; angular
+    velocity, world axes) and ``A = ancestry_t^T`` (:func:`hessian_ancestry`)::
+
+        T[:, j, i] = (w_i x l_j; w_i x w_j)   if A[i, j]
+        T[:, j, i] = (w_j x l_i; 0)           otherwise
+
+    Moving ``q_i`` turns the joint of column j and the frame rigidly about ``w_i`` when the
+    joint of i carries the joint of j (within one joint: the joints of :data:`HESSIAN_JOINTS`);
+    otherwise the column stays and only the frame origin moves, by ``l_i``. This is
+    Pinocchio's ``getFrameKinematicHessian(..., LOCAL_WORLD_ALIGNED)``, whose world-frame
+    blocks ``S_i x S_j`` shifted to the frame origin reduce to it by the Jacobi identity.
+    """
+    linear, angular = jacobian[:3, :, None], jacobian[3:, :, None]  # [a, j, (i)]
+    linear_i, angular_i = linear.transpose(0, 2, 1), angular.transpose(0, 2, 1)  # [a, (j), i]
+    nv = jacobian.shape[1]
+    tensor = np.empty((6, nv, nv))
+    tensor[:3] = np.where(ancestry_t, np.cross(angular_i, linear, axis=0), np.cross(angular, linear_i, axis=0))
+    tensor[3:] = np.cross(angular_i, angular, axis=0) * ancestry_t
+    return tensor
+
+
+def _levi_civita_pairs() -> np.ndarray:
+    """The (6, 36) matrix ``E`` with ``E @ (x y^T).ravel() = (l x m + w x n; m x w)`` for
+    ``x = (l; w)``, ``y = (m; n)``: the cross products of :func:`contract_jacobian_derivative`,
+    for every column at once, as one matrix product (not one numpy call per component)."""
+    epsilon = np.zeros((3, 3, 3))
+    for k, p, r in ((0, 1, 2), (1, 2, 0), (2, 0, 1)):
+        epsilon[k, p, r], epsilon[k, r, p] = 1.0, -1.0  # (a x b)_k = eps[k, p, r] a_p b_r
+    pairs = np.zeros((6, 6, 6))
+    pairs[:3, :3, :3] = epsilon  # l x m
+    pairs[:3, 3:, 3:] = epsilon  # w x n
+    pairs[3:, 3:, :3] = -epsilon  # m x w = -(w x m)
+    return pairs.reshape(6, 36)
+
+
+_CROSS_PAIRS = _levi_civita_pairs()
+
+
+def contract_jacobian_derivative(jacobian: np.ndarray, weights_t: np.ndarray, ancestry_t: np.ndarray,
+                                 others_t: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """``out[i] = sum_{a, j} W[a, j] T[a, j, i]`` for ``T = jacobian_derivative(jacobian, ancestry_t)``,
+    ``weights_t = W^T`` (nv x 6), ``others_t = 1 - ancestry_t``, without forming ``T``. By the
+    triple product ``a . (b x c) = b . (c x a)``, with ``W_j = (m_j; n_j)``::
+
+        out[i] = w_i . sum_j A[i, j] (l_j x m_j + w_j x n_j) + l_i . sum_j (1 - A[i, j]) (m_j x w_j)
+    """
+    weights = weights_t.T
+    crosses = _CROSS_PAIRS @ (jacobian[:, None, :] * weights[None, :, :]).reshape(36, -1)
+    summed = np.empty_like(jacobian)  # (sum_j (1 - A[i, j]) ...; sum_j A[i, j] ...) matching (l_i; w_i)
+    np.matmul(crosses[3:], others_t, out=summed[:3])
+    np.matmul(crosses[:3], ancestry_t, out=summed[3:])
+    return np.einsum("ai,ai->i", jacobian, summed, out=out)
+
+
+#: joints whose motion subspace is constant in the joint frame and whose ``pin.integrate``
+#: moves the joint frame by ``exp`` of the joint velocity on the right: for these, moving along
+#: tangent direction i of the joint turns every column j of the same joint by ``S_i x S_j``
+#: (q-dependent subspaces such as SphericalZYX or Universal break this, in Pinocchio's own
+#: kinematic Hessian too)
+HESSIAN_JOINTS = frozenset({
+    "JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+    "JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned",
+    "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned",
+    "JointModelHX", "JointModelHY", "JointModelHZ", "JointModelHelicalUnaligned",
+    "JointModelPlanar", "JointModelFreeFlyer", "JointModelSpherical", "JointModelTranslation",
+})
+
+
+def hessian_ancestry(model: pin.Model, frame_id: int) -> np.ndarray:
+    """The (nv, nv) mask ``A`` of :meth:`Kinematics.frame_hessian`: ``A[i, j] = 1`` when
+    velocity coordinates i and j both belong to joints supporting the frame and the joint of
+    i is the joint of j or one of its ancestors. Raises :class:`ModelError` when one of those
+    joints is not in :data:`HESSIAN_JOINTS`."""
+    frame = model.frames[frame_id]
+    chain = list(model.supports[frame.parentJoint])[1:]
+    ancestry = np.zeros((model.nv, model.nv))
+    for position, joint_id in enumerate(chain):
+        joint = model.joints[joint_id]
+        if joint.shortname() not in HESSIAN_JOINTS:
+            raise ModelError(f"frame {frame.name!r}: no kinematic Hessian through joint {model.names[joint_id]!r} "
+                             f"({joint.shortname()}, whose motion subspace is not constant in the joint frame); "
+                             f"supported joint types: {', '.join(sorted(HESSIAN_JOINTS))}")
+        columns = slice(joint.idx_v, joint.idx_v + joint.nv)
+        for carrier_id in chain[:position + 1]:
+            carrier = model.joints[carrier_id]
+            ancestry[carrier.idx_v:carrier.idx_v + carrier.nv, columns] = 1.0
+    return ancestry
 
 
 #: use the compiled forward kinematics where the chain allows it (False: Pinocchio always)
