@@ -15,8 +15,9 @@ the SVD): with ``J = U diag(s) V^T`` and ``ds_l = u_l^T dJ v_l``,
     dm/dq_i = < G , dJ/dq_i >_F ,   G = U diag(c) V^T ,   c_l = prod_{p != l} s_p
 
 and ``dJ/dq_i`` from motion cross products of the joint Jacobian columns (compiled, chains
-of 1-DOF joints: :func:`wbc.kernels.manipulability_gradient`) or from Pinocchio's
-kinematic Hessian (:meth:`Kinematics.frame_hessian`, any joint type).
+of 1-DOF joints: :func:`wbc.kernels.manipulability_gradient`) or from the kinematic
+Hessian (:meth:`Kinematics.frame_hessian`: Pinocchio's where its binding has one, else the
+same tensor from the frame Jacobian; joints with a constant motion subspace).
 Where ``J`` has full rank, ``G = m (J^+)^T`` and the formula is the familiar
 ``dm/dq_i = m tr((J J^T)^-1 J (dJ/dq_i)^T)``; unlike that form it needs no inverse
 and stays accurate next to a singularity. On the singular set itself m is not
@@ -62,8 +63,8 @@ class Manipulability:
 
     When every joint between the root and the frame has one DOF (all shipped models), the
     whole evaluation is one compiled call (:func:`wbc.kernels.manipulability_gradient`,
-    ``dJ/dq`` from the joint Jacobians); otherwise the derivative comes from Pinocchio's
-    kinematic Hessian.
+    ``dJ/dq`` from the joint Jacobians); otherwise the derivative comes from the kinematic
+    Hessian (:meth:`wbc.kinematics.Kinematics.frame_hessian`).
     """
 
     def __init__(self, robot: Robot, frame: str, rows: str = "all") -> None:
