@@ -36,7 +36,9 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import traceback
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -48,8 +50,26 @@ from hypothesis import strategies as st
 
 import wbc
 
-ROBOT_NAMES = ["youbot", "deluca_mm", "scorbot_er4pc", "puma560"]
-ROBOTS = {name: wbc.load_robot(name) for name in ROBOT_NAMES}
+
+def _chain24() -> wbc.Robot:
+    """A 24-DOF mobile chain (benchmarks.scaling's): its controllers solve the lifted QP
+    (wbc.lifting) whenever at most 12 task rows are dense."""
+    from conftest import ROOT
+
+    if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
+        sys.path.insert(0, str(ROOT))
+    from benchmarks.scaling import chain_urdf
+
+    folder = Path(tempfile.mkdtemp(prefix="wbc-fuzz-"))
+    (folder / "chain24.urdf").write_text(chain_urdf(24))
+    (folder / "chain24.toml").write_text('name = "chain24"\nurdf = "chain24.urdf"\nend_effector = "ee"\n'
+                                         '[base]\nkind = "planar"\njoints = ["base_x", "base_y", "base_yaw"]\n'
+                                         'max_linear_speed = 0.8\nmax_yaw_rate = 1.0\n')
+    return wbc.load_robot(folder / "chain24.urdf")
+
+
+ROBOT_NAMES = ["youbot", "deluca_mm", "scorbot_er4pc", "puma560", "chain24"]
+ROBOTS = {name: (_chain24() if name == "chain24" else wbc.load_robot(name)) for name in ROBOT_NAMES}
 SOLVERS = wbc.available_solvers()
 # HiGHS can abort the interpreter (C++ assertion / std::terminate) on ill-conditioned QPs:
 # its cases run in a worker subprocess (test_fuzz_highs_in_subprocess), all others in-process
@@ -654,7 +674,7 @@ def test_fuzz_shared_objects(case, data):
         _, fresh_c = build(other)
     except Rejected:
         return
-    other_robot = wbc.load_robot(other["robot"])  # another robot object, whatever the model
+    other_robot = wbc.load_robot(ROBOTS[other["robot"]].source)  # another robot object, whatever the model
     tasks = [make_task(spec, robot) for spec in case["tasks"]]
     constraints = [make_constraint(spec) for spec in case["constraints"]]
     robots = (robot, robot, other_robot)
