@@ -12,8 +12,9 @@ This package module holds only pure Python: the layouts the kernels share with t
 pose check, frame Jacobian, FrameTask / PositionTask rows), :mod:`.joints` (posture,
 steering, position-limit and heading rows), :mod:`.manipulability`, :mod:`.assembly`
 (normal equations, preview solve, bound clip, cost normalisation, NaN screen, answer
-check) and :mod:`.tick` (the program interpreter) -- imported by :func:`load` on the first
-access of a compiled function (``kernels.run_program``; :class:`~wbc.kinematics.Kinematics`
+check), :mod:`.hierarchy` (the levels of strict priorities) and :mod:`.tick` (the
+program interpreter) -- imported by :func:`load` on the first access of a
+compiled function (``kernels.run_program``; :class:`~wbc.kinematics.Kinematics`
 calls :func:`load`, so building a controller does), never by ``import wbc``. :func:`load`
 binds every compiled function into this namespace, so later ``kernels.x`` lookups are
 plain attribute hits (the module ``__getattr__`` runs only before the first load).
@@ -83,6 +84,8 @@ GRAM_CONDITION = 1e-8
 OP_EXTERNAL = 100
 #: forward kinematics of a chain of 1-DOF joints (wbc.kinematics' native mode)
 OP_FORWARD_KINEMATICS = 15
+#: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
+OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
 
 # ------------------------------------------------------------------ chains
 
@@ -117,6 +120,7 @@ COMPILED = {
                  "qp_defect", "has_nan", "has_non_finite", "lift_qp"),
     "native_qp": ("daqp_solve",),
     "chain": ("forward_kinematics",),
+    "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),
     "tick": ("run_program",),
 }
 _MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}

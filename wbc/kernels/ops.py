@@ -23,16 +23,20 @@ from . import (
     DAQP_WORKSPACE_WORDS,
     FRAME_DATA,
     FRAME_SETTINGS,
+    OP_BAND,
     OP_DAQP_SOLVE,
     OP_FORWARD_KINEMATICS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
+    OP_HIERARCHY_PREVIEW,
+    OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
     OP_NORMALISE_COST,
+    OP_NORMALISE_LEVEL,
     OP_POSITION_LIMITS,
     OP_POSITION_TASK,
     OP_POSTURE,
@@ -110,4 +114,21 @@ OP_SPECS: dict[int, OpSpec] = {
     OP_FORWARD_KINEMATICS: OpSpec("FORWARD_KINEMATICS", (
         ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),
         ("jacobians_t", ("nv", 6)), ("nq", None), ("joints", None), ("nv", None)), ("1 <= joints",)),
+    # strict priorities (wbc.hierarchy)
+    OP_LEVEL_CONSTRAINTS: OpSpec("LEVEL_CONSTRAINTS", (
+        ("source", ("source_size",)), ("target", ("target_size",)), ("n", None), ("p", None), ("e", None),
+        ("band", None), ("source_size", None), ("target_size", None)),
+        ("1 <= n", "0 <= p", "0 <= e", "0 <= band", "source_size == n * n + 3 * n + (p + e) * (n + 2)",
+         "target_size == n * n + 3 * n + (p + band + e) * (n + 2)")),
+    OP_NORMALISE_LEVEL: OpSpec("NORMALISE_LEVEL", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
+    OP_BAND: OpSpec("BAND", (
+        _STACK, ("first", None), ("last", None), ("first_preview", None), ("last_preview", None), ("x", ("nv",)),
+        ("lower", ("nv",)), ("upper", ("nv",)), ("control", (DAQP_CONTROL_SIZE,)), ("settings", (2,)),
+        ("target", ("size",)), ("nv", None), ("rows", None), ("size", None), ("row", None), ("target_rows", None)),
+        ("1 <= nv", "0 <= first <= last <= rows", "0 <= first_preview <= last_preview <= rows", "0 <= row",
+         "row + 2 * (last - first + last_preview - first_preview) <= target_rows",
+         "size == nv * nv + 3 * nv + target_rows * (nv + 2)")),
+    OP_HIERARCHY_PREVIEW: OpSpec("HIERARCHY_PREVIEW", (
+        _STACK, ("ranges", ("count",)), ("scaling", (2,)), ("preview", ("nv",)), ("nv", None), ("rows", None),
+        ("count", None)), ("1 <= nv", "2 <= count", "count % 2 == 0")),
 }

@@ -16,6 +16,7 @@ from numba.extending import intrinsic
 
 from . import (
     CHAIN_COLUMNS,
+    DAQP_CONTROL_DEFECT,
     DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_SIZE,
     DAQP_PROBLEM_WORDS,
@@ -24,17 +25,21 @@ from . import (
     DAQP_WORKSPACE_WORDS,
     FRAME_DATA,
     FRAME_SETTINGS,
+    OP_BAND,
     OP_DAQP_SOLVE,
     OP_EXTERNAL,
     OP_FORWARD_KINEMATICS,
     OP_FRAME_TASK,
     OP_HAS_NAN,
     OP_HEADING_ROWS,
+    OP_HIERARCHY_PREVIEW,
+    OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
     OP_NORMALISE_COST,
+    OP_NORMALISE_LEVEL,
     OP_POSITION_LIMITS,
     OP_POSITION_TASK,
     OP_POSTURE,
@@ -46,6 +51,7 @@ from . import (
 from .assembly import has_nan, has_non_finite, lift_qp, merge_bounds, normal_equations, normalise_cost, preview_solve
 from .chain import forward_kinematics
 from .frames import frame_task_rows, position_task_rows
+from .hierarchy import band_rows, hierarchy_preview, level_constraints, normalise_level
 from .joints import heading_rows, position_limit_bounds, posture_rows, steering_row
 from .manipulability import barrier_row
 from .native_qp import daqp_solve
@@ -117,17 +123,27 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
       settings (gain, min value), value out (1), first row, last row, nv
     * DAQP_SOLVE: DAQP problem, workspace, result (their words), control, QP data (size), x (n), n,
       size, addresses of daqp_update_ldp, daqp_solve, clock_gettime, clock id, steady mask;
-      skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN
+      skipped (exit flag DAQP_SKIPPED) when a HAS_NAN row before it found a NaN, or a BAND row stopped
     * FORWARD_KINEMATICS: q (nq), chain (joints x CHAIN_COLUMNS), placements (joints x 12), joint
       Jacobians transposed (nv x 6), nq, joints, nv
     * EXTERNAL: address of a CompiledOp's C callback, then its operands (its own declaration)
     * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
       rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
+    * LEVEL_CONSTRAINTS: source QP data, target QP data, n, p, e, band rows, source size, target size
+    * NORMALISE_LEVEL: Hc ((nv + 1) x nv), (damping, damping floor), nv
+    * BAND: stack, first, last, first preview row, last preview row, the level's answer x (nv), lower,
+      upper (nv), its DAQP control, (answer tolerance, relative band), target QP data (size), nv,
+      rows, size, first band row, target rows; when the level's solve failed (exit flag < 1, or
+      its answer's defect above the tolerance) nothing is written and every later DAQP_SOLVE
+      row is skipped
+    * HIERARCHY_PREVIEW: stack, level ranges (count), (damping, damping floor), preview (nv), nv, rows,
+      count
     """
     rows, width = packed[0], packed[1]
     program = packed[2:2 + rows * width].reshape((rows, width))
     addresses = packed[2 + rows * width:]
     found_nan = False
+    stopped = False  # a level of a hierarchy failed: the levels below it are not solved
     for r in range(rows):
         op = program[r]
         code = op[0]
@@ -209,11 +225,36 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
             _call_external(op[1], np.int64(addresses.ctypes.data), np.int64(op.ctypes.data) + np.int64(16), dt)
         elif code == OP_DAQP_SOLVE:
             control = _vector(addresses, op[4], DAQP_CONTROL_SIZE)
-            if found_nan:
+            if found_nan or stopped:
                 control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
             else:
                 daqp_solve(_vector(addresses, op[1], DAQP_PROBLEM_WORDS),
                            _vector(addresses, op[2], DAQP_WORKSPACE_WORDS),
                            _vector(addresses, op[3], DAQP_RESULT_WORDS), control, _vector(addresses, op[5], op[8]),
                            _vector(addresses, op[6], op[7]), op[9], op[10], op[11], op[12], op[13])
+        elif code == OP_LEVEL_CONSTRAINTS:
+            level_constraints(_vector(addresses, op[1], op[7]), _vector(addresses, op[2], op[8]), op[3], op[4],
+                              op[5], op[6])
+        elif code == OP_NORMALISE_LEVEL:
+            nv = op[3]
+            scaling = _vector(addresses, op[2], 2)
+            normalise_level(_matrix(addresses, op[1], nv + 1, nv), scaling[0], scaling[1])
+        elif code == OP_BAND:
+            nv, rows, size, row, target_rows = op[12], op[13], op[14], op[15], op[16]
+            control = _vector(addresses, op[9], DAQP_CONTROL_SIZE)
+            settings = _vector(addresses, op[10], 2)
+            if (found_nan or stopped or control[DAQP_CONTROL_EXITFLAG] < 1
+                    or not control[DAQP_CONTROL_DEFECT] <= settings[0]):
+                stopped = True
+            else:
+                start = nv * nv + nv
+                band_rows(_matrix(addresses, op[1], nv + 1, rows), op[2], op[3], op[4], op[5],
+                          _vector(addresses, op[6], nv), _vector(addresses, op[7], nv), _vector(addresses, op[8], nv),
+                          settings[1], _vector(addresses, op[11], size), start + row * nv,
+                          start + target_rows * nv + nv + row)
+        elif code == OP_HIERARCHY_PREVIEW:
+            nv, rows, count = op[5], op[6], op[7]
+            scaling = _vector(addresses, op[3], 2)
+            hierarchy_preview(_matrix(addresses, op[1], nv + 1, rows), _vector(addresses, op[2], count), scaling[1],
+                              _vector(addresses, op[4], nv))
     return found_nan

@@ -1,0 +1,242 @@
+"""Kernels of strict task priorities (:mod:`wbc.hierarchy`): the QP of each level below the
+first gets the controller's constraints (:func:`level_constraints`) and, once the levels above
+are solved, the band rows that hold their task values (:func:`band_rows`); a level's cost is
+normalised like the one-level QP (:func:`normalise_level`); and the holonomic preview of a
+hierarchy is its cascade without constraints (:func:`hierarchy_preview`).
+
+QP layouts are those of :class:`wbc.qp.QP` (one flat buffer: H, c, C, upper, lower).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import prepare_cache
+from .assembly import normalise_cost
+
+prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+
+
+@njit("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=True, nogil=True)
+def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e: int, band: int) -> None:
+    """Copy the bounds and rows of the QP in ``source`` (n variables, p inequality and e equality
+    rows) into the QP in ``target`` (p + band inequality rows, then the same e equality rows):
+    the inequality rows go first, the ``band`` rows after them are left as they are."""
+    src_C, dst_C = n * n + n, n * n + n
+    for i in range(p * n):
+        target[dst_C + i] = source[src_C + i]
+    for i in range(e * n):
+        target[dst_C + (p + band) * n + i] = source[src_C + p * n + i]
+    m_src, m_dst = n + p + e, n + p + band + e
+    src_up, dst_up = src_C + (p + e) * n, dst_C + (p + band + e) * n
+    for side in range(2):  # upper, then lower
+        src, dst = src_up + side * m_src, dst_up + side * m_dst
+        for i in range(n + p):
+            target[dst + i] = source[src + i]
+        for i in range(e):
+            target[dst + n + p + band + i] = source[src + n + p + i]
+
+
+@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
+    """:func:`wbc.kernels.normalise_cost` of one level's ``[H; c]``; a level whose rows are all
+    zero this tick (H = 0, hence c = 0) gets ``H = I``: every feasible point is optimal for it
+    and the solver takes the smallest."""
+    normalise_cost(Hc, damping, damping_floor)
+    n = Hc.shape[1]
+    for i in range(n):
+        if Hc[i, i] != 0.0:
+            return
+    for i in range(n):
+        Hc[i, i] = 1.0
+
+
+@njit(cache=True, nogil=True)
+def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray, size: float,
+              relative: float, data: np.ndarray, row: int, h: int) -> None:
+    """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``."""
+    nv = x.shape[0]
+    value, norm = 0.0, 0.0
+    for j in range(nv):
+        a = stack_t[j, r]
+        value += a * min(max(x[j], lower[j]), upper[j])
+        norm += a * a
+        data[row + j] = a
+        data[row + nv + j] = -a
+    width = relative * math.sqrt(norm) * size
+    data[h] = value + width
+    data[h + 1] = width - value
+
+
+@njit("void(float64[:, :], int64, int64, int64, int64, float64[:], float64[:], float64[:], float64, float64[::1], "
+      "int64, int64)", cache=True, nogil=True)
+def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, last_preview: int, x: np.ndarray,
+              lower: np.ndarray, upper: np.ndarray, relative: float, data: np.ndarray, row: int, h: int) -> None:
+    """The band that holds a solved level's task values for the levels below it.
+
+    For each stack row ``a`` of the level (rows ``first:last`` and ``first_preview:last_preview``
+    of ``A = stack_t^T``) two inequality rows ``a v <= y + eps`` and ``-a v <= -y + eps``, with
+    ``y = a x`` at the level's answer ``x`` projected onto the bounds ``[lower, upper]`` (exact
+    on the bounds whatever the solver's tolerance) and ``eps = relative |a| max(1, |x|_inf)``.
+    They are written into the QP buffer ``data`` from its entry ``row`` on (C, row-major) and
+    from its entry ``h`` on (upper bounds); their lower bounds stay ``-inf``.
+    """
+    size = 1.0
+    for j in range(x.shape[0]):
+        size = max(size, abs(min(max(x[j], lower[j]), upper[j])))
+    nv, slot = x.shape[0], 0
+    for r in range(first, last):
+        _band_row(stack_t, r, x, lower, upper, size, relative, data, row + 2 * slot * nv, h + 2 * slot)
+        slot += 1
+    for r in range(first_preview, last_preview):
+        _band_row(stack_t, r, x, lower, upper, size, relative, data, row + 2 * slot * nv, h + 2 * slot)
+        slot += 1
+
+
+@njit(cache=True, nogil=True)
+def _symmetric_eigen(matrix: np.ndarray, values: np.ndarray, vectors: np.ndarray) -> None:
+    """Eigenvalues and orthonormal eigenvectors (columns) of a small symmetric ``matrix`` (cyclic
+    Jacobi; ``matrix`` is overwritten). Raises nothing: at most 50 sweeps."""
+    n = matrix.shape[0]
+    for i in range(n):
+        for j in range(n):
+            vectors[i, j] = 1.0 if i == j else 0.0
+    for _ in range(50):
+        off, total = 0.0, 0.0
+        for i in range(n):
+            for j in range(n):
+                total += matrix[i, j] * matrix[i, j]
+                if i != j:
+                    off += matrix[i, j] * matrix[i, j]
+        if off <= 1e-30 * total:
+            break
+        for p in range(n - 1):
+            for q in range(p + 1, n):
+                if matrix[p, q] == 0.0:
+                    continue
+                theta = (matrix[q, q] - matrix[p, p]) / (2.0 * matrix[p, q])
+                t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + math.sqrt(theta * theta + 1.0))
+                c = 1.0 / math.sqrt(t * t + 1.0)
+                s = t * c
+                for k in range(n):  # columns p, q
+                    mkp, mkq = matrix[k, p], matrix[k, q]
+                    matrix[k, p], matrix[k, q] = c * mkp - s * mkq, s * mkp + c * mkq
+                for k in range(n):  # rows p, q
+                    mpk, mqk = matrix[p, k], matrix[q, k]
+                    matrix[p, k], matrix[q, k] = c * mpk - s * mqk, s * mpk + c * mqk
+                for k in range(n):
+                    vkp, vkq = vectors[k, p], vectors[k, q]
+                    vectors[k, p], vectors[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
+    for i in range(n):
+        values[i] = matrix[i, i]
+
+
+@njit("void(float64[:, :], float64[:], float64, float64[:])", cache=True, nogil=True)
+def hierarchy_preview(stack_t: np.ndarray, ranges: np.ndarray, floor: float, preview: np.ndarray) -> None:
+    """Holonomic relaxation of a hierarchy: its levels solved in order without constraints.
+
+    Level k is rows ``ranges[2k]:ranges[2k + 1]`` of ``A = [W J | W r] = stack_t^T`` (the last
+    level's include ``sqrt(damping) I``). With ``Z`` an orthonormal basis of the directions the
+    levels above leave free (``Z = I`` at first) and ``v`` their answer, level k takes
+    ``v += Z z``, ``z = argmin |A_k Z z - (b_k - A_k v)|^2 + mu |z|^2`` (``mu = floor`` times the
+    largest curvature ``max diag Z^T A_k^T A_k Z``), then keeps in ``Z`` the eigenvectors of
+    ``Z^T A_k^T A_k Z`` whose eigenvalues are at most ``floor`` times the largest: the classical
+    null-space projection. ``preview`` = v. Ranges are clipped to the stack; rows holding NaN
+    or inf give ``preview = 0`` (the tick's NaN screen reports them).
+    """
+    nv, rows = stack_t.shape[0] - 1, stack_t.shape[1]
+    basis = np.eye(nv)
+    free = nv
+    for j in range(nv):
+        preview[j] = 0.0
+    levels = ranges.shape[0] // 2
+    for k in range(levels):
+        first = min(max(int(ranges[2 * k]), 0), rows)
+        last = min(max(int(ranges[2 * k + 1]), first), rows)
+        count = last - first
+        if free == 0 or count == 0:
+            continue
+        projected, residual = np.empty((count, free)), np.empty(count)
+        for i in range(count):
+            r = first + i
+            value = stack_t[nv, r]
+            for j in range(nv):
+                value -= stack_t[j, r] * preview[j]
+            residual[i] = value
+            for c in range(free):
+                total = 0.0
+                for j in range(nv):
+                    total += stack_t[j, r] * basis[j, c]
+                projected[i, c] = total
+            if not math.isfinite(value):
+                for j in range(nv):
+                    preview[j] = 0.0
+                return
+        normal, gradient = np.empty((free, free)), np.zeros(free)
+        scale = 0.0
+        for a in range(free):
+            for b in range(free):
+                total = 0.0
+                for i in range(count):
+                    total += projected[i, a] * projected[i, b]
+                normal[a, b] = total
+            for i in range(count):
+                gradient[a] += projected[i, a] * residual[i]
+            scale = max(scale, normal[a, a])
+        if not (scale > 0.0 and math.isfinite(scale)):
+            if not math.isfinite(scale):
+                for j in range(nv):
+                    preview[j] = 0.0
+                return
+            continue
+        # z = (N + mu I)^-1 g by Cholesky (positive definite: mu > 0)
+        factor = normal.copy()
+        for a in range(free):
+            factor[a, a] += floor * scale
+        for a in range(free):
+            pivot = factor[a, a]
+            for p in range(a):
+                pivot -= factor[a, p] * factor[a, p]
+            pivot = math.sqrt(max(pivot, floor * scale))
+            factor[a, a] = pivot
+            for b in range(a + 1, free):
+                total = factor[b, a]
+                for p in range(a):
+                    total -= factor[b, p] * factor[a, p]
+                factor[b, a] = total / pivot
+        step = gradient.copy()
+        for a in range(free):
+            for p in range(a):
+                step[a] -= factor[a, p] * step[p]
+            step[a] /= factor[a, a]
+        for a in range(free - 1, -1, -1):
+            for p in range(a + 1, free):
+                step[a] -= factor[p, a] * step[p]
+            step[a] /= factor[a, a]
+        for j in range(nv):
+            for a in range(free):
+                preview[j] += basis[j, a] * step[a]
+        if k == levels - 1:
+            break
+        values, vectors = np.empty(free), np.empty((free, free))
+        _symmetric_eigen(normal, values, vectors)
+        largest = 0.0
+        for a in range(free):
+            largest = max(largest, values[a])
+        kept = 0
+        remaining = np.empty((nv, free))
+        for a in range(free):
+            if values[a] <= floor * largest:
+                for j in range(nv):
+                    total = 0.0
+                    for b in range(free):
+                        total += basis[j, b] * vectors[b, a]
+                    remaining[j, kept] = total
+                kept += 1
+        for j in range(nv):
+            for a in range(kept):
+                basis[j, a] = remaining[j, a]
+        free = kept
