@@ -15,7 +15,8 @@ controller is built, by named pieces:
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
 * the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
-  :class:`wbc.outcome.Outcome`.
+  :class:`wbc.outcome.Outcome`;
+* with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.hierarchy`.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from .constraints.constraint import Constraint, ConstraintData
 from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
+from .hierarchy import Hierarchy, task_levels
 from .kinematics import Kinematics
 from .layout import ConstraintLayout, TaskStack
 from .lifting import LiftedQP, dense_rows, worth_lifting
@@ -54,7 +56,8 @@ class Controller:
 
     Args:
         robot: the robot model.
-        tasks: cost terms (at least one).
+        tasks: cost terms (at least one), weighted in one QP; or a list of lists, a priority
+            order of levels, highest first (strict priorities, :mod:`wbc.hierarchy`).
         constraints: hard limits. A nonholonomic base needs :class:`NonholonomicBase`
             unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
@@ -82,8 +85,8 @@ class Controller:
        every shipped hard limit: speed, wheel and no-slip limits); ``Outcome.ZERO``.
     """
 
-    def __init__(self, robot: Robot, tasks: Sequence[Task], constraints: Sequence[Constraint] = (),
-                 solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
+    def __init__(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
+                 constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
                  solver_options: dict | None = None, reduced: bool = False, strict: bool = False) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
@@ -91,7 +94,7 @@ class Controller:
         self.dt = dt
         # (damping, floor): operand of the cost normalisation, and where the damping setting lives
         self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
-        self.tasks = as_items(tasks, Task, "tasks")
+        self.tasks, self._level_sizes = task_levels(tasks)  # the tasks in level order; sizes (None: one level)
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
             raise InvalidInputError("a controller needs at least one task")
@@ -125,6 +128,15 @@ class Controller:
     def damping(self, value) -> None:
         self._cost_scaling[0] = as_nonnegative(value, "damping")
         np.fill_diagonal(self._damping_rows, np.sqrt(self._cost_scaling[0]))
+
+    @property
+    def levels(self) -> list[list[Task]]:
+        """The priority levels, highest first (a flat ``tasks`` list is one level)."""
+        sizes, start, levels = self._level_sizes or [len(self.tasks)], 0, []
+        for size in sizes:
+            levels.append(self.tasks[start:start + size])
+            start += size
+        return levels
 
     @property
     def solver(self) -> QPSolver:
@@ -172,6 +184,10 @@ class Controller:
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
+        # strict priorities (wbc.hierarchy): one QP per level, their cascade and its fallback
+        self._hierarchy = None if self._level_sizes is None else Hierarchy(self, self._level_sizes)
+        if self._hierarchy is not None:
+            self._fallback = self._hierarchy.fallback
         self._build_program()
 
     def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
@@ -206,6 +222,12 @@ class Controller:
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
+        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.hierarchy)
+            self._lifted = None
+            self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program)
+            self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
+            self._finish_program(program, rest)
+            return
         # high DOF with native DAQP: the dense task rows as variables (wbc.lifting), H never formed
         self._lifted = None
         if not self.reduced and not self._preview_blocks and getattr(self.solver, "native", False):
@@ -237,12 +259,17 @@ class Controller:
         # the solve itself, when the backend can run in the program (native DAQP) and no
         # Python step (the input reduction) stands between the QP and the solver
         self._solve_in_program = not self.reduced and self.solver.bind_program(rest, self.qp)
+        self._collector = self._solver  # reads the outcome of the solve in the program (collect_optimal)
+        self._finish_program(program, rest)
+
+    def _finish_program(self, program: TickProgram, rest: TickProgram) -> None:
+        """Keep the program (and its part after the Python preview tasks, if any)."""
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._unready = list(self._task_data)  # checked every tick until each one is ready
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
         # ... and, with no Python reader, the kinematics are left to the program's first op
-        self._deferred_kinematics = self._q_screened and kin.native
+        self._deferred_kinematics = self._q_screened and self.kinematics.native
 
     # --------------------------------------------------------------- hot path
     def step(self, q) -> np.ndarray:
@@ -284,7 +311,7 @@ class Controller:
             if self._reduction is not None and not has_nan and not self._reduction.reduce(qp, S):
                 has_nan, qp_failure = True, "reduced form: a constraint bounded the coupled base rates x, y"
         # solved in the program already (native DAQP: answer checked there too), or now
-        answer = (self._solver.collect_optimal(ANSWER_TOLERANCE) if self._solve_in_program and not has_nan
+        answer = (self._collector.collect_optimal(ANSWER_TOLERANCE) if self._solve_in_program and not has_nan
                   else None)
         self._tick += 1
         if answer is not None:  # the control loop's path
@@ -309,6 +336,8 @@ class Controller:
         answer checked against the QP's bounds and rows, or the fallback chain's."""
         if has_nan:
             solution = QPSolution(None, False, qp_failure, 0.0)
+        elif self._hierarchy is not None:  # strict priorities: the cascade, every level's answer checked
+            solution = self._hierarchy.solve()
         else:
             solution = self._solver.collect() if self._solve_in_program else self._solver.solve(self.qp)
             if solution.success:
@@ -358,7 +387,8 @@ class Controller:
         return names + self._row_labels[qp.n_ineq:]  # equality rows always hold
 
     def __repr__(self) -> str:
-        return (f"Controller({self.robot.name!r}, tasks={self.tasks}, constraints={self.constraints}, "
+        tasks = self.tasks if self._hierarchy is None else self.levels
+        return (f"Controller({self.robot.name!r}, tasks={tasks}, constraints={self.constraints}, "
                 f"solver={self.solver.name!r}, dt={self.dt}, reduced={self.reduced})")
 
 

@@ -280,6 +280,12 @@ class DaqpBackend(QPSolver):
         self._bound.add_op(program)
         return True
 
+    def workspace(self, qp: QP) -> NativeWorkspace | None:
+        """A native workspace of its own on ``qp`` (this backend's settings and warm start), for a
+        caller that solves several QPs every tick (the levels of :mod:`wbc.hierarchy`); None on
+        the binding path."""
+        return None if self._library is None else NativeWorkspace(self._library, qp, self.settings, self.warm_start)
+
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
         bound = self._bound

@@ -1,0 +1,392 @@
+"""Strict task priorities: ``Controller(robot, tasks=[[ee], [posture, steering]])``.
+
+A list of lists is a priority order, highest first; a flat list is one level (the weighted QP of
+:mod:`wbc.controller`, unchanged). Level k is the least-squares term ``|A_k v - b_k|^2`` of its
+tasks, weighted among themselves as in one level: its rows ``A = [W J | W r]`` are rows of the
+controller's one task stack (:class:`wbc.layout.TaskStack`, tasks ordered by level). The levels
+are solved in order -- a *cascade* -- each as a QP with every constraint of the controller::
+
+    level k:  min |A_k v - b_k|^2  (+ damping |v|^2 at the last level)
+              s.t. the controller's bounds and rows (hard and soft, as in one level),
+                   |a v - y_a| <= eps_a  for every row a of every level above (the *band*),
+
+``y_a = a v_j`` the task value of row a at the answer ``v_j`` of its level j.
+
+**Why this is exact.** ``|A_k v - b_k|^2`` is strictly convex in ``y = A_k v``, so over the
+convex feasible set its optimal task value ``y_k*`` is unique, and the optimal set of level k is
+exactly ``{feasible v : A_k v = y_k*}``. Holding ``A_k v = y_k*`` below level k therefore costs
+level k nothing: a lower level never degrades a higher one, and a level that cannot reach its
+targets within the constraints (infeasible alone) takes its least-squares optimum while the
+levels below still use whatever freedom remains.
+
+**The relaxation.** Each band row is two inequality rows ``+-a v <= +-y_a + eps_a`` with
+``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``: the rounding of ``y_a`` and the
+backends' tolerances never make a level infeasible (its own answer is feasible for the next),
+and linearly dependent rows (two tasks of one level asking for the same thing) need no rank
+decision. ``v_j`` is projected onto the bounds before ``y_a`` is taken, so an answer a hair
+outside a bound does not move the band off it.
+
+**Damping.** The controller's ``damping |v|^2`` belongs to the last level only: it regularises
+the command, as in one level. A level above it has a cost that is flat along its null space
+(``A_k^T A_k`` is singular when the level has fewer rows than ``nv``); it gets only the
+regularisation floor of every QP (:data:`wbc.controller.DAMPING_FLOOR` = 1e-10 of its largest
+curvature, :func:`wbc.kernels.normalise_cost`), which makes its v unique for the backends and
+moves its task values by at most ~1e-10 relative along directions of that curvature (tested
+against the pseudo-inverse).
+
+**Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.daqp_native`)
+the whole cascade -- each level's QP, solve, answer check and band -- runs inside the tick
+program, one warm-started DAQP workspace per level; otherwise (other backends, DAQP's binding,
+the reduced form of a nonholonomic base) the program builds every level's QP and the levels are
+solved from Python, the bands written by the same kernel.
+
+**Fallback.** When a level's solve fails (or its answer does not check), the cascade is re-solved
+from that level on by DAQP with the soft rows elastic (:meth:`wbc.fallback.Fallback.elastic_solve`;
+the band rows, like the hard limits, stay hard): the hierarchy is kept. If that fails too, the
+command is ``v = 0``.
+
+**Steering preview.** Tasks that need the holonomic preview (SteeringTask) get the cascade of the
+hierarchy without constraints (:func:`wbc.kernels.hierarchy_preview`: the classical null-space
+projection of the levels' ordinary rows, the damping at the last level).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import kernels
+from .errors import InvalidInputError
+from .fallback import ANSWER_TOLERANCE, Fallback
+from .layout import TaskStack
+from .program import TickProgram, ops_follow_compute
+from .qp import QP
+from .reduction import InputReduction
+from .solvers import DaqpBackend, QPSolution
+from .tasks.task import Task
+from .validation import as_items
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .controller import Controller
+    from .daqp_native import NativeWorkspace
+
+#: relative half-width of the band that holds a level's task values below it (see the module docstring)
+BAND = 1e-9
+#: DAQP's primal tolerance in a hierarchy's solves (at most; its default, 1e-6, would let a band row
+#: 1e-9 wide be violated by up to 1e-6): every level and the elastic fallback
+DAQP_PRIMAL_TOL = 1e-10
+#: qpsolvers backends that take a positive semidefinite H: the levels above the last reach them
+#: unregularised (exact). DAQP and quadprog factorise H and get the floor; with it (cond 1e10)
+#: Clarabel and HiGHS stopped short of their tolerances on every tick of a tracked circle
+SEMIDEFINITE_SOLVERS = frozenset({"clarabel", "highs", "osqp", "piqp", "proxqp"})
+
+_REDUCTION_FAILURE = "reduced form: a constraint bounded the coupled base rates x, y"
+
+
+def task_levels(tasks) -> tuple[list[Task], list[int] | None]:
+    """The ``tasks`` argument of a controller as (its tasks in level order, the size of each
+    level); sizes are None for a flat list or a single level (today's weighted QP).
+
+    Raises InvalidInputError for a list mixing tasks and levels, an empty level, a level that is
+    not a list of tasks, or a task in two levels (or twice in one).
+    """
+    if not isinstance(tasks, (list, tuple)) or not any(isinstance(level, (list, tuple)) for level in tasks):
+        return as_items(tasks, Task, "tasks"), None
+    if not all(isinstance(level, (list, tuple)) for level in tasks):
+        raise InvalidInputError("tasks mixes tasks and lists: a priority order is a list of levels, highest first, "
+                                "each a list of tasks (tasks=[[ee], [posture]]); a flat list of tasks is one level")
+    levels = [as_items(level, Task, f"tasks, level {k}") for k, level in enumerate(tasks)]
+    for k, level in enumerate(levels):
+        if not level:
+            raise InvalidInputError(f"tasks: level {k} is empty; give it a task or remove it")
+    seen: dict[int, int] = {}
+    for k, level in enumerate(levels):
+        for task in level:
+            if id(task) in seen:
+                where = f"twice in level {k}" if seen[id(task)] == k else f"in levels {seen[id(task)]} and {k}"
+                raise InvalidInputError(f"tasks: {task.name} appears {where}; a task belongs to one level "
+                                        "(create another task for a second use)")
+            seen[id(task)] = k
+    flat = [task for level in levels for task in level]
+    return flat, ([len(level) for level in levels] if len(levels) > 1 else None)
+
+
+class LevelRows:
+    """The rows of each level in a controller's task stack (tasks ordered by level).
+
+    ``tasks[k]``: (first, last) of level k's ordinary task rows; ``preview[k]``: those of its
+    preview tasks (after the damping rows); ``(0, 0)`` when it has none. ``normal[k]``: the
+    ordinary rows its cost sums -- the last level's include ``sqrt(damping) I``.
+    """
+
+    def __init__(self, stack: TaskStack, level_of: Callable[[object], int], count: int, nv: int) -> None:
+        def span(blocks: list) -> list[tuple[int, int]]:
+            spans = []
+            for k in range(count):
+                mine = [(start, start + task.dim) for task, _, _, start in blocks if level_of(task) == k]
+                spans.append((mine[0][0], mine[-1][1]) if mine else (0, 0))
+            return spans
+
+        self.count = count
+        self.tasks, self.preview = span(stack.blocks), span(stack.preview_blocks)
+        damping = stack.n_plain - nv
+        last_first = self.tasks[-1][0] if self.tasks[-1][1] > self.tasks[-1][0] else damping
+        self.normal = self.tasks[:-1] + [(last_first, stack.n_plain)]
+        #: normal ranges as floats (first, last per level), the operand of HIERARCHY_PREVIEW
+        self.ranges = np.array([bound for span in self.normal for bound in span], dtype=np.float64)
+
+    def dim(self, k: int) -> int:
+        """Task rows of level k (ordinary and preview)."""
+        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
+        return last - first + last_p - first_p
+
+    def residuals(self, stack: np.ndarray, v: np.ndarray | None, k: int) -> float:
+        """``|A_k v - b_k|`` of level k's task rows (``stack``: ``[W J | W r]``); NaN without v."""
+        if v is None:
+            return float("nan")
+        nv = v.size
+        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
+        rows = np.concatenate([stack[first:last], stack[first_p:last_p]])
+        return float(np.linalg.norm(rows[:, :nv] @ v - rows[:, nv]))
+
+
+def level_rows(controller: Controller) -> LevelRows:
+    """The level rows of ``controller`` (one level for a flat controller)."""
+    hierarchy = controller._hierarchy
+    if hierarchy is not None:
+        return hierarchy.rows
+    return LevelRows(controller._task_stack, lambda task: 0, 1, controller.robot.nv)
+
+
+def level_errors(controller: Controller, v: np.ndarray) -> list[float]:
+    """``|A_k v - b_k|`` of each level at the command ``v`` (weighted task residuals, as in the cost)."""
+    rows = level_rows(controller)
+    return [rows.residuals(controller._stack, v, k) for k in range(rows.count)]
+
+
+def level_optima(controller: Controller, v: np.ndarray, answered: bool) -> list[float]:
+    """``|A_k v_k - b_k|`` of each level at its own answer ``v_k`` (a flat controller's is the command,
+    when a solve ``answered`` it); NaN for a level that was not solved."""
+    hierarchy = controller._hierarchy
+    if hierarchy is None:
+        return level_errors(controller, v if answered else None)
+    return [hierarchy.rows.residuals(controller._stack, answer, k) for k, answer in enumerate(hierarchy.answers)]
+
+
+class Hierarchy:
+    """The levels of one controller: their QPs, the ops that fill them, and their cascade.
+
+    Level 0's QP is the controller's own (``controller._qp_v``); level k > 0 has the same bounds
+    and rows (copied by the program each tick) plus the band rows of the levels above, after the
+    inequality rows. ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
+    """
+
+    def __init__(self, controller: Controller, sizes: Sequence[int]) -> None:
+        self._controller = controller
+        nv = controller.robot.nv
+        level = {}
+        start = 0
+        for k, size in enumerate(sizes):
+            level.update((id(data), k) for data in controller._task_data[start:start + size])
+            start += size
+        self.count = count = len(sizes)
+        self.rows = rows = LevelRows(controller._task_stack, lambda task: level[id(task)], count, nv)
+        first = controller._qp_v
+        #: first band row of each level in the QPs below it (same in all of them)
+        self.band_start = [first.n_ineq + 2 * sum(rows.dim(j) for j in range(k)) for k in range(count)]
+        self.qps = [first] + [QP(nv, self.band_start[k], first.n_eq) for k in range(1, count)]
+        self._reductions: list[InputReduction] | None = None
+        self.solver_qps = self.qps  #: what the backend solves, level by level
+        if controller.reduced:
+            self._reductions = [controller._reduction] + [InputReduction(controller._S, qp.n_ineq, qp.n_eq)
+                                                         for qp in self.qps[1:]]
+            self.solver_qps = [reduction.qp for reduction in self._reductions]
+        self._upper_scaling = np.zeros(2)  # (damping, floor) of the levels above the last: set by add_ops
+        self._settings = np.array([ANSWER_TOLERANCE, BAND])  # operand of the BAND op
+        self._backend = controller.solver  # what solves the levels (DAQP: with DAQP_PRIMAL_TOL)
+        self._workspaces: list[NativeWorkspace] | None = None
+        self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
+        #: each level's answer (over v) in the latest tick; None for a level not solved
+        self.answers: list[np.ndarray | None] = [None] * count
+        self.failed = 0  #: the level whose solve failed in the latest failed tick
+        self.fallback = CascadeFallback(self, controller._fallback)
+
+    # ----------------------------------------------------------------- program
+    def add_ops(self, program: TickProgram) -> tuple[list, TickProgram, QP, bool]:
+        """Append every level's assembly -- and with native DAQP the cascade itself -- to the
+        controller's tick program, after its items' ops. Returns what the controller keeps:
+        (Python preview tasks, the program part after them, the QP the backend sees last,
+        whether the solves run in the program)."""
+        c = self._controller
+        kin, nv, stack = c.kinematics, c.robot.nv, c._stack_t
+        size = stack.shape[1]
+        python_preview, rest = [], program
+        if c._preview_blocks:
+            program.add(kernels.OP_HIERARCHY_PREVIEW, stack=stack, ranges=self.rows.ranges, scaling=c._cost_scaling,
+                        preview=c._preview, nv=nv, rows=size, count=self.rows.ranges.size)
+            python_preview = [(task, jacobian, target) for task, jacobian, target, start in c._preview_blocks
+                              if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
+                                      and task.add_preview_ops(program, kin, stack, start, c._preview))]
+            if python_preview:
+                rest = TickProgram()  # runs after the Python preview tasks
+        for k, qp in enumerate(self.qps):
+            for (first, last), reset in ((self.rows.normal[k], 1), (self.rows.preview[k], 0)):
+                if last > first or reset:
+                    rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
+                             reset=reset, Hc=qp.Hc)
+        first_qp = self.qps[0]
+        c._bound_policy.add_op(rest, first_qp)
+        for k, qp in enumerate(self.qps):
+            if k:
+                rest.add(kernels.OP_LEVEL_CONSTRAINTS, source=first_qp.data, target=qp.data, n=nv,
+                         p=first_qp.n_ineq, e=first_qp.n_eq, band=qp.n_ineq - first_qp.n_ineq,
+                         source_size=first_qp.data.size, target_size=qp.data.size)
+            scaling = c._cost_scaling if k == self.count - 1 else self._upper_scaling
+            rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
+            rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+        solver = self._backend = c.solver
+        self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
+        self._workspaces = None
+        if isinstance(solver, DaqpBackend):
+            tolerance = min(solver.settings.get("primal_tol", DAQP_PRIMAL_TOL), DAQP_PRIMAL_TOL)
+            self._backend = solver = DaqpBackend({**solver.settings, "primal_tol": tolerance,
+                                                  "warm_start": solver.warm_start})
+            if solver.native:
+                self._workspaces = [solver.workspace(qp) for qp in self.solver_qps]
+        self.in_program = self._workspaces is not None and not c.reduced
+        if self.in_program:
+            for k, workspace in enumerate(self._workspaces):
+                workspace.add_op(rest)
+                for j in range(k + 1, self.count):
+                    self._add_band_op(rest, k, workspace, self.qps[j])
+            self._native_answers = [workspace.x for workspace in self._workspaces]
+        return python_preview, rest, self.solver_qps[-1], self.in_program
+
+    def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
+        c = self._controller
+        stack, nv = c._stack_t, c.robot.nv
+        (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
+        program.add(kernels.OP_BAND, stack=stack, first=first, last=last, first_preview=first_p,
+                    last_preview=last_p, x=workspace.x, lower=self.qps[0].lb, upper=self.qps[0].ub,
+                    control=workspace.control, settings=self._settings, target=target.data, nv=nv,
+                    rows=stack.shape[1], size=target.data.size, row=self.band_start[k],
+                    target_rows=target.n_ineq + target.n_eq)
+
+    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
+        """The control loop's fast path with the cascade in the program: ``(x, solve time [s])``
+        when every level solved and its answer's defect is at most ``tolerance``; None
+        otherwise (then :meth:`solve` says which level failed)."""
+        elapsed = 0.0
+        for workspace in self._workspaces:
+            exitflag, defect, spent = workspace.outcome()
+            if exitflag < 1 or not defect <= tolerance:
+                return None
+            elapsed += spent
+        self.answers = self._native_answers
+        return workspace.x.copy(), elapsed
+
+    # -------------------------------------------------------------------- tick
+    def solve(self) -> QPSolution:
+        """This tick's command from the cascade (read from the program's solves, or solved now):
+        the last level's answer, checked; or a failure naming the level (:attr:`failed`), for the
+        controller's fallback chain (:class:`CascadeFallback`)."""
+        if not self.in_program:
+            return self.cascade(0, self._solve_level)
+        elapsed = 0.0
+        for k, workspace in enumerate(self._workspaces):
+            exitflag, defect, spent = workspace.outcome()
+            elapsed += spent
+            if exitflag < 1 or not defect <= ANSWER_TOLERANCE:
+                return self._failure(k, QPSolution(None, False, _native_status(exitflag, defect), elapsed))
+        self.answers = self._native_answers
+        return QPSolution(workspace.x.copy(), True, "optimal", elapsed, defect)
+
+    def cascade(self, start: int, solve: Callable[[int], QPSolution]) -> QPSolution:
+        """Levels ``start`` onward, each by ``solve(k)`` (the levels above hold their answers and
+        bands from this tick); each answer is checked against its QP and writes its band."""
+        c = self._controller
+        self.answers = self.answers[:start] + [None] * (self.count - start)
+        elapsed = 0.0
+        for k in range(start, self.count):
+            if self._reductions is not None and k and not self._reductions[k].reduce(self.qps[k], c._S):
+                return self._failure(k, QPSolution(None, False, _REDUCTION_FAILURE, elapsed))
+            solution = solve(k)
+            elapsed += solution.solve_time
+            if not solution.success:
+                return self._failure(k, solution._replace(solve_time=elapsed))
+            defect = solution.defect
+            if defect is None:
+                defect = kernels.qp_defect(self.solver_qps[k].data, solution.x)
+            if defect > ANSWER_TOLERANCE:
+                status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
+                return self._failure(k, QPSolution(None, False, status, elapsed))
+            v = solution.x if self._reductions is None else c._S @ solution.x
+            self.answers[k] = v
+            for j in range(k + 1, self.count):
+                self._write_band(k, v, self.qps[j])
+        return QPSolution(solution.x, True, "optimal", elapsed, defect)
+
+    def _solve_level(self, k: int) -> QPSolution:
+        """Level k by the controller's backend (its own native DAQP workspace, if it has one)."""
+        if self._workspaces is None:
+            return self._backend.solve(self.solver_qps[k])
+        workspace = self._workspaces[k]
+        exitflag, defect, elapsed = workspace.solve()
+        if exitflag >= 1 and np.isfinite(defect):
+            return QPSolution(workspace.x.copy(), True, "optimal", elapsed, defect)
+        return QPSolution(None, False, _native_status(exitflag, defect), elapsed)
+
+    def _write_band(self, k: int, v: np.ndarray, target: QP) -> None:
+        """Level k's band rows, at its answer ``v``, into the QP ``target`` of a level below."""
+        (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
+        n, start = target.n, self.band_start[k]
+        rows_start = n * n + n
+        kernels.band_rows(self._controller._stack_t, first, last, first_p, last_p, v, self.qps[0].lb,
+                          self.qps[0].ub, BAND, target.data, rows_start + start * n,
+                          rows_start + (target.n_ineq + target.n_eq) * n + n + start)
+
+    def _failure(self, k: int, solution: QPSolution) -> QPSolution:
+        """Level k failed: its warm start is dropped; the failure names the level."""
+        self.failed = k
+        if self._workspaces is not None:
+            self._workspaces[k].reset()
+        else:
+            self._backend.reset()
+        return solution._replace(status=f"level {k}: {solution.status}")
+
+
+def _native_status(exitflag: int, defect: float) -> str:
+    """Why a native DAQP solve's answer was not taken (the texts of :class:`wbc.solvers.DaqpBackend`)."""
+    from . import daqp_abi
+
+    if exitflag < 1:
+        return daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}")
+    if not np.isfinite(defect):
+        return "answer not finite"
+    return f"answer violates the QP's constraints by {defect:.1e} (relative)"
+
+
+class CascadeFallback(Fallback):
+    """The fallback chain of a hierarchy (:class:`wbc.fallback.Fallback`): its elastic re-solve is
+    the cascade from the level that failed on, each level by DAQP with the soft rows elastic and
+    the band rows of the levels above hard."""
+
+    def __init__(self, hierarchy: Hierarchy, plain: Fallback) -> None:
+        super().__init__(plain.soft_rows, plain.budget, plain.strict)
+        self._hierarchy = hierarchy
+
+    @property
+    def budget(self) -> dict:
+        """DAQP settings of the elastic solves: the main backend's budget, and DAQP_PRIMAL_TOL."""
+        return self._budget
+
+    @budget.setter
+    def budget(self, budget: dict) -> None:
+        self._budget = {**budget, "primal_tol": DAQP_PRIMAL_TOL}
+
+    def elastic_solve(self, qp: QP) -> QPSolution:
+        """The elastic cascade from :attr:`Hierarchy.failed` (``qp``, the last level's, is solved last)."""
+        hierarchy = self._hierarchy
+        return hierarchy.cascade(hierarchy.failed, lambda k: Fallback.elastic_solve(self, hierarchy.solver_qps[k]))
