@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .errors import WbcError
+from .hierarchy import level_errors, level_optima
 from .outcome import Outcome
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -41,11 +42,17 @@ class TickDiagnostics:
       [m/s]); keys like ``"FrameTask(ee).position"``;
     * ``max_violation`` -- largest violation of any bound or row by the command;
     * ``active_constraints`` -- labels of the bounds / rows holding with equality (within
-      :data:`ACTIVE_TOLERANCE`), e.g. ``"JointVelocityLimits: arm_joint_2 upper"``.
+      :data:`ACTIVE_TOLERANCE`), e.g. ``"JointVelocityLimits: arm_joint_2 upper"``;
+    * ``level_errors`` -- per priority level, highest first (one entry without levels), the
+      weighted residual ``|A_k v - b_k|`` of its tasks at the command (the square root of the
+      level's cost, as in the QP, before the damping); ``level_optima`` -- the same at the
+      level's own answer, the best it could do below the levels above it (NaN for a level that
+      was not solved). ``level_errors[k] - level_optima[k]`` is what the levels below cost level
+      k: zero up to the band (:data:`wbc.hierarchy.BAND`) and the backend's tolerance.
     """
 
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
-                 "_controller", "_task_errors", "_active", "_violation")
+                 "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 
     def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
                  tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
@@ -56,6 +63,8 @@ class TickDiagnostics:
         self._task_errors: dict[str, float] | None = None
         self._active: list[str] | None = None
         self._violation: float | None = None
+        self._level_errors: list[float] | None = None
+        self._level_optima: list[float] | None = None
 
     def _source(self) -> Controller:
         if self._controller._tick != self.tick:
@@ -86,9 +95,21 @@ class TickDiagnostics:
             self._active = [] if self.v is None else self._source().active_constraints(self.v)
         return self._active
 
+    @property
+    def level_errors(self) -> list[float]:
+        if self._level_errors is None:
+            self._level_errors = level_errors(self._source(), self.v)
+        return self._level_errors
+
+    @property
+    def level_optima(self) -> list[float]:
+        if self._level_optima is None:
+            self._level_optima = level_optima(self._source(), self.v, self.outcome is not Outcome.ZERO)
+        return self._level_optima
+
     def freeze(self) -> TickDiagnostics:
         """Compute every lazy field now, so the record stays readable after later ticks."""
-        _ = self.task_errors, self.max_violation, self.active_constraints
+        _ = self.task_errors, self.max_violation, self.active_constraints, self.level_errors, self.level_optima
         return self
 
     def __repr__(self) -> str:
