@@ -74,8 +74,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: relative half-width of the band that holds a level's task values below it (see the module docstring)
 BAND = 1e-9
-#: DAQP's primal tolerance in a hierarchy's solves (at most; its default, 1e-6, would let a band row
-#: 1e-9 wide be violated by up to 1e-6): every level and the elastic fallback
+#: DAQP's primal tolerance in a hierarchy's levels (at most; its default, 1e-6, would let a band row
+#: 1e-9 wide be violated by up to 1e-6). Not in the elastic fallback: DAQP's soft mode reported
+#: feasible levels infeasible with it (1e-8 too)
 DAQP_PRIMAL_TOL = 1e-10
 #: qpsolvers backends that take a positive semidefinite H: the levels above the last reach them
 #: unregularised (exact). DAQP and quadprog factorise H and get the floor; with it (cond 1e10)
@@ -303,9 +304,10 @@ class Hierarchy:
         self.answers = self._native_answers
         return QPSolution(workspace.x.copy(), True, "optimal", elapsed, defect)
 
-    def cascade(self, start: int, solve: Callable[[int], QPSolution]) -> QPSolution:
+    def cascade(self, start: int, solve: Callable[[int], QPSolution], check: bool = True) -> QPSolution:
         """Levels ``start`` onward, each by ``solve(k)`` (the levels above hold their answers and
-        bands from this tick); each answer is checked against its QP and writes its band."""
+        bands from this tick); each answer is checked against its QP (unless ``solve`` checks
+        what must hold itself: the elastic solves) and writes its band."""
         c = self._controller
         self.answers = self.answers[:start] + [None] * (self.count - start)
         elapsed = 0.0
@@ -317,9 +319,9 @@ class Hierarchy:
             if not solution.success:
                 return self._failure(k, solution._replace(solve_time=elapsed))
             defect = solution.defect
-            if defect is None:
+            if defect is None and check:
                 defect = kernels.qp_defect(self.solver_qps[k].data, solution.x)
-            if defect > ANSWER_TOLERANCE:
+            if check and defect > ANSWER_TOLERANCE:
                 status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
                 return self._failure(k, QPSolution(None, False, status, elapsed))
             v = solution.x if self._reductions is None else c._S @ solution.x
@@ -377,16 +379,8 @@ class CascadeFallback(Fallback):
         super().__init__(plain.soft_rows, plain.budget, plain.strict)
         self._hierarchy = hierarchy
 
-    @property
-    def budget(self) -> dict:
-        """DAQP settings of the elastic solves: the main backend's budget, and DAQP_PRIMAL_TOL."""
-        return self._budget
-
-    @budget.setter
-    def budget(self, budget: dict) -> None:
-        self._budget = {**budget, "primal_tol": DAQP_PRIMAL_TOL}
-
     def elastic_solve(self, qp: QP) -> QPSolution:
         """The elastic cascade from :attr:`Hierarchy.failed` (``qp``, the last level's, is solved last)."""
         hierarchy = self._hierarchy
-        return hierarchy.cascade(hierarchy.failed, lambda k: Fallback.elastic_solve(self, hierarchy.solver_qps[k]))
+        return hierarchy.cascade(hierarchy.failed, lambda k: Fallback.elastic_solve(self, hierarchy.solver_qps[k]),
+                                 check=False)
