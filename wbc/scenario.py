@@ -11,7 +11,10 @@ wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are
     [controller]      solver = "daqp", dt = 0.01 [s] (> 0, <= duration), duration = 10.0 [s]
                       (> 0, at most 10^7 ticks), damping = 1e-3 (>= 0), reduced = false (a boolean:
                       solve over the real inputs of a nonholonomic base)
-    [[tasks]]         type = a name in TASK_TYPES; the other keys are arguments of its constructor
+    [[tasks]]         type = a name in TASK_TYPES; the other keys are arguments of its constructor;
+                      level = 0 (optional, an integer >= 0): the task's priority level, 0 highest
+                      (strict priorities, wbc.hierarchy; all at 0: one weighted level); levels
+                      must be 0, 1, ... without gaps
     [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise
                       (``target = "initial"`` in a PostureTask means initial_configuration)
     [reference]       type = "circle" (radius, period [s], normal, start_axis, ramp_time [s])
@@ -93,6 +96,12 @@ class Entry(Table):
     type: str
 
 
+class TaskEntry(Entry):
+    """A ``[[tasks]]`` entry: also its priority ``level`` (0 highest)."""
+
+    level: Annotated[int, Field(ge=0)] = 0
+
+
 class CircleReference(Table):
     type: Literal["circle"]
     task: str | None = None
@@ -155,7 +164,7 @@ class ScenarioFile(Table):
     name: str | None = None
     robot: RobotTable
     controller: ControllerTable = ControllerTable()
-    tasks: list[Entry] = []
+    tasks: list[TaskEntry] = []
     constraints: list[Entry] = []
     reference: Reference | None = None
 
@@ -178,6 +187,8 @@ class Scenario:
     reference_task: FrameTask | PositionTask | None = None
     source: Path | None = None
     spec: dict = field(default_factory=dict)
+    #: the priority level of each task (``[[tasks]] level``); empty: one level
+    levels: list[int] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if type(self.reduced) is not bool:
@@ -187,8 +198,16 @@ class Scenario:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value < math.inf):
                 raise ScenarioError(f"{name} must be a finite number > 0 [s], got {value!r}")
 
+    @property
+    def task_levels(self) -> list:
+        """The ``tasks`` argument of the controller: the tasks, or one list per level (highest first)."""
+        if not self.levels:
+            return self.tasks
+        return [[task for task, level in zip(self.tasks, self.levels, strict=True) if level == k]
+                for k in range(max(self.levels) + 1)]
+
     def make_controller(self, solver: str | None = None) -> Controller:
-        return Controller(self.robot, self.tasks, self.constraints, solver=solver or self.solver,
+        return Controller(self.robot, self.task_levels, self.constraints, solver=solver or self.solver,
                           dt=self.dt, damping=self.damping, reduced=self.reduced)
 
     @property
@@ -222,11 +241,23 @@ def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
     scenario = Scenario(
         name=checked.name or path.stem, robot=robot, q0=q0, tasks=tasks, constraints=constraints,
         solver=control.solver, dt=control.dt, duration=control.duration, damping=control.damping,
-        reduced=control.reduced, source=path, spec=spec,
+        reduced=control.reduced, source=path, spec=spec, levels=_levels(checked.tasks),
     )
     if checked.reference is not None:
         scenario.reference_task, scenario.reference = _reference(checked.reference, tasks, robot, q0)
     return scenario
+
+
+def _levels(entries: list[TaskEntry]) -> list[int]:
+    """The ``level`` of each ``[[tasks]]`` entry, or ``[]`` when all are at level 0 (one level)."""
+    levels = [entry.level for entry in entries]
+    if not any(levels):
+        return []
+    missing = sorted(set(range(max(levels))) - set(levels))
+    if missing:
+        raise ScenarioError(f"[[tasks]] level = {max(levels)} but no task has level = {missing[0]}; "
+                            "levels must be 0, 1, 2, ... without gaps (0 is the highest priority)")
+    return levels
 
 
 def _robot(table: RobotTable, path: Path) -> Robot:
