@@ -74,10 +74,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: relative half-width of the band that holds a level's task values below it (see the module docstring)
 BAND = 1e-9
-#: DAQP's primal tolerance in a hierarchy's levels (at most; its default, 1e-6, would let a band row
-#: 1e-9 wide be violated by up to 1e-6). Not in the elastic fallback: DAQP's soft mode reported
-#: feasible levels infeasible with it (1e-8 too)
-DAQP_PRIMAL_TOL = 1e-10
 #: qpsolvers backends that take a positive semidefinite H: the levels above the last reach them
 #: unregularised (exact). DAQP and quadprog factorise H and get the floor; with it (cond 1e10)
 #: Clarabel and HiGHS stopped short of their tolerances on every tick of a tracked circle
@@ -206,7 +202,6 @@ class Hierarchy:
             self.solver_qps = [reduction.qp for reduction in self._reductions]
         self._upper_scaling = np.zeros(2)  # (damping, floor) of the levels above the last: set by add_ops
         self._settings = np.array([ANSWER_TOLERANCE, BAND])  # operand of the BAND op
-        self._backend = controller.solver  # what solves the levels (DAQP: with DAQP_PRIMAL_TOL)
         self._workspaces: list[NativeWorkspace] | None = None
         self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
         #: each level's answer (over v) in the latest tick; None for a level not solved
@@ -247,15 +242,11 @@ class Hierarchy:
             scaling = c._cost_scaling if k == self.count - 1 else self._upper_scaling
             rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
             rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
-        solver = self._backend = c.solver
+        solver = c.solver
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
         self._workspaces = None
-        if isinstance(solver, DaqpBackend):
-            tolerance = min(solver.settings.get("primal_tol", DAQP_PRIMAL_TOL), DAQP_PRIMAL_TOL)
-            self._backend = solver = DaqpBackend({**solver.settings, "primal_tol": tolerance,
-                                                  "warm_start": solver.warm_start})
-            if solver.native:
-                self._workspaces = [solver.workspace(qp) for qp in self.solver_qps]
+        if isinstance(solver, DaqpBackend) and solver.native:
+            self._workspaces = [solver.workspace(qp) for qp in self.solver_qps]
         self.in_program = self._workspaces is not None and not c.reduced
         if self.in_program:
             for k, workspace in enumerate(self._workspaces):
@@ -333,7 +324,7 @@ class Hierarchy:
     def _solve_level(self, k: int) -> QPSolution:
         """Level k by the controller's backend (its own native DAQP workspace, if it has one)."""
         if self._workspaces is None:
-            return self._backend.solve(self.solver_qps[k])
+            return self._controller.solver.solve(self.solver_qps[k])
         workspace = self._workspaces[k]
         exitflag, defect, elapsed = workspace.solve()
         if exitflag >= 1 and np.isfinite(defect):
@@ -355,7 +346,7 @@ class Hierarchy:
         if self._workspaces is not None:
             self._workspaces[k].reset()
         else:
-            self._backend.reset()
+            self._controller.solver.reset()
         return solution._replace(status=f"level {k}: {solution.status}")
 
 
