@@ -408,3 +408,24 @@ def test_the_priorities_scenario_holds_the_pose_and_improves_the_posture_in_the_
     null = scipy.linalg.null_space(robot.frame_jacobian(q, "ee"))
     assert np.linalg.norm(null[ARM].T @ error) < 1e-6 * np.linalg.norm(error)  # as far as it can
     assert np.all(robot.within_limits(q))
+
+
+# -------------------------------------------------------------------- benchmark harness
+def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
+    """benchmarks/priorities.py (correctness only: no timing is asserted)."""
+    import sys
+
+    from conftest import ROOT
+
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from benchmarks import priorities
+
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    one, two = priorities.controllers(scenario).values()
+    assert one._hierarchy is None and two.levels == [[scenario.reference_task], scenario.tasks[1:]]
+    times, fallbacks = priorities.measure(scenario, 40)
+    assert all(values.shape == (40,) and np.all(values > 0) for values in times.values())
+    assert list(fallbacks.values()) == [0, 0]
+    assert priorities.main(["--repeats", "1", "--ticks", "30", "--warmup", "5"]) == 0
+    assert "median ratio 2 levels / 1 level:" in capsys.readouterr().out
