@@ -3,7 +3,7 @@
     python -m benchmarks.priorities [tasks/youbot_circle.toml] [--repeats 5] [--ticks 2000]
 
 The scenario's reference task (the gripper's FrameTask) is level 0 of the strict controller and
-every other task is level 1; the weighted controller is the scenario's own (one level). Both
+every other task is level 1; the weighted controller has the same tasks in one level. Both
 step the same closed loop (the weighted controller's q) tick by tick, in alternating order, so
 machine noise hits both alike; each repeat reports both medians and their ratio (the number
 to read), and the summary the median ratio over the repeats with its spread.
@@ -24,12 +24,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def controllers(scenario: Scenario) -> dict[str, wbc.Controller]:
-    """The scenario's controller (one level) and the two-level one (reference task over the rest)."""
+    """The scenario's tasks as one weighted level, and as two (the reference task over the rest)."""
     first = scenario.reference_task
     rest = [task for task in scenario.tasks if task is not first]
-    strict = wbc.Controller(scenario.robot, [[first], rest], scenario.constraints, solver=scenario.solver,
-                            dt=scenario.dt, damping=scenario.damping, reduced=scenario.reduced)
-    return {"1 level (weighted)": scenario.make_controller(), "2 levels (strict)": strict}
+    settings = dict(solver=scenario.solver, dt=scenario.dt, damping=scenario.damping, reduced=scenario.reduced)
+    return {"1 level (weighted)": wbc.Controller(scenario.robot, scenario.tasks, scenario.constraints, **settings),
+            "2 levels (strict)": wbc.Controller(scenario.robot, [[first], rest], scenario.constraints, **settings)}
 
 
 def measure(scenario: Scenario, ticks: int) -> tuple[dict[str, np.ndarray], dict[str, int]]:

@@ -20,19 +20,26 @@ targets within the constraints (infeasible alone) takes its least-squares optimu
 levels below still use whatever freedom remains.
 
 **The relaxation.** Each band row is two inequality rows ``+-a v <= +-y_a + eps_a`` with
-``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``: the rounding of ``y_a`` and the
-backends' tolerances never make a level infeasible (its own answer is feasible for the next),
-and linearly dependent rows (two tasks of one level asking for the same thing) need no rank
-decision. ``v_j`` is projected onto the bounds before ``y_a`` is taken, so an answer a hair
-outside a bound does not move the band off it.
+``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``: the rounding of ``y_a`` never makes a
+level infeasible (its own answer is feasible for the next), and linearly dependent rows (two
+tasks of one level asking for the same thing) need no rank decision. ``v_j`` is projected onto
+the bounds before ``y_a`` is taken, so an answer a hair outside a bound does not move the band
+off it. A backend may stop outside a band row by its own primal tolerance, like outside any row:
+DAQP's (default 1e-6, in its scaled rows; measured up to 8e-7 relative) is then the effective
+relaxation, within the answer check of every tick (:data:`wbc.fallback.ANSWER_TOLERANCE`). A
+tighter one (``solver_options={"primal_tol": 1e-9}``) holds the bands closer, but DAQP then
+called some feasible levels infeasible when a level above saturated the limits (1.5% of the
+ticks of a fast reach, answered by the fallback).
 
 **Damping.** The controller's ``damping |v|^2`` belongs to the last level only: it regularises
 the command, as in one level. A level above it has a cost that is flat along its null space
-(``A_k^T A_k`` is singular when the level has fewer rows than ``nv``); it gets only the
-regularisation floor of every QP (:data:`wbc.controller.DAMPING_FLOOR` = 1e-10 of its largest
-curvature, :func:`wbc.kernels.normalise_cost`), which makes its v unique for the backends and
-moves its task values by at most ~1e-10 relative along directions of that curvature (tested
-against the pseudo-inverse).
+(``A_k^T A_k`` is singular when the level has fewer rows than ``nv``), which leaves its v -- not
+its task values -- undetermined. Backends that factorise H (DAQP, quadprog, and any backend not
+in :data:`SEMIDEFINITE_SOLVERS`) get the regularisation floor of every QP there
+(:data:`wbc.controller.DAMPING_FLOOR` = 1e-10 of the level's largest curvature,
+:func:`wbc.kernels.normalise_cost`): it moves the level's task values by ``1e-10 / c``
+relative along a direction of relative curvature c (< 1e-7 in the tests against the
+pseudo-inverse). The others take a semidefinite H and get the level as it is: exact.
 
 **Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.daqp_native`)
 the whole cascade -- each level's QP, solve, answer check and band -- runs inside the tick
@@ -42,8 +49,13 @@ solved from Python, the bands written by the same kernel.
 
 **Fallback.** When a level's solve fails (or its answer does not check), the cascade is re-solved
 from that level on by DAQP with the soft rows elastic (:meth:`wbc.fallback.Fallback.elastic_solve`;
-the band rows, like the hard limits, stay hard): the hierarchy is kept. If that fails too, the
-command is ``v = 0``.
+the band rows, like the hard limits, stay hard): the hierarchy is kept, and where the soft rows
+can hold, the elastic answer is the level's exact one. If that fails too, the command is
+``v = 0``. The first-order and interior-point backends (OSQP, ProxQP, Clarabel, PIQP) and HiGHS
+report some levels below a saturated one as infeasible or unsolved -- their feasible set is then
+a thin sliver around the answer above -- and those ticks are answered by the elastic cascade (the
+README has the measured rates); DAQP and quadprog, exact active-set methods, solved every level
+of the tests and scenarios.
 
 **Steering preview.** Tasks that need the holonomic preview (SteeringTask) get the cascade of the
 hierarchy without constraints (:func:`wbc.kernels.hierarchy_preview`: the classical null-space
