@@ -72,6 +72,7 @@ import numpy as np
 from . import kernels
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
+from .kernels import DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME
 from .layout import TaskStack
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -91,6 +92,7 @@ BAND = 1e-9
 #: Clarabel and HiGHS stopped short of their tolerances on every tick of a tracked circle
 SEMIDEFINITE_SOLVERS = frozenset({"clarabel", "highs", "osqp", "piqp", "proxqp"})
 
+_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)  # exit flag, defect, solve time [s]
 _REDUCTION_FAILURE = "reduced form: a constraint bounded the coupled base rates x, y"
 
 
@@ -253,7 +255,8 @@ class Hierarchy:
                          source_size=first_qp.data.size, target_size=qp.data.size)
             scaling = c._cost_scaling if k == self.count - 1 else self._upper_scaling
             rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
-            rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+            screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
+            rest.add(kernels.OP_HAS_NAN, data=screened, size=screened.size, infinite=0)
         solver = c.solver
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
         self._workspaces = None
@@ -266,6 +269,8 @@ class Hierarchy:
                 for j in range(k + 1, self.count):
                     self._add_band_op(rest, k, workspace, self.qps[j])
             self._native_answers = [workspace.x for workspace in self._workspaces]
+            self._last_control = self._workspaces[-1].control
+            self._upper_controls = [workspace.control for workspace in self._workspaces[:-1]]
         return python_preview, rest, self.solver_qps[-1], self.in_program
 
     def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
@@ -280,16 +285,17 @@ class Hierarchy:
 
     def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
         """The control loop's fast path with the cascade in the program: ``(x, solve time [s])``
-        when every level solved and its answer's defect is at most ``tolerance``; None
-        otherwise (then :meth:`solve` says which level failed)."""
-        elapsed = 0.0
-        for workspace in self._workspaces:
-            exitflag, defect, spent = workspace.outcome()
-            if exitflag < 1 or not defect <= tolerance:
-                return None
-            elapsed += spent
-        self.answers = self._native_answers
-        return workspace.x.copy(), elapsed
+        when the last level solved and its answer's defect is at most ``tolerance`` -- which the
+        program's BAND ops allow only after every level above did the same, with
+        :data:`wbc.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
+        level failed)."""
+        exitflag, defect, elapsed = self._last_control[_OUTCOME].tolist()
+        if exitflag >= 1.0 and defect <= tolerance:
+            for control in self._upper_controls:
+                elapsed += control.item(DAQP_CONTROL_TIME)
+            self.answers = self._native_answers
+            return self._native_answers[-1].copy(), elapsed
+        return None
 
     # -------------------------------------------------------------------- tick
     def solve(self) -> QPSolution:
