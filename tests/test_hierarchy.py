@@ -429,3 +429,21 @@ def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
     assert list(fallbacks.values()) == [0, 0]
     assert priorities.main(["--repeats", "1", "--ticks", "30", "--warmup", "5"]) == 0
     assert "median ratio 2 levels / 1 level:" in capsys.readouterr().out
+
+
+def test_the_plot_of_priorities_shows_the_posture_next_to_the_weighted_stack():
+    """`wbc run ..._weighted.toml ...priorities.toml --plot`: a posture panel with both runs,
+    starting at the posture error of the initial configuration (1 rad: written out here)."""
+    from wbc.closed_loop import posture_traces
+    from wbc.plotting import figure
+
+    runs = [(scenario, run(scenario, duration=0.3)) for scenario in
+            (load_scenario(TASKS / f"{name}.toml") for name in ("youbot_priorities_weighted", "youbot_priorities"))]
+    series = posture_traces(runs)
+    start = np.linalg.norm(np.array([-0.8, 0.9, 0.6, 1.4, 0.0]) - np.array([0.0, 0.5, 1.0, 1.2, 0.0]))
+    assert [s.shape for s in series] == [(31,), (31,)] and series[0][0] == series[1][0] == pytest.approx(start)
+    assert series[1][-1] < 0.9 * start  # the posture improves at level 1
+    axes = {ax.get_label(): ax for ax in figure(runs).axes}
+    assert [line.get_label() for line in axes["posture"].get_lines()] == [scenario.name for scenario, _ in runs]
+    circle = load_scenario(TASKS / "youbot_circle.toml")
+    assert posture_traces([(circle, run(circle, duration=0.05))]) is None  # no levels: no panel

@@ -12,7 +12,7 @@ from .constraints import ManipulabilityBarrier
 from .controller import Controller
 from .manipulability import manipulability
 from .scenario import Scenario
-from .tasks import FrameTask, ManipulabilityTask
+from .tasks import FrameTask, ManipulabilityTask, PostureTask
 
 
 @dataclass
@@ -170,6 +170,25 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
                                          for item in scenario.constraints)
                for scenario, _ in runs]
     return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded)
+
+
+def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[np.ndarray | None] | None:
+    """When some scenario has priority levels: the error ``|q* (-) q|`` of the first PostureTask
+    of every run at each recorded configuration (one (T+1,) array per run, None for a run
+    without one) -- how far the posture got in the null space, next to the same stack weighted;
+    None when no scenario has levels."""
+    if not any(scenario.levels for scenario, _ in runs):
+        return None
+    series = []
+    for scenario, result in runs:
+        task = next((task for task in scenario.tasks if isinstance(task, PostureTask)), None)
+        if task is None:
+            series.append(None)
+            continue
+        data, model = task.bind(scenario.robot), scenario.robot.model
+        series.append(np.array([np.linalg.norm(pin.difference(model, q, data.target)[data.indices])
+                                for q in result.q]))
+    return series
 
 
 def _true_error(robot, task, q: np.ndarray, target: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .closed_loop import RunResult, manipulability_traces
+from .closed_loop import RunResult, manipulability_traces, posture_traces
 from .robot import Robot
 from .scenario import Scenario
 
@@ -90,8 +90,9 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     Panels (``ax.get_label()``): ``position`` and ``orientation`` error (the latter only if a
     run tracks the orientation), one speed panel per group of :func:`speed_groups` (``base``,
     ``wheels``, ``arm``; one run shows every joint, several the largest ratio of each run),
-    ``latency``, ``paths`` (top view, start and end marked) and, when a scenario watches the
-    manipulability, ``m``.
+    ``latency``, ``paths`` (top view, start and end marked), when a scenario watches the
+    manipulability, ``m``, and when a scenario has priority levels, ``posture`` (the error of
+    each run's PostureTask, :func:`wbc.closed_loop.posture_traces`).
     """
     if not runs:
         raise ValueError("figure() needs at least one (scenario, result) pair")
@@ -103,9 +104,11 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     results = [result for _, result in runs]
     groups = [speed_groups(scenario.robot, result) for scenario, result in runs]
     trace = manipulability_traces(runs)
+    postures = posture_traces(runs)
     error_keys = ["position"] + (["orientation"] if any(r.orientation_tracked for r in results) else [])
     speed_keys = [key for key in ("base", "wheels", "arm") if any(g.key == key for gs in groups for g in gs)]
     layout = [_row(error_keys), _row(speed_keys), _row(["latency", "paths"])] + ([_row(["m"])] if trace else [])
+    layout += [_row(["posture"])] if postures else []
     fig, axes = plt.subplot_mosaic(layout, figsize=(13, 3.8 * len(layout)), constrained_layout=True)
     colors = [plt.rcParams["axes.prop_cycle"].by_key()["color"][k % 10] for k in range(len(runs))]
     several = len(runs) > 1
@@ -163,6 +166,15 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
             ax.axhline(trace.min_value, color="k", ls="--", lw=1, label=f"m_min = {trace.min_value:g}")
         ax.set(title=f"Manipulability m of '{trace.frame}' ({trace.rows} rows)", xlabel="time [s]", ylabel="m",
                ylim=(0, None))
+        ax.legend(fontsize=7)
+        ax.grid(True, alpha=0.3)
+
+    if postures:
+        ax = axes["posture"]
+        for result, series, color in zip(results, postures, colors, strict=True):
+            if series is not None:
+                ax.plot(np.arange(series.size) * result.dt, series, color=color, label=result.scenario)
+        ax.set(title="Posture error ‖q* ⊖ q‖ of the PostureTask", xlabel="time [s]", ylabel="[rad]", ylim=(0, None))
         ax.legend(fontsize=7)
         ax.grid(True, alpha=0.3)
 
