@@ -178,12 +178,14 @@ def level_errors(controller: Controller, v: np.ndarray) -> list[float]:
 
 
 def level_optima(controller: Controller, v: np.ndarray, answered: bool) -> list[float]:
-    """``|A_k v_k - b_k|`` of each level at its own answer ``v_k`` (a flat controller's is the command,
-    when a solve ``answered`` it); NaN for a level that was not solved."""
+    """``|A_k v_k - b_k|`` of each level at its own answer ``v_k`` (a flat controller's is the command);
+    NaN for a level that was not solved, and for every level when no solve ``answered`` the tick
+    (the zero command)."""
     hierarchy = controller._hierarchy
     if hierarchy is None:
         return level_errors(controller, v if answered else None)
-    return [hierarchy.rows.residuals(controller._stack, answer, k) for k, answer in enumerate(hierarchy.answers)]
+    answers = hierarchy.answers if answered else [None] * hierarchy.count
+    return [hierarchy.rows.residuals(controller._stack, answer, k) for k, answer in enumerate(answers)]
 
 
 class Hierarchy:
