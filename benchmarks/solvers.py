@@ -1,7 +1,7 @@
 """QP solver comparison on wbc's control QPs: qpbenchmark on the wbc test set, then wbc's tables.
 
     python -m benchmarks.solvers [--ticks 200] [--settings default high_accuracy ...]
-                                 [--solvers daqp osqp ...] [--scenarios ...] [--no-warm]
+                                 [--solvers daqp osqp ...] [--scenarios ...] [--qpbenchmark-only]
                                  [--out benchmarks/output/solvers]
 
 1. The test set is :class:`benchmarks.wbc_qpbenchmark.WbcQpbenchmark`: ``--ticks`` ticks of
@@ -9,17 +9,19 @@
    bound or inequality where the scenario has both.
 2. qpbenchmark runs it (``qpbenchmark.run``: every installed solver it knows, at its settings
    ``default``, ``high_accuracy`` (1e-9), ``low_accuracy`` (1e-3), ``mid_accuracy`` (1e-6),
-   one timed cold solve per problem, solver and settings), part by part (``PART_TICKS`` ticks:
-   its results table grows by a pandas concatenation per solve, quadratic in the set's size).
-   Output: ``results.csv`` (qpbenchmark's format) and qpbenchmark's own report
-   ``wbc_qpbenchmark.md`` in ``--out``.
-3. From the same solves, ``report.md``: qpbenchmark's metrics (success rate, shifted geometric
-   mean of runtimes with shift 10 s, failures at the time limit, and of residuals), plus what they
-   leave out on µs-scale QPs (the same mean with shift 10 µs, the median, the share of solves
-   slower than the control period, the largest residuals, the distance to the reference
-   solution), per scenario and with / without active constraints; then a warm-start pass
-   (qpbenchmark is cold-start only): the backends whose qpsolvers wrapper uses ``initvals``,
-   cold and warm from the previous tick's reference solution, in a random order per problem.
+   one timed cold solve per problem, solver and settings, in that order), part by part
+   (``PART_TICKS`` ticks: its results table grows by a pandas concatenation per solve,
+   quadratic in the set's size). Output: ``results.csv`` (qpbenchmark's format) and
+   qpbenchmark's own report ``wbc_qpbenchmark.md`` in ``--out``.
+3. wbc's back-to-back pass: per problem, every solver and settings cold, and warm from the
+   previous tick's reference solution for the backends whose qpsolvers wrapper uses
+   ``initvals`` (qpbenchmark is cold-start only), all in a random order, with nothing run in
+   between (qpbenchmark records each result in pandas between two solves).
+4. ``report.md``: qpbenchmark's metrics (success rate, shifted geometric mean of runtimes with
+   shift 10 s, failures at the time limit, and of residuals), plus what they leave out on
+   µs-scale QPs (the same mean with shift 10 µs, median, p99, solves slower than the control
+   period, largest residuals, distance to the reference solution), per scenario and with /
+   without active constraints; the back-to-back pass next to qpbenchmark's; plots.
 
 Conventions and where they differ from qpbenchmark's: benchmarks/README.md, section 2.
 """
@@ -140,17 +142,15 @@ def result_row(source: str, problem: WbcProblem, solver: str, settings: str, war
             "primal_residual": primal, "dual_residual": dual, "duality_gap": gap, **extras}
 
 
-def warm_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bool = True) -> list[dict]:
-    """Cold and warm solves (``initvals`` = the previous tick's reference solution) of the backends
-    whose qpsolvers wrapper uses it, every settings, in a random order per problem."""
+def back_to_back_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bool = True) -> list[dict]:
+    """Per problem, every solver and settings cold, and warm (``initvals`` = the previous tick's
+    reference solution) for the backends whose qpsolvers wrapper uses it, in a random order."""
     rng = np.random.default_rng(seed)
-    configs = [(solver, settings, warm) for solver in sorted(test_set.solvers) if WARM_START.get(solver)
-               for settings in test_set.solver_settings for warm in (False, True)]
-    rows: list[dict] = []
-    if not configs:
-        return rows
+    configs = [(solver, settings, warm) for solver in sorted(test_set.solvers) for settings in test_set.solver_settings
+               for warm in ((False, True) if WARM_START.get(solver) else (False,))]
     problems = list(test_set)
-    iterator = progress(problems, desc="warm start", unit="QP") if show_progress else problems
+    iterator = progress(problems, desc="back to back", unit="QP") if show_progress else problems
+    rows: list[dict] = []
     with _quiet_logging():
         for problem in iterator:
             for i in rng.permutation(len(configs)):
@@ -160,8 +160,8 @@ def warm_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bool = Tru
                     options["initvals"] = problem.x_previous.copy()
                 solution, runtime = time_solve_problem(problem, solver, **options)
                 residuals = (solution.primal_residual(), solution.dual_residual(), solution.duality_gap())
-                rows.append(result_row("warm start", problem, solver, settings, warm, bool(solution.found), runtime,
-                                       residuals, solution_extras(problem, solution), test_set))
+                rows.append(result_row("back to back", problem, solver, settings, warm, bool(solution.found),
+                                       runtime, residuals, solution_extras(problem, solution), test_set))
     return rows
 
 
@@ -252,22 +252,27 @@ def active_table(rows: list[dict], settings: str, tolerances: dict[str, qpbenchm
     return markdown_table(["solver", "QPs", "success %", "shm µs (shift 10 µs)", "‖x − x_ref‖∞ max"], body)
 
 
-def warm_table(rows: list[dict], tolerances: dict[str, qpbenchmark.Tolerance]) -> str:
+def back_to_back_table(rows: list[dict], second: list[dict], settings: str,
+                       tolerances: dict[str, qpbenchmark.Tolerance]) -> str:
+    """The back-to-back pass (cold, warm where it runs) next to qpbenchmark's pass (``rows``)."""
+    first, stats = config_stats(rows, settings, tolerances), config_stats(second, settings, tolerances)
+    best = min(s["shm_us"] for key, s in stats.items() if not key[1])
     body = []
-    for settings in tolerances:
-        stats = config_stats(rows, settings, tolerances)
-        for solver in sorted({key[0] for key in stats}):
-            cold, warm = stats[solver, False], stats[solver, True]
-            body.append([settings, solver, fmt(cold["shm_us"]), fmt(warm["shm_us"]),
-                         f"{warm['shm_us'] / cold['shm_us']:.2f}", fmt(cold["solve_shm_us"]),
-                         fmt(warm["solve_shm_us"]), f"{warm['solve_shm_us'] / cold['solve_shm_us']:.2f}",
-                         f"{cold['success']:.1f} / {warm['success']:.1f}"])
-    return markdown_table(["settings", "solver", "cold shm µs", "warm shm µs", "warm / cold", "cold solve-only",
-                           "warm solve-only", "warm / cold (solve-only)", "success % cold / warm"], body)
+    for solver in sorted({key[0] for key in stats}, key=lambda solver: stats[solver, False]["shm_us"]):
+        cold, warm = stats[solver, False], stats.get((solver, True))
+        qpb = first[solver, False]
+        body.append([solver, f"{fmt(cold['shm_us'])} ({cold['shm_us'] / best:.2f})", fmt(cold["median_us"]),
+                     fmt(qpb["shm_us"]), f"{qpb['shm_us'] / cold['shm_us']:.2f}",
+                     fmt(warm["shm_us"]) if warm else "-", f"{warm['shm_us'] / cold['shm_us']:.2f}" if warm else "-",
+                     fmt(cold["solve_shm_us"]) + (f" / {fmt(warm['solve_shm_us'])}" if warm else ""),
+                     f"{cold['success']:.1f}" + (f" / {warm['success']:.1f}" if warm else "")])
+    return markdown_table(["solver", "cold shm µs (ratio)", "cold median µs", "qpbenchmark's pass shm µs",
+                           "qpbenchmark's / back to back", "warm shm µs", "warm / cold",
+                           "solve-only shm µs cold / warm", "success % cold / warm"], body)
 
 
 # ------------------------------------------------------------------------ report
-def write_report(rows: list[dict], warm_rows: list[dict], test_set: WbcQpbenchmark, args: argparse.Namespace,
+def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark, args: argparse.Namespace,
                  out: Path, elapsed: float, loads: tuple[float, float]) -> Path:
     tolerances = test_set.tolerances
     index = test_set.index
@@ -283,8 +288,9 @@ def write_report(rows: list[dict], warm_rows: list[dict], test_set: WbcQpbenchma
         f"Dataset v{index['version']} (`{index['generator']}`, commit {index['git_commit']}). Test set "
         f"`benchmarks/wbc_qpbenchmark.py`: {len(test_set.selection)} QPs: {composition}.", "",
         "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
-        "Solved by `qpbenchmark.run` (one timed cold solve per QP, solver and settings; the dense to sparse "
-        "conversion of the sparse backends is not timed, qpsolvers' setup is), qpbenchmark's own report: "
+        "Solved by `qpbenchmark.run` (one timed cold solve per QP, solver and settings, settings in the order "
+        "default, high, low, mid; the dense to sparse conversion of the sparse backends is not timed, qpsolvers' "
+        "setup is), then by wbc's back-to-back pass (below). qpbenchmark's own report: "
         "`wbc_qpbenchmark.md`, its results: `results.csv`. Success (qpbenchmark's): found, primal and dual "
         "residual and duality gap below the settings' tolerance (default 1, high_accuracy 1e-9, mid_accuracy "
         "1e-6, low_accuracy 1e-3" + (", wbc 1e-9" if "wbc" in tolerances else "") + "). Runtime "
@@ -302,12 +308,17 @@ def write_report(rows: list[dict], warm_rows: list[dict], test_set: WbcQpbenchma
     for settings in tolerances:
         lines += ["", f"settings: {settings}", "", active_table(rows, settings, tolerances)]
     lines += [""]
-    if warm_rows:
-        lines += ["### Warm start vs cold start (wbc's pass after qpbenchmark's)", "",
-                  "Warm = `initvals` = the previous tick's reference solution, for the backends whose qpsolvers "
-                  "wrapper uses it (" + ", ".join(f"{s}: {WARM_START[s]}" for s in solvers if WARM_START.get(s))
-                  + "; ignored by " + ", ".join(s for s in solvers if not WARM_START.get(s)) + "); cold and "
-                  "warm solves in a random order per QP.", "", warm_table(warm_rows, tolerances), ""]
+    if second:
+        lines += ["## Back to back (wbc's pass)", "",
+                  "Every solver and settings on each QP in a random order, nothing run in between (in qpbenchmark's "
+                  "pass the solves of a QP go solver by solver, settings in the order default, high, low, mid, with "
+                  "pandas bookkeeping after each). Warm = `initvals` = the previous tick's reference solution, for "
+                  "the backends whose qpsolvers wrapper uses it (" + ", ".join(
+                      f"{s}: {WARM_START[s]}" for s in solvers if WARM_START.get(s)) + "; ignored by " + ", ".join(
+                      s for s in solvers if not WARM_START.get(s)) + "). shm: shift 10 µs.", ""]
+        for settings in tolerances:
+            lines += [f"### back to back, settings: {settings}", "",
+                      back_to_back_table(rows, second, settings, tolerances), ""]
     for sc in test_set.scenarios:
         sc_rows = [r for r in rows if r["scenario"] == sc.name]
         lines += [f"## {sc.name}", "", f"n = {sc.n}, {sc.n_ineq} inequality and {sc.n_eq} equality rows.", ""]
@@ -390,10 +401,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="qpbenchmark's settings; wbc = wbc.solvers.DEFAULT_SETTINGS (default: qpbenchmark's)")
     parser.add_argument("--solvers", nargs="+", help="default: every installed backend qpbenchmark knows")
     parser.add_argument("--scenarios", nargs="+", help="scenario names (default: all in the dataset)")
-    parser.add_argument("--no-warm", action="store_true", help="skip the warm-start pass")
+    parser.add_argument("--qpbenchmark-only", action="store_true", help="skip wbc's back-to-back pass")
     parser.add_argument("--time-limit", type=float, help="[s] (default: the control period of the scenarios)")
     parser.add_argument("--author", default="anonymous", help="GitHub user named in qpbenchmark's report")
-    parser.add_argument("--seed", type=int, default=0, help="order of the warm-start pass")
+    parser.add_argument("--seed", type=int, default=0, help="order of the back-to-back pass")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     args.command_line = "python -m benchmarks.solvers " + " ".join(argv if argv is not None else sys.argv[1:])
@@ -419,10 +430,10 @@ def main(argv: list[str] | None = None) -> int:
         qpbenchmark.Report(args.author, qpbenchmark.Results(str(args.out / "results.csv"), test_set)).write(
             str(args.out / "wbc_qpbenchmark.md"))
     rows = make_rows(df, extras, test_set)
-    warm_rows = [] if args.no_warm else warm_pass(test_set, args.seed, not args.no_progress)
+    second = [] if args.qpbenchmark_only else back_to_back_pass(test_set, args.seed, not args.no_progress)
     elapsed = time.perf_counter() - start
-    write_rows(rows + warm_rows, args.out / "solves.csv")
-    report = write_report(rows, warm_rows, test_set, args, args.out, elapsed, (load_start, os.getloadavg()[0]))
+    write_rows(rows + second, args.out / "solves.csv")
+    report = write_report(rows, second, test_set, args, args.out, elapsed, (load_start, os.getloadavg()[0]))
     plot(rows, args.out)
     for settings in test_set.tolerances:
         print(f"settings: {settings}\n{settings_table(rows, settings, test_set.tolerances)}\n")
