@@ -274,6 +274,7 @@ def back_to_back_table(rows: list[dict], second: list[dict], settings: str,
 # ------------------------------------------------------------------------ report
 def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark, args: argparse.Namespace,
                  out: Path, elapsed: float, loads: tuple[float, float]) -> Path:
+    """``out/report.md``: both passes, per settings, scenario and active / inactive; its path."""
     tolerances = test_set.tolerances
     index = test_set.index
     solvers = sorted({r["solver"] for r in rows})
@@ -332,6 +333,7 @@ def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark,
 
 
 def plot(rows: list[dict], out: Path) -> None:
+    """Runtime distributions and performance profiles (success within τ × the best) per settings."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -382,6 +384,7 @@ def plot(rows: list[dict], out: Path) -> None:
 
 
 def write_rows(rows: list[dict], path: Path) -> None:
+    """One CSV row per solve."""
     with open(path, "w", newline="") as stream:
         writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
         writer.writeheader()
@@ -389,6 +392,7 @@ def write_rows(rows: list[dict], path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m benchmarks.solvers`` / ``wbc bench solvers``: 0 when the report is written."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.solvers", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dataset", type=Path, default=OUTPUT / "dataset",
