@@ -1,282 +1,330 @@
-"""QP solver comparison on the QPs of real control ticks (qpbenchmark methodology).
+"""QP solver comparison on wbc's control QPs: qpbenchmark on the wbc test set, then wbc's tables.
 
-    python -m benchmarks.solvers [--ticks 400] [--repeats 3] [--settings default high low]
-                                 [--solvers daqp osqp ...] [--out benchmarks/output/solvers]
+    python -m benchmarks.solvers [--ticks 200] [--settings default high_accuracy ...]
+                                 [--solvers daqp osqp ...] [--scenarios ...] [--qpbenchmark-only]
+                                 [--out benchmarks/output/solvers]
 
-Every installed qpsolvers backend solves the recorded QPs of :mod:`benchmarks.dataset`
-(generated first if missing) through ``qpsolvers.solve_problem``, at three accuracy
-settings, cold started and — for the backends that use qpsolvers' ``initvals`` — warm
-started from the previous tick's reference solution (what a controller holds as its
-last command).
+1. The test set is :class:`benchmarks.wbc_qpbenchmark.WbcQpbenchmark`: ``--ticks`` ticks of
+   every scenario of :mod:`benchmarks.dataset` (recorded first if missing), half with an active
+   bound or inequality where the scenario has both.
+2. qpbenchmark runs it (``qpbenchmark.run``: every installed solver it knows, at its settings
+   ``default``, ``high_accuracy`` (1e-9), ``low_accuracy`` (1e-3), ``mid_accuracy`` (1e-6),
+   one timed cold solve per problem, solver and settings, in that order), part by part
+   (``PART_TICKS`` ticks: its results table grows by a pandas concatenation per solve,
+   quadratic in the set's size). Output: ``results.csv`` (qpbenchmark's format) and
+   qpbenchmark's own report ``wbc_qpbenchmark.md`` in ``--out``.
+3. wbc's back-to-back pass: per problem, every solver and settings cold, and warm from the
+   previous tick's reference solution for the backends whose qpsolvers wrapper uses
+   ``initvals`` (qpbenchmark is cold-start only), all in a random order, with nothing run in
+   between (qpbenchmark records each result in pandas between two solves).
+4. ``report.md``: qpbenchmark's metrics (success rate, shifted geometric mean of runtimes with
+   shift 10 s, failures at the time limit, and of residuals), plus what they leave out on
+   µs-scale QPs (the same mean with shift 10 µs, median, p99, solves slower than the control
+   period, largest residuals, distance to the reference solution), per scenario and with /
+   without active constraints; the back-to-back pass next to qpbenchmark's; plots.
 
-Methodology (after qpbenchmark, https://github.com/qpsolvers/qpbenchmark):
-
-* settings ``default`` (the solver's own defaults), ``high`` (absolute tolerances 1e-9,
-  relative 0) and ``low`` (1e-3); ``wbc`` (``wbc.solvers.DEFAULT_SETTINGS``) on request;
-* success = solution found **and** primal residual, dual residual and duality gap below
-  the tolerance of the settings (default 1, high 1e-9, low 1e-3) **and** runtime within
-  the time limit (default: the scenario's control period dt — a control QP slower than
-  one tick is useless);
-* runtime = wall time of ``qpsolvers.solve_problem`` (matrix conversion included, as
-  a caller pays it), the minimum of ``--repeats`` back-to-back solves; aggregated as
-  the shifted geometric mean with shift 10 **in microseconds** (qpbenchmark applies
-  shift 10 to seconds for problems of milliseconds to minutes; on µs-scale control QPs a
-  10 s shift would turn the mean into an arithmetic one), failures counted at the
-  time limit; also reported as the ratio to the best configuration;
-* residuals as qpsolvers defines them (absolute, infinity norm), plus the distance
-  ``|x - x_ref|_inf`` to the dataset's high-accuracy reference solution, reported as
-  median and maximum over the found solutions;
-* all configurations solve the same problem back to back in a random order per
-  problem (interleaved: machine noise hits all alike).
-
-Ticks are subsampled evenly per scenario (``--ticks``, default 400; ``--ticks 0`` = all)
-to keep the run to a few minutes on a laptop. Output: ``report.md``, ``results.csv``,
-``runtime_distributions.png``, ``performance_profiles.png`` in ``--out``.
+Conventions and where they differ from qpbenchmark's: benchmarks/README.md, section 2.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import inspect
+import logging
+import os
 import sys
+import tempfile
 import time
-import warnings
-from dataclasses import dataclass
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
+import pandas
+import qpbenchmark
 import qpsolvers
+from qpbenchmark.utils import time_solve_problem
 
 from . import dataset as ds
 from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, progress, shifted_geometric_mean
+from .wbc_qpbenchmark import SETTINGS, TICKS, WbcProblem, WbcQpbenchmark
 
-#: solvers the issue asks for (others found installed are added)
-SOLVERS = ("daqp", "proxqp", "osqp", "quadprog", "clarabel", "piqp", "highs")
-TOLERANCES = {"default": 1.0, "high": 1e-9, "low": 1e-3, "wbc": 1e-9}
+#: ticks per call of ``qpbenchmark.run`` (its cost per solve grows with its results table)
+PART_TICKS = 25
+#: qpbenchmark's shift [s] (its report's runtime and residual means)
+SHIFT_S = 10.0
+#: wbc's shift [µs]: the same 10, in the unit of these runtimes
 SHIFT_US = 10.0
-
 #: does the qpsolvers wrapper (4.x) pass ``initvals`` on to the backend? (read from its source)
 WARM_START = {
     "daqp": "primal_start", "osqp": "warm_start(x)", "proxqp": "x (WARM_START)", "scs": "warm start x",
     "cvxopt": "initvals", "qpoases": None,
     "quadprog": None, "clarabel": None, "piqp": None, "highs": None, "ecos": None,
 }
+_DIST = {"proxqp": "proxsuite", "highs": "highspy"}
+#: qpbenchmark >= 2.4 draws a progress bar per run unless ``verbose`` (then it logs each solve at INFO)
+_QUIET_RUN = {"verbose": True} if "verbose" in inspect.signature(qpbenchmark.run).parameters else {}
 
 
-def accuracy_settings(solver: str, eps: float) -> dict:
-    """Options asking ``solver`` for absolute primal/dual/gap accuracy ``eps`` (relative 0)."""
-    table = {
-        "daqp": {"primal_tol": eps, "dual_tol": eps},
-        "osqp": {"eps_abs": eps, "eps_rel": 0.0},
-        "proxqp": {"eps_abs": eps, "eps_rel": 0.0, "eps_duality_gap_abs": eps, "eps_duality_gap_rel": 0.0},
-        "clarabel": {"tol_feas": eps, "tol_gap_abs": eps, "tol_gap_rel": 0.0},
-        "piqp": {"eps_abs": eps, "eps_rel": 0.0, "check_duality_gap": True, "eps_duality_gap_abs": eps,
-                 "eps_duality_gap_rel": 0.0},
-        "highs": {"primal_feasibility_tolerance": eps, "dual_feasibility_tolerance": eps},
-        "scs": {"eps_abs": eps, "eps_rel": 0.0},
-        "ecos": {"feastol": eps, "abstol": eps, "reltol": 0.0},
-        "cvxopt": {"feastol": eps},
-        "quadprog": {},  # no tolerance parameter: a dual active-set method run to completion
-    }
-    return dict(table.get(solver, {}))
+class ExtendedResults(qpbenchmark.Results):
+    """qpbenchmark's results table, plus per solve what it leaves out: the distance to the
+    reference solution and qpsolvers' ``solve_time`` (without its build phase)."""
+
+    def __init__(self, file_path: Path, test_set: WbcQpbenchmark) -> None:
+        super().__init__(str(file_path), test_set)
+        self.extras: dict[tuple[str, str, str], dict] = {}
+
+    def update(self, problem: WbcProblem, solver: str, settings: str, solution: qpsolvers.Solution,
+               runtime: float) -> None:
+        super().update(problem, solver, settings, solution, runtime)
+        self.extras[problem.name, solver, settings] = solution_extras(problem, solution)
 
 
-def solver_options(solver: str, settings: str) -> dict:
-    if settings == "default":
-        return {}
-    if settings == "wbc":
-        from wbc.solvers import DEFAULT_SETTINGS
-
-        return dict(DEFAULT_SETTINGS.get(solver, {}))
-    return accuracy_settings(solver, TOLERANCES[settings])
-
-
-@dataclass(frozen=True)
-class Config:
-    solver: str
-    settings: str
-    warm: bool
-
-    @property
-    def label(self) -> str:
-        return f"{self.solver} ({'warm' if self.warm else 'cold'})"
+def solution_extras(problem: WbcProblem, solution: qpsolvers.Solution) -> dict:
+    """``ref_error`` = max |x - x_ref| (inf when nothing finite was found), ``solve_time`` [s]."""
+    x = solution.x if solution.found else None
+    finite = x is not None and bool(np.all(np.isfinite(x)))
+    solve_time = getattr(solution, "solve_time", None)
+    return {"ref_error": float(np.max(np.abs(x - problem.x_ref))) if finite else np.inf,
+            "solve_time": np.nan if solve_time is None else float(solve_time)}
 
 
-def make_configs(solvers: list[str], settings: list[str], warm: bool = True) -> list[Config]:
-    configs = []
-    for setting in settings:
-        for solver in solvers:
-            configs.append(Config(solver, setting, False))
-            if warm and WARM_START.get(solver):
-                configs.append(Config(solver, setting, True))
-    return configs
+@contextmanager
+def _quiet_logging() -> Iterator[None]:
+    """qpbenchmark logs to the root logger at INFO: keep its warnings, drop the chatter."""
+    root = logging.getLogger()
+    level = root.level
+    root.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        root.setLevel(level)
 
 
-def run_one(problem: qpsolvers.Problem, config: Config, options: dict, initvals, repeats: int) -> tuple:
-    """Solve ``repeats`` times; return (min wall time, backend time of that run, solution)."""
-    best, solution, backend = np.inf, None, np.nan
-    for _ in range(repeats):
-        start = time.perf_counter()
-        try:
-            result = qpsolvers.solve_problem(problem, solver=config.solver, initvals=initvals, **options)
-        except Exception:  # noqa: BLE001 - a raising backend is a failure, never a crash of the benchmark
-            result = None
-        elapsed = time.perf_counter() - start
-        if elapsed < best:
-            best, solution = elapsed, result
-            backend = getattr(result, "solve_time", None) if result is not None else None
-            backend = np.nan if backend is None else backend
-    return best, backend, solution
+def run_qpbenchmark(test_set: WbcQpbenchmark, show_progress: bool = True) -> tuple[pandas.DataFrame, dict]:
+    """``qpbenchmark.run`` over ``test_set``, part by part: (its results table, the extras)."""
+    frames, extras = [], {}
+    parts = list(test_set.parts(PART_TICKS))
+    iterator = progress(parts, desc="qpbenchmark", unit="part") if show_progress else parts
+    with tempfile.TemporaryDirectory() as folder, _quiet_logging():
+        for i, part in enumerate(iterator):
+            results = ExtendedResults(Path(folder) / f"part{i}.csv", part)
+            qpbenchmark.run(part, results, **_QUIET_RUN)
+            frames.append(results.df)
+            extras.update(results.extras)
+    return pandas.concat(frames, ignore_index=True), extras
 
 
-def benchmark(scenarios: list[ds.ScenarioQPs], configs: list[Config], ticks: int, repeats: int,
-              time_limit: float | None, seed: int = 0, show_progress: bool = True) -> list[dict]:
-    """Solve every sampled tick with every configuration; one result row per (tick, config)."""
-    rng = np.random.default_rng(seed)
-    jobs = []
-    for sc in scenarios:
-        sample = np.arange(sc.ticks) if ticks <= 0 or ticks >= sc.ticks else \
-            np.unique(np.linspace(0, sc.ticks - 1, ticks).round().astype(int))
-        jobs += [(sc, int(k)) for k in sample]
-    options = {(c.solver, c.settings): solver_options(c.solver, c.settings) for c in configs}
+def make_rows(df: pandas.DataFrame, extras: dict, test_set: WbcQpbenchmark) -> list[dict]:
+    """One row per solve: qpbenchmark's columns, the problem's origin, success, the extras."""
+    problems = {problem.name: problem for problem in test_set}
     rows = []
-    iterator = progress(jobs, desc="solvers", unit="QP") if show_progress else jobs
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for sc, k in iterator:
-            problem = sc.problem(k)
-            x_ref = sc.x_ref[k]
-            f_ref = sc.objective(k, x_ref)
-            previous = sc.x_ref[k - 1] if k > 0 else np.zeros(sc.n)
-            limit = time_limit if time_limit is not None else sc.meta.get("dt", 0.01)
-            n_active = int(sc.active[k, :sc.n + sc.n_ineq].sum())
-            for i in rng.permutation(len(configs)):
-                config = configs[i]
-                runtime, backend, solution = run_one(problem, config, options[config.solver, config.settings],
-                                                     previous.copy() if config.warm else None, repeats)
-                found = bool(solution is not None and solution.found and solution.x is not None
-                             and np.all(np.isfinite(solution.x)))
-                if found:
-                    primal, dual, gap = ds.kkt_residuals(problem, solution)
-                    ref_error = float(np.max(np.abs(solution.x - x_ref)))
-                    cost_error = abs(sc.objective(k, solution.x) - f_ref)
-                else:
-                    primal = dual = gap = ref_error = cost_error = np.inf
-                tol = TOLERANCES[config.settings]
-                success = found and primal < tol and dual < tol and gap < tol and runtime <= limit
-                rows.append({
-                    "scenario": sc.name, "tick": k, "n": sc.n, "n_ineq": sc.n_ineq, "n_eq": sc.n_eq,
-                    "n_active": n_active, "solver": config.solver, "settings": config.settings,
-                    "warm": config.warm, "found": found, "success": success, "runtime": runtime,
-                    "backend_time": backend, "time_limit": limit, "primal_residual": primal,
-                    "dual_residual": dual, "duality_gap": gap, "ref_error": ref_error, "cost_error": cost_error,
-                })
+    for record in df.to_dict("records"):
+        problem = problems[record["problem"]]
+        key = (record["problem"], record["solver"], record["settings"])
+        residuals = (record["primal_residual"], record["dual_residual"], record["duality_gap"])
+        rows.append(result_row("qpbenchmark", problem, record["solver"], record["settings"], False,
+                               bool(record["found"]), record["runtime"], residuals, extras[key], test_set))
     return rows
 
 
-# ------------------------------------------------------------------------ report
-def summarize(rows: list[dict]) -> dict:
-    """Aggregate metrics of one configuration over ``rows``."""
-    found = [r for r in rows if r["found"]]
-    runtime = [r["runtime"] * 1e6 if r["success"] else r["time_limit"] * 1e6 for r in rows]
-    backend = [r["backend_time"] * 1e6 for r in rows if r["success"] and np.isfinite(r["backend_time"])]
+def result_row(source: str, problem: WbcProblem, solver: str, settings: str, warm: bool, found: bool,
+               runtime: float, residuals: tuple[float, float, float], extras: dict, test_set: WbcQpbenchmark) -> dict:
+    """A result row of pass ``source``; success as qpbenchmark counts it (found, residuals below
+    the settings' tolerances)."""
+    tolerance = test_set.tolerances[settings]
+    primal, dual, gap = (float(np.nan if value is None else value) for value in residuals)
+    success = found and primal < tolerance.primal and dual < tolerance.dual and gap < tolerance.gap
+    return {"pass": source, "problem": problem.name, "scenario": problem.scenario, "tick": problem.tick,
+            "active": problem.active, "solver": solver, "settings": settings, "warm": warm, "found": found,
+            "success": bool(success), "runtime": float(runtime), "time_limit": tolerance.runtime,
+            "primal_residual": primal, "dual_residual": dual, "duality_gap": gap, **extras}
 
-    def stat(key, fn):
-        values = [r[key] for r in found]
-        return float(fn(values)) if values else float("nan")
+
+def back_to_back_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bool = True) -> list[dict]:
+    """Per problem, every solver and settings cold, and warm (``initvals`` = the previous tick's
+    reference solution) for the backends whose qpsolvers wrapper uses it, in a random order."""
+    rng = np.random.default_rng(seed)
+    configs = [(solver, settings, warm) for solver in sorted(test_set.solvers) for settings in test_set.solver_settings
+               for warm in ((False, True) if WARM_START.get(solver) else (False,))]
+    problems = list(test_set)
+    iterator = progress(problems, desc="back to back", unit="QP") if show_progress else problems
+    rows: list[dict] = []
+    with _quiet_logging():
+        for problem in iterator:
+            for i in rng.permutation(len(configs)):
+                solver, settings, warm = configs[i]
+                options = dict(test_set.solver_settings[settings][solver])
+                if warm:
+                    options["initvals"] = problem.x_previous.copy()
+                solution, runtime = time_solve_problem(problem, solver, **options)
+                residuals = (solution.primal_residual(), solution.dual_residual(), solution.duality_gap())
+                rows.append(result_row("back to back", problem, solver, settings, warm, bool(solution.found),
+                                       runtime, residuals, solution_extras(problem, solution), test_set))
+    return rows
+
+
+# ------------------------------------------------------------------------ metrics
+def shgeom_floor(values: list[float], floor: float) -> float:
+    """qpbenchmark's residual mean: values clipped from below at the tolerance, shift 10."""
+    return shifted_geometric_mean(np.maximum(np.asarray(values, dtype=float), floor), SHIFT_S)
+
+
+def summarize(rows: list[dict], tolerances: dict[str, qpbenchmark.Tolerance]) -> dict:
+    """Aggregate metrics of one configuration (solver, settings, warm) over ``rows``."""
+    tolerance = tolerances[rows[0]["settings"]]
+    found = [r for r in rows if r["found"]]
+    # qpbenchmark: the runtime of a solve that found nothing counts as the time limit
+    runtime = np.array([r["runtime"] if r["found"] else r["time_limit"] for r in rows])
+    solve_time = [r["solve_time"] * 1e6 for r in found if np.isfinite(r["solve_time"])]
+
+    def residual_mean(key: str, tol: float) -> float:  # qpbenchmark: not found -> the tolerance
+        return shgeom_floor([r[key] if r["found"] else tol for r in rows], tol)
+
+    def largest(key: str) -> float:
+        return float(np.max([r[key] for r in found])) if found else float("nan")
 
     return {
         "n": len(rows), "success": 100.0 * np.mean([r["success"] for r in rows]),
-        "found": 100.0 * np.mean([r["found"] for r in rows]),
-        "sgm_us": shifted_geometric_mean(runtime, SHIFT_US),
+        "shm_s": shifted_geometric_mean(runtime, SHIFT_S),
+        "shm_us": shifted_geometric_mean(runtime * 1e6, SHIFT_US),
         "median_us": float(np.median([r["runtime"] for r in rows]) * 1e6),
         "p99_us": float(np.percentile([r["runtime"] for r in rows], 99) * 1e6),
-        "backend_sgm_us": shifted_geometric_mean(backend, SHIFT_US) if backend else float("nan"),
-        "primal_median": stat("primal_residual", np.median), "primal_max": stat("primal_residual", np.max),
-        "dual_median": stat("dual_residual", np.median), "dual_max": stat("dual_residual", np.max),
-        "gap_median": stat("duality_gap", np.median), "gap_max": stat("duality_gap", np.max),
-        "ref_median": stat("ref_error", np.median), "ref_max": stat("ref_error", np.max),
+        "over_limit": 100.0 * np.mean([r["runtime"] > r["time_limit"] for r in rows]),
+        "solve_shm_us": shifted_geometric_mean(solve_time, SHIFT_US) if solve_time else float("nan"),
+        "primal_shm": residual_mean("primal_residual", tolerance.primal),
+        "dual_shm": residual_mean("dual_residual", tolerance.dual),
+        "gap_shm": residual_mean("duality_gap", tolerance.gap),
+        "primal_max": largest("primal_residual"), "dual_max": largest("dual_residual"),
+        "gap_max": largest("duality_gap"),
+        "ref_median": float(np.median([r["ref_error"] for r in found])) if found else float("nan"),
+        "ref_max": largest("ref_error"),
     }
 
 
-def _config_key(row: dict) -> tuple:
-    return row["solver"], row["warm"]
+def _label(key: tuple[str, bool]) -> str:
+    return f"{key[0]} (warm)" if key[1] else key[0]
 
 
-def settings_table(rows: list[dict], settings: str) -> str:
+def config_stats(rows: list[dict], settings: str,
+                 tolerances: dict[str, qpbenchmark.Tolerance]) -> dict[tuple[str, bool], dict]:
+    """``summarize`` per (solver, warm) of the rows of ``settings``."""
     selected = [r for r in rows if r["settings"] == settings]
-    keys = sorted({_config_key(r) for r in selected})
-    stats = {key: summarize([r for r in selected if _config_key(r) == key]) for key in keys}
-    best = min(s["sgm_us"] for s in stats.values())
-    order = sorted(keys, key=lambda key: stats[key]["sgm_us"])
+    keys = sorted({(r["solver"], r["warm"]) for r in selected})
+    return {key: summarize([r for r in selected if (r["solver"], r["warm"]) == key], tolerances) for key in keys}
+
+
+def settings_table(rows: list[dict], settings: str, tolerances: dict[str, qpbenchmark.Tolerance]) -> str:
+    """Markdown table of every solver at ``settings``, fastest first (shm with shift 10 µs)."""
+    stats = config_stats(rows, settings, tolerances)
+    best_s = min(s["shm_s"] for s in stats.values())
+    best_us = min(s["shm_us"] for s in stats.values())
     body = []
-    for key in order:
+    for key in sorted(stats, key=lambda key: stats[key]["shm_us"]):
         s = stats[key]
-        body.append([f"{key[0]} ({'warm' if key[1] else 'cold'})", f"{s['success']:.1f}", fmt(s["sgm_us"]),
-                     f"{s['sgm_us'] / best:.2f}", fmt(s["median_us"]), fmt(s["p99_us"]), fmt(s["backend_sgm_us"]),
-                     f"{s['primal_median']:.1e} / {s['primal_max']:.1e}",
-                     f"{s['dual_median']:.1e} / {s['dual_max']:.1e}", f"{s['gap_median']:.1e} / {s['gap_max']:.1e}",
-                     f"{s['ref_median']:.1e} / {s['ref_max']:.1e}"])
+        residual_ratios = [s[f"{name}_shm"] / min(t[f"{name}_shm"] for t in stats.values())
+                           for name in ("primal", "dual", "gap")]
+        body.append([
+            _label(key), f"{s['success']:.1f}", f"{s['shm_s'] / best_s:.2f}", fmt(s["shm_s"] * 1e6),
+            f"{fmt(s['shm_us'])} ({s['shm_us'] / best_us:.2f})", fmt(s["median_us"]), fmt(s["p99_us"]),
+            fmt(s["solve_shm_us"]), fmt(s["over_limit"], 2),
+            " / ".join(f"{ratio:.1f}" for ratio in residual_ratios),
+            f"{s['primal_max']:.0e} / {s['dual_max']:.0e} / {s['gap_max']:.0e}",
+            f"{s['ref_median']:.0e} / {s['ref_max']:.0e}"])
     return markdown_table(
-        ["solver", "success %", "runtime sgm µs", "ratio", "median µs", "p99 µs", "solve-only sgm µs",
-         "primal res. med / max", "dual res. med / max", "gap med / max", "‖x − x_ref‖∞ med / max"], body)
+        ["solver", "success %", "runtime shm ratio (shift 10 s)", "shm µs (shift 10 s)",
+         "shm µs (shift 10 µs) (ratio)", "median µs", "p99 µs", "solve-only shm µs", "> time limit %",
+         "residual shm ratios p / d / gap", "largest residual p / d / gap", "‖x − x_ref‖∞ median / max"], body)
 
 
-def warm_table(rows: list[dict], settings: list[str]) -> str:
+def active_table(rows: list[dict], settings: str, tolerances: dict[str, qpbenchmark.Tolerance]) -> str:
+    """Success, runtime and distance to the reference on QPs with and without an active constraint."""
+    groups = {flag: config_stats([r for r in rows if r["active"] == flag], settings, tolerances)
+              for flag in (True, False)}
     body = []
-    for setting in settings:
-        for solver in sorted({r["solver"] for r in rows if r["warm"]}):
-            cold = summarize([r for r in rows if r["settings"] == setting and r["solver"] == solver and not r["warm"]])
-            warm = summarize([r for r in rows if r["settings"] == setting and r["solver"] == solver and r["warm"]])
-            body.append([setting, solver, fmt(cold["sgm_us"]), fmt(warm["sgm_us"]),
-                         f"{warm['sgm_us'] / cold['sgm_us']:.2f}",
-                         fmt(cold["backend_sgm_us"]), fmt(warm["backend_sgm_us"]),
-                         f"{warm['backend_sgm_us'] / cold['backend_sgm_us']:.2f}",
-                         f"{cold['success']:.1f} / {warm['success']:.1f}"])
-    return markdown_table(["settings", "solver", "cold sgm µs", "warm sgm µs", "warm / cold", "cold solve-only",
-                           "warm solve-only", "warm / cold (solve-only)", "success % cold / warm"], body)
+    for key in sorted(set(groups[True]) | set(groups[False])):
+        cells = [_label(key)]
+        for metric, form in (("n", "{:d}"), ("success", "{:.1f}"), ("shm_us", "{:.1f}"), ("ref_max", "{:.0e}")):
+            cells.append(" / ".join(form.format(groups[flag][key][metric]) if key in groups[flag] else "-"
+                                    for flag in (True, False)))
+        body.append(cells)
+    return markdown_table(["solver", "QPs", "success %", "shm µs (shift 10 µs)", "‖x − x_ref‖∞ max"], body)
 
 
-def write_report(rows: list[dict], scenarios: list[ds.ScenarioQPs], index: dict, args, out: Path,
-                 elapsed: float) -> Path:
-    settings = list(dict.fromkeys(r["settings"] for r in rows))
+def back_to_back_table(rows: list[dict], second: list[dict], settings: str,
+                       tolerances: dict[str, qpbenchmark.Tolerance]) -> str:
+    """The back-to-back pass (cold, warm where it runs) next to qpbenchmark's pass (``rows``)."""
+    first, stats = config_stats(rows, settings, tolerances), config_stats(second, settings, tolerances)
+    best = min(s["shm_us"] for key, s in stats.items() if not key[1])
+    body = []
+    for solver in sorted({key[0] for key in stats}, key=lambda solver: stats[solver, False]["shm_us"]):
+        cold, warm = stats[solver, False], stats.get((solver, True))
+        qpb = first[solver, False]
+        body.append([solver, f"{fmt(cold['shm_us'])} ({cold['shm_us'] / best:.2f})", fmt(cold["median_us"]),
+                     fmt(qpb["shm_us"]), f"{qpb['shm_us'] / cold['shm_us']:.2f}",
+                     fmt(warm["shm_us"]) if warm else "-", f"{warm['shm_us'] / cold['shm_us']:.2f}" if warm else "-",
+                     fmt(cold["solve_shm_us"]) + (f" / {fmt(warm['solve_shm_us'])}" if warm else ""),
+                     f"{cold['success']:.1f}" + (f" / {warm['success']:.1f}" if warm else "")])
+    return markdown_table(["solver", "cold shm µs (ratio)", "cold median µs", "qpbenchmark's pass shm µs",
+                           "qpbenchmark's / back to back", "warm shm µs", "warm / cold",
+                           "solve-only shm µs cold / warm", "success % cold / warm"], body)
+
+
+# ------------------------------------------------------------------------ report
+def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark, args: argparse.Namespace,
+                 out: Path, elapsed: float, loads: tuple[float, float]) -> Path:
+    """``out/report.md``: both passes, per settings, scenario and active / inactive; its path."""
+    tolerances = test_set.tolerances
+    index = test_set.index
     solvers = sorted({r["solver"] for r in rows})
-    versions = package_versions(["qpsolvers"] + [_DIST.get(s, s) for s in solvers])
+    versions = package_versions(["qpbenchmark", "qpsolvers"] + [_DIST.get(s, s) for s in solvers])
+    composition = ", ".join(
+        f"{c['scenario']} {c['selected']}/{c['recorded']} ticks (n={c['n']}, {c['n_ineq']} ineq, {c['n_eq']} eq "
+        f"rows; {c['active']} with an active constraint)" for c in test_set.composition())
     lines = [
         "# Solver comparison on recorded control QPs", "",
-        f"Measured {machine_note()}. Command: `{args.command_line}` ({elapsed:.0f} s).", "",
-        f"Dataset v{index['version']} (`{index['generator']}`, commit {index['git_commit']}); "
-        f"{len({(r['scenario'], r['tick']) for r in rows})} QPs: "
-        + ", ".join(f"{sc.name} {len({r['tick'] for r in rows if r['scenario'] == sc.name})}/{sc.ticks} ticks "
-                    f"(n={sc.n}, {sc.n_ineq} ineq, {sc.n_eq} eq rows)" for sc in scenarios) + ".", "",
+        f"Measured {machine_note()}; load average {loads[0]:.2f} at the start, {loads[1]:.2f} at the end. "
+        f"Command: `{args.command_line}` ({elapsed:.0f} s).", "",
+        f"Dataset v{index['version']} (`{index['generator']}`, commit {index['git_commit']}). Test set "
+        f"`benchmarks/wbc_qpbenchmark.py`: {len(test_set.selection)} QPs: {composition}.", "",
         "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
-        "Success = found, primal/dual residual and duality gap below the tolerance of the settings "
-        "(default 1, high 1e-9, low 1e-3), within the time limit (the control period). Runtime: wall time of "
-        f"`qpsolvers.solve_problem` (min of {args.repeats}), shifted geometric mean (shift {SHIFT_US:g} µs, "
-        "failures counted at the time limit); ratio = to the best configuration of the table. 'solve-only' is "
-        "`Solution.solve_time` as qpsolvers reports it: the wall time minus qpsolvers' build phase (matrix "
-        "conversion — dense to CSC for the sparse backends — and the backend's setup/factorization, which "
-        "qpsolvers redoes on every call). Residuals and the distance "
-        "to the reference are over found solutions. Warm = `initvals` = the previous tick's reference "
-        "solution; only backends whose qpsolvers wrapper uses `initvals` are run warm ("
-        + ", ".join(f"{s}: {WARM_START[s]}" for s in solvers if WARM_START.get(s)) + "; ignored by "
-        + ", ".join(s for s in solvers if not WARM_START.get(s)) + ").", "",
-    ]
-    lines += ["## All scenarios", ""]
-    for setting in settings:
-        lines += [f"### settings: {setting}", "", settings_table(rows, setting), ""]
-    if any(r["warm"] for r in rows):
-        lines += ["### Warm start vs cold start", "", warm_table(rows, settings), ""]
-    for sc in scenarios:
+        "Solved by `qpbenchmark.run` (one timed cold solve per QP, solver and settings, settings in the order "
+        "default, high, low, mid; the dense to sparse conversion of the sparse backends is not timed, qpsolvers' "
+        "setup is), then by wbc's back-to-back pass (below). qpbenchmark's own report: "
+        "`wbc_qpbenchmark.md`, its results: `results.csv`. Success (qpbenchmark's): found, primal and dual "
+        "residual and duality gap below the settings' tolerance (default 1, high_accuracy 1e-9, mid_accuracy "
+        "1e-6, low_accuracy 1e-3" + (", wbc 1e-9" if "wbc" in tolerances else "") + "). Runtime "
+        "shm: shifted geometric mean, a solve that found nothing counted at the time limit (the control period, "
+        f"{test_set.time_limit:g} s); qpbenchmark's shift is 10 s, which on µs runtimes is an arithmetic mean "
+        "(shown as its ratio to the best solver, as qpbenchmark reports it, and in µs), the shift 10 µs "
+        "keeps it a geometric mean. Residual shm ratios: qpbenchmark's (shift 10, residuals floored at "
+        "the tolerance), 1.0 = best. Largest residuals and the distance to the reference solution: over "
+        "found solutions. 'solve-only': qpsolvers' `solve_time` (without its build phase).", "",
+        "## All scenarios", ""]
+    for settings in tolerances:
+        lines += [f"### settings: {settings}", "", settings_table(rows, settings, tolerances), ""]
+    lines += ["### With / without an active bound or inequality at the reference", "",
+              "Each cell: QPs with an active constraint / without."]
+    for settings in tolerances:
+        lines += ["", f"settings: {settings}", "", active_table(rows, settings, tolerances)]
+    lines += [""]
+    if second:
+        lines += ["## Back to back (wbc's pass)", "",
+                  "Every solver and settings on each QP in a random order, nothing run in between (in qpbenchmark's "
+                  "pass the solves of a QP go solver by solver, settings in the order default, high, low, mid, with "
+                  "pandas bookkeeping after each). Warm = `initvals` = the previous tick's reference solution, for "
+                  "the backends whose qpsolvers wrapper uses it (" + ", ".join(
+                      f"{s}: {WARM_START[s]}" for s in solvers if WARM_START.get(s)) + "; ignored by " + ", ".join(
+                      s for s in solvers if not WARM_START.get(s)) + "). shm: shift 10 µs.", ""]
+        for settings in tolerances:
+            lines += [f"### back to back, settings: {settings}", "",
+                      back_to_back_table(rows, second, settings, tolerances), ""]
+    for sc in test_set.scenarios:
         sc_rows = [r for r in rows if r["scenario"] == sc.name]
-        if not sc_rows:
-            continue
-        active = np.mean([r["n_active"] > 0 for r in sc_rows if r["solver"] == sc_rows[0]["solver"]
-                          and r["settings"] == sc_rows[0]["settings"] and r["warm"] == sc_rows[0]["warm"]])
-        lines += [f"## {sc.name}", "", f"n = {sc.n}, {sc.n_ineq} inequality and {sc.n_eq} equality rows; "
-                  f"{100 * active:.0f} % of the sampled ticks have an active bound or inequality at the reference.", ""]
-        for setting in settings:
-            lines += [f"### {sc.name}, settings: {setting}", "", settings_table(sc_rows, setting), ""]
+        lines += [f"## {sc.name}", "", f"n = {sc.n}, {sc.n_ineq} inequality and {sc.n_eq} equality rows.", ""]
+        for settings in tolerances:
+            lines += [f"### {sc.name}, settings: {settings}", "", settings_table(sc_rows, settings, tolerances), ""]
     lines += ["## Plots", "", "![runtime distributions](runtime_distributions.png)", "",
               "![performance profiles](performance_profiles.png)", ""]
     path = out / "report.md"
@@ -284,25 +332,22 @@ def write_report(rows: list[dict], scenarios: list[ds.ScenarioQPs], index: dict,
     return path
 
 
-_DIST = {"proxqp": "proxsuite", "highs": "highspy"}
-
-
 def plot(rows: list[dict], out: Path) -> None:
+    """Runtime distributions and performance profiles (success within τ × the best) per settings."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     settings = list(dict.fromkeys(r["settings"] for r in rows))
-    keys = sorted({_config_key(r) for r in rows})
-    labels = [f"{s} ({'warm' if w else 'cold'})" for s, w in keys]
+    solvers = sorted({r["solver"] for r in rows})
 
     fig, axes = plt.subplots(len(settings), 1, figsize=(10, 3.2 * len(settings)), squeeze=False)
     for ax, setting in zip(axes[:, 0], settings, strict=True):
-        data = [[r["runtime"] * 1e6 for r in rows if r["settings"] == setting and _config_key(r) == key]
-                for key in keys]
+        data = [[r["runtime"] * 1e6 for r in rows if r["settings"] == setting and r["solver"] == solver]
+                for solver in solvers]
         ax.boxplot(data, whis=(1, 99), showfliers=True, flierprops={"markersize": 2})
-        ax.set_xticks(range(1, len(keys) + 1), labels, rotation=30, ha="right", fontsize=8)
+        ax.set_xticks(range(1, len(solvers) + 1), solvers, fontsize=8)
         ax.set_yscale("log")
         ax.set_ylabel("runtime [µs]")
         ax.set_title(f"settings: {setting} (box: quartiles, whiskers: 1–99 %)", fontsize=9)
@@ -314,20 +359,18 @@ def plot(rows: list[dict], out: Path) -> None:
     fig, axes = plt.subplots(1, len(settings), figsize=(5.2 * len(settings), 4.2), squeeze=False)
     for ax, setting in zip(axes[0], settings, strict=True):
         selected = [r for r in rows if r["settings"] == setting]
-        problems = sorted({(r["scenario"], r["tick"]) for r in selected})
+        problems = sorted({r["problem"] for r in selected})
         position = {p: i for i, p in enumerate(problems)}
-        times = np.full((len(keys), len(problems)), np.inf)
+        times = np.full((len(solvers), len(problems)), np.inf)
         for r in selected:
             if r["success"]:
-                times[keys.index(_config_key(r)), position[r["scenario"], r["tick"]]] = r["runtime"]
+                times[solvers.index(r["solver"]), position[r["problem"]]] = r["runtime"]
         best = np.min(times, axis=0)
         ratios = times / np.where(np.isfinite(best), best, np.nan)
         tau = np.logspace(0, 3, 300)
-        for i, key in enumerate(keys):
-            if not np.any(times[i] < np.inf):
-                continue
-            fraction = [(np.nan_to_num(ratios[i], nan=np.inf) <= t).mean() for t in tau]
-            ax.plot(tau, fraction, label=labels[i], linestyle="--" if key[1] else "-")
+        for i, solver in enumerate(solvers):
+            if np.any(times[i] < np.inf):
+                ax.plot(tau, [(np.nan_to_num(ratios[i], nan=np.inf) <= t).mean() for t in tau], label=solver)
         ax.set_xscale("log")
         ax.set_ylim(0, 1.02)
         ax.set_xlabel("τ (runtime / best runtime on the problem)")
@@ -340,55 +383,65 @@ def plot(rows: list[dict], out: Path) -> None:
     plt.close(fig)
 
 
+def write_rows(rows: list[dict], path: Path) -> None:
+    """One CSV row per solve."""
+    with open(path, "w", newline="") as stream:
+        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+
+
 def main(argv: list[str] | None = None) -> int:
+    """``python -m benchmarks.solvers`` / ``wbc bench solvers``: 0 when the report is written."""
     parser = argparse.ArgumentParser(prog="python -m benchmarks.solvers", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--dataset", type=Path, default=OUTPUT / "dataset",
                         help="dataset folder (default: %(default)s)")
     parser.add_argument("--regenerate", action="store_true", help="record the dataset again first")
     parser.add_argument("--out", type=Path, default=OUTPUT / "solvers", help="report folder (default: %(default)s)")
-    parser.add_argument("--ticks", type=int, default=400,
-                        help="ticks per scenario, evenly spaced; 0 = all (default 400)")
-    parser.add_argument("--repeats", type=int, default=3, help="solves per (QP, config); the minimum is kept")
-    parser.add_argument("--settings", nargs="+", default=["default", "high", "low"], choices=list(TOLERANCES))
-    parser.add_argument("--solvers", nargs="+", help="default: every installed qpsolvers backend")
+    parser.add_argument("--ticks", type=int, default=TICKS,
+                        help="ticks per scenario, half with an active constraint; 0 = all (default %(default)s)")
+    parser.add_argument("--settings", nargs="+", default=list(SETTINGS), choices=list(SETTINGS) + ["wbc"],
+                        help="qpbenchmark's settings; wbc = wbc.solvers.DEFAULT_SETTINGS (default: qpbenchmark's)")
+    parser.add_argument("--solvers", nargs="+", help="default: every installed backend qpbenchmark knows")
     parser.add_argument("--scenarios", nargs="+", help="scenario names (default: all in the dataset)")
-    parser.add_argument("--no-warm", action="store_true", help="cold starts only")
-    parser.add_argument("--time-limit", type=float, help="[s] (default: each scenario's control period dt)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--qpbenchmark-only", action="store_true", help="skip wbc's back-to-back pass")
+    parser.add_argument("--time-limit", type=float, help="[s] (default: the control period of the scenarios)")
+    parser.add_argument("--author", default="anonymous", help="GitHub user named in qpbenchmark's report")
+    parser.add_argument("--seed", type=int, default=0, help="order of the back-to-back pass")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     args.command_line = "python -m benchmarks.solvers " + " ".join(argv if argv is not None else sys.argv[1:])
 
-    folder = args.dataset / f"v{ds.VERSION}"
-    if args.regenerate or not (folder / "index.json").exists():
-        print(f"recording the dataset into {folder} ...", file=sys.stderr)
+    if args.regenerate:
+        print(f"recording the dataset into {args.dataset} ...", file=sys.stderr)
         ds.record_all(args.dataset, show_progress=not args.no_progress)
-    index, scenarios = ds.load(args.dataset)
-    failed = [e for e in index["scenarios"] if e["status"] != "ok"]
-    for entry in failed:
-        print(f"warning: dataset scenario {entry['scenario']}: {entry['status']}", file=sys.stderr)
-    if args.scenarios:
-        scenarios = [sc for sc in scenarios if sc.name in args.scenarios]
-    installed = list(qpsolvers.available_solvers)
-    solvers = args.solvers or [s for s in SOLVERS if s in installed] + sorted(set(installed) - set(SOLVERS))
-    missing = [s for s in solvers if s not in installed]
-    if missing:
-        parser.error(f"not installed: {', '.join(missing)}")
-    configs = make_configs(solvers, args.settings, warm=not args.no_warm)
+    try:
+        test_set = WbcQpbenchmark(args.dataset, args.ticks, args.scenarios, args.settings, args.solvers,
+                                  args.time_limit)
+    except ValueError as exc:
+        parser.error(str(exc))
+    for entry in test_set.index["scenarios"]:
+        if entry["status"] != "ok":
+            print(f"warning: dataset scenario {entry['scenario']}: {entry['status']}", file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    rows = benchmark(scenarios, configs, args.ticks, args.repeats, args.time_limit, args.seed, not args.no_progress)
+    start, load_start = time.perf_counter(), os.getloadavg()[0]
+    df, extras = run_qpbenchmark(test_set, not args.no_progress)
+    complete = qpbenchmark.Results(None, test_set)
+    complete.df = df
+    complete.write(str(args.out / "results.csv"))
+    with _quiet_logging():
+        qpbenchmark.Report(args.author, qpbenchmark.Results(str(args.out / "results.csv"), test_set)).write(
+            str(args.out / "wbc_qpbenchmark.md"))
+    rows = make_rows(df, extras, test_set)
+    second = [] if args.qpbenchmark_only else back_to_back_pass(test_set, args.seed, not args.no_progress)
     elapsed = time.perf_counter() - start
-    with open(args.out / "results.csv", "w", newline="") as stream:
-        writer = csv.DictWriter(stream, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    report = write_report(rows, scenarios, index, args, args.out, elapsed)
+    write_rows(rows + second, args.out / "solves.csv")
+    report = write_report(rows, second, test_set, args, args.out, elapsed, (load_start, os.getloadavg()[0]))
     plot(rows, args.out)
-    for setting in args.settings:
-        print(f"settings: {setting}\n{settings_table(rows, setting)}\n")
-    print(f"report written to {report}")
+    for settings in test_set.tolerances:
+        print(f"settings: {settings}\n{settings_table(rows, settings, test_set.tolerances)}\n")
+    print(f"report written to {report}; qpbenchmark's: {args.out / 'wbc_qpbenchmark.md'}")
     return 0
 
 

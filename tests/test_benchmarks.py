@@ -1,5 +1,6 @@
 """The benchmark harnesses in benchmarks/ work (correctness only: no timing assertions here)."""
 
+import inspect
 import json
 import os
 import shutil
@@ -14,8 +15,11 @@ from conftest import ROOT, TASKS
 if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
     sys.path.insert(0, str(ROOT))
 
+import qpsolvers  # noqa: E402
+
 from benchmarks import dataset as ds  # noqa: E402
 from benchmarks import solvers as sb  # noqa: E402
+from benchmarks import wbc_qpbenchmark as qb  # noqa: E402
 from benchmarks.common import scenario_files, shifted_geometric_mean  # noqa: E402
 
 
@@ -47,8 +51,6 @@ def test_dataset_round_trip_and_reference(small_dataset):
     out, _, index = small_dataset
     _, scenarios = ds.load(out)
     assert len(scenarios) == sum(e["status"] == "ok" for e in index["scenarios"])
-    import qpsolvers
-
     for sc in scenarios:
         assert sc.ticks == 30
         assert np.max(sc.ref_residuals) < ds.REF_TOL
@@ -73,26 +75,169 @@ def test_shifted_geometric_mean():
         shifted_geometric_mean([-1.0])
 
 
-def test_solver_benchmark_rows_and_report(small_dataset, tmp_path):
-    out, _, index = small_dataset
+# ------------------------------------------------------------ qpbenchmark test set
+def test_conversion_to_qpbenchmark_keeps_wbc_qp(small_dataset):
+    """lb/ub, G x <= h, A x = b describe the same feasible set and optimum as wbc's [I; C] layout."""
+    from wbc.qp import QP
+    from wbc.solvers import make_solver
+
+    out, _, _ = small_dataset
     _, scenarios = ds.load(out)
-    configs = sb.make_configs(["daqp", "quadprog"], ["default", "high"])
-    assert sb.Config("quadprog", "high", True) not in configs  # qpsolvers ignores initvals for quadprog
-    assert sb.Config("daqp", "high", True) in configs
-    rows = sb.benchmark(scenarios, configs, ticks=2, repeats=1, time_limit=None, show_progress=False)
-    assert len(rows) == 2 * len(scenarios) * len(configs)
-    assert all(r["found"] for r in rows)
-    high = [r for r in rows if r["settings"] == "high"]
-    assert all(r["ref_error"] < 1e-6 for r in high)
-    failed = dict(rows[0], success=False, runtime=1.0)
-    assert sb.summarize([failed])["sgm_us"] == pytest.approx(rows[0]["time_limit"] * 1e6)
-    assert "daqp (warm)" in sb.settings_table(rows, "high")
+    assert {sc.name for sc in scenarios} == {path.stem for path in scenario_files(TASKS)}  # every one recorded
+    rng = np.random.default_rng(7)
+
+    def same_violations(C, upper, lower, n_ineq, n_eq, x_center):
+        problem = ds.make_problem(np.eye(C.shape[1]), np.zeros(C.shape[1]), C, upper, lower, n_ineq, n_eq)
+        for scale in (0.0, 1e-6, 1e-3, 1e-1, 1.0):  # x_ref (feasible), then ever larger violations
+            x = x_center + scale * rng.standard_normal(C.shape[1])
+            values = np.concatenate([x, C @ x])
+            wbc_violation = max(0.0, np.max(lower - values), np.max(values - upper))
+            converted = qpsolvers.Solution(problem, found=True, x=x).primal_residual()
+            assert converted == pytest.approx(wbc_violation, rel=1e-12, abs=1e-15), scale
+
+    solver = make_solver("daqp", {"primal_tol": 1e-12, "dual_tol": 1e-12})
+    for sc in scenarios:
+        active = np.flatnonzero(qb.WbcQpbenchmark.tick_has_active_constraint(sc))
+        for k in {0, sc.ticks - 1, *active[:1]}:
+            problem = sc.problem(k)
+            same_violations(sc.C[k], sc.upper[k], sc.lower[k], sc.n_ineq, sc.n_eq, sc.x_ref[k])
+            if sc.n_eq:  # the recorded equalities have b = 0 (no-slip rows): also a b != 0
+                upper, lower = sc.upper[k].copy(), sc.lower[k].copy()
+                upper[-sc.n_eq:] = lower[-sc.n_eq:] = 0.3
+                same_violations(sc.C[k], upper, lower, sc.n_ineq, sc.n_eq, sc.x_ref[k])
+            qp = QP(sc.n, sc.n_ineq, sc.n_eq)  # wbc's own form, solved by wbc's own DAQP backend
+            for name in ("H", "c", "C", "upper", "lower"):
+                getattr(qp, name)[...] = getattr(sc, name)[k]
+            own = solver.solve(qp)
+            other = qpsolvers.solve_problem(problem, solver="quadprog")  # the converted form, another algorithm
+            assert own.success and other.found
+            np.testing.assert_allclose(other.x, own.x, atol=1e-9)
+            np.testing.assert_allclose(other.x, sc.x_ref[k], atol=1e-9)
 
 
-def test_accuracy_settings_cover_the_required_solvers():
-    for name in sb.SOLVERS:
-        options = sb.accuracy_settings(name, 1e-9)
-        assert name == "quadprog" or options, name
+def test_conversion_rejects_what_it_would_drop(small_dataset):
+    out, _, _ = small_dataset
+    _, scenarios = ds.load(out)
+    sc = next(s for s in scenarios if s.n_ineq and s.n_eq)  # deluca_parking: both kinds of rows
+    arrays = [sc.H[0], sc.c[0], sc.C[0], sc.upper[0].copy(), sc.lower[0].copy(), sc.n_ineq, sc.n_eq]
+    two_sided = list(arrays)
+    two_sided[4] = arrays[4].copy()
+    two_sided[4][sc.n] = -1.0  # a finite lower bound on an inequality row: G x <= h has no place for it
+    with pytest.raises(ValueError, match="inequality row"):
+        ds.make_problem(*two_sided)
+    loose = list(arrays)
+    loose[3] = arrays[3].copy()
+    loose[3][-1] += 1.0  # an equality row whose upper and lower bounds differ
+    with pytest.raises(ValueError, match="equality row"):
+        ds.make_problem(*loose)
+    problem = ds.make_problem(*arrays)
+    n, p = sc.n, sc.n_ineq
+    np.testing.assert_array_equal(problem.h, sc.upper[0][n:n + p])
+    np.testing.assert_array_equal(problem.b, sc.upper[0][n + p:])
+    np.testing.assert_array_equal(problem.lb, sc.lower[0][:n])
+
+
+def test_select_ticks_takes_both_kinds_evenly():
+    active = np.zeros(100, dtype=bool)
+    active[40:50] = True
+    ticks = qb.select_ticks(active, 8)
+    assert len(ticks) == 8 and len(set(ticks)) == 8
+    assert active[ticks].sum() == 4 and ticks[active[ticks]].tolist() == [40, 43, 46, 49]
+    assert qb.select_ticks(active, 30)[active[qb.select_ticks(active, 30)]].size == 10  # all 10, 20 without
+    assert active[qb.select_ticks(active, 95)].sum() == 10 and len(qb.select_ticks(active, 95)) == 95
+    np.testing.assert_array_equal(qb.select_ticks(active, 0), np.arange(100))
+    np.testing.assert_array_equal(qb.select_ticks(~active, 4), [0, 40, 49, 99])  # 90 active, 10 not: 2 + 2
+
+
+def test_test_set_holds_the_recorded_qps(small_dataset, monkeypatch):
+    from qpbenchmark.benchmark import load_test_set
+
+    out, _, index = small_dataset
+    test_set = qb.WbcQpbenchmark(out, ticks=4)
+    recorded = {e["scenario"] for e in index["scenarios"] if e["status"] == "ok"}
+    problems = list(test_set)
+    assert {p.scenario for p in problems} == recorded and len(problems) == 4 * len(recorded)
+    assert len({p.name for p in problems}) == len(problems)
+    assert set(test_set.tolerances) == set(test_set.solver_settings) == set(qb.SETTINGS)
+    assert {t.runtime for t in test_set.tolerances.values()} == {0.01}  # the control period
+    assert test_set.tolerances["mid_accuracy"].primal == 1e-6
+    assert set(sb.WARM_START) >= {"daqp", "proxqp", "osqp", "quadprog", "clarabel", "piqp", "highs"}
+    assert {"daqp", "proxqp", "osqp", "quadprog", "clarabel", "piqp", "highs"} <= test_set.solvers  # [test] has all
+    by_name = {sc.name: sc for sc in test_set.scenarios}
+    for problem in problems:
+        sc, k = by_name[problem.scenario], problem.tick
+        assert problem.name == f"{sc.name}_{k:05d}"
+        np.testing.assert_array_equal(problem.P, sc.H[k])
+        assert problem.active == bool(sc.active[k, :sc.n + sc.n_ineq].any())
+        np.testing.assert_array_equal(problem.x_ref, sc.x_ref[k])
+    assert any(p.active for p in problems) and not all(p.active for p in problems)
+    parts = list(test_set.parts(5))
+    assert [p.name for part in parts for p in part] == [p.name for p in problems]
+    assert test_set.count_problems() == len(problems)  # the parts did not change the set
+    # qpbenchmark's CLI imports the file as a module of its own and builds the set without arguments
+    monkeypatch.setenv("WBC_QPBENCHMARK_DATASET", str(out))
+    monkeypatch.setattr(sys, "path", list(sys.path))  # load_test_set appends benchmarks/ to it
+    try:
+        loaded = load_test_set(str(ROOT / "benchmarks" / "wbc_qpbenchmark.py"))
+    finally:
+        sys.modules.pop("wbc_qpbenchmark", None)
+    assert type(loaded).__name__ == "WbcQpbenchmark" and type(loaded) is not qb.WbcQpbenchmark
+    assert loaded.count_problems() == sum(min(qb.TICKS, e["ticks"]) for e in index["scenarios"] if e["status"] == "ok")
+    with pytest.raises(ValueError, match="no_such"):
+        qb.WbcQpbenchmark(out, scenarios=["no_such"])
+
+
+@pytest.fixture(scope="module")
+def solver_run(small_dataset, tmp_path_factory):
+    """`wbc bench solvers` on 2 ticks per scenario: qpbenchmark's run, its report, wbc's report."""
+    out, _, _ = small_dataset
+    report = tmp_path_factory.mktemp("solvers")
+    assert sb.main(["--dataset", str(out), "--ticks", "2", "--out", str(report), "--no-progress"]) == 0
+    return out, report
+
+
+def test_qpbenchmark_runs_the_test_set(solver_run):
+    import pandas
+    import qpbenchmark
+
+    out, report = solver_run
+    test_set = qb.WbcQpbenchmark(out, ticks=2)
+    results = qpbenchmark.Results(str(report / "results.csv"), test_set)
+    keys = set(zip(results.df["problem"], results.df["solver"], results.df["settings"], strict=True))
+    assert len(keys) == len(results.df) == test_set.count_problems() * len(test_set.solvers) * len(qb.SETTINGS)
+    solves = pandas.read_csv(report / "solves.csv").to_dict("records")
+    cold = [r for r in solves if r["pass"] == "qpbenchmark"]
+    assert len(cold) == len(results.df)
+    for r in cold:  # active-set solvers at 1e-9: exact, at the reference
+        if r["solver"] in ("daqp", "quadprog") and r["settings"] == "high_accuracy":
+            assert r["success"] and r["ref_error"] < 1e-8, r
+    # wbc's aggregation reproduces qpbenchmark's own (success rate, runtime shm ratios)
+    tolerances = test_set.tolerances
+    success = results.build_success_rate_df({s: t.primal for s, t in tolerances.items()},
+                                            {s: t.dual for s, t in tolerances.items()},
+                                            {s: t.gap for s, t in tolerances.items()})
+    runtime = results.build_shgeom_df("runtime", shift=sb.SHIFT_S,
+                                      not_found_values={s: t.runtime for s, t in tolerances.items()})
+    floors = "floors" in inspect.signature(results.build_shgeom_df).parameters  # qpbenchmark >= 2.7
+    primal = results.build_shgeom_df("primal_residual", shift=sb.SHIFT_S, not_found_values={
+        s: t.primal for s, t in tolerances.items()}, **({"floors": {s: t.primal for s, t in tolerances.items()}}
+                                                         if floors else {}))
+    for settings in tolerances:
+        stats = sb.config_stats(cold, settings, tolerances)
+        best = min(s["shm_s"] for s in stats.values())
+        best_primal = min(s["primal_shm"] for s in stats.values())
+        for (solver, _), s in stats.items():
+            assert s["success"] == pytest.approx(success.loc[solver, settings])
+            assert s["shm_s"] / best == pytest.approx(runtime.loc[solver, settings], rel=1e-9)
+            if floors:
+                assert s["primal_shm"] / best_primal == pytest.approx(primal.loc[solver, settings], rel=1e-6)
+    second = [r for r in solves if r["pass"] == "back to back"]
+    assert len([r for r in second if not r["warm"]]) == len(cold)  # every solver and settings, cold
+    assert {r["solver"] for r in second if r["warm"]} == {s for s in test_set.solvers if sb.WARM_START.get(s)}
+    text = (report / "wbc_qpbenchmark.md").read_text()
+    assert test_set.title in text and "### Mid accuracy" in text
+    own = (report / "report.md").read_text()
+    assert "### settings: mid_accuracy" in own and "### back to back, settings: mid_accuracy" in own
 
 
 def test_synthetic_chains_match_between_urdf_and_mjcf(tmp_path):
