@@ -11,6 +11,7 @@ import io
 import json
 import os
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -37,14 +38,16 @@ class HeadlessBrowser:
         from websockets.sync.client import connect
 
         self.timeout = timeout
-        self._profile = tempfile.TemporaryDirectory(prefix="wbc-browser-")
+        self._profile = tempfile.TemporaryDirectory(prefix="wbc-browser-", ignore_cleanup_errors=True)
         arguments = [executable, "--headless", "--remote-debugging-port=0", f"--user-data-dir={self._profile.name}",
                      f"--window-size={width},{height}", "--enable-unsafe-swiftshader", "--use-angle=swiftshader",
                      "--no-first-run", "--no-default-browser-check", "--disable-background-networking",
                      "--disable-component-update", "--disable-extensions", "--hide-scrollbars", "about:blank"]
         if hasattr(os, "geteuid") and os.geteuid() == 0:
             arguments.insert(1, "--no-sandbox")  # Chromium refuses to run as root with its sandbox
-        self._process = subprocess.Popen(arguments, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        # a session of its own: close() ends the browser's helper processes with it
+        self._process = subprocess.Popen(arguments, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                         start_new_session=True)
         try:
             port = self._devtools_port()
             with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=timeout) as response:
@@ -134,12 +137,15 @@ class HeadlessBrowser:
         socket = getattr(self, "_socket", None)
         if socket is not None:
             socket.close()
-        self._process.terminate()
-        try:
-            self._process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait()
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            try:
+                os.killpg(self._process.pid, sig)
+                self._process.wait(timeout=10)
+                break
+            except ProcessLookupError:
+                break
+            except subprocess.TimeoutExpired:
+                continue
         self._profile.cleanup()
 
     def __enter__(self) -> HeadlessBrowser:

@@ -238,14 +238,26 @@ def test_obstacles_are_validated(kind, size, pose):
 
 # ------------------------------------------------------------------------ the HTML replay
 def embedded_recording(page: str) -> dict:
-    """The scene recording the page embeds (viser's format: zstd-compressed msgpack)."""
+    """The scene recording the page embeds (viser's format: zstd-compressed msgpack, then the
+    binary arrays, each 8-byte aligned; ``"buffers"`` added: those arrays as bytes)."""
     import msgspec
     import zstandard
 
     data = base64.b64decode(re.search(r'window\.__VISER_EMBED_DATA__="([^"]*)"', page).group(1))
     inner = zstandard.ZstdDecompressor().decompress(data[8:], max_output_size=int.from_bytes(data[:8], "little"))
     length = int.from_bytes(inner[:8], "little")
-    return msgspec.msgpack.decode(inner[8:8 + length])
+    recording = msgspec.msgpack.decode(inner[8:8 + length])
+    offset, recording["buffers"] = 8 + length, []
+    for size in recording["binaryBufferLengths"]:
+        offset += -offset % 8
+        recording["buffers"].append(inner[offset:offset + size])
+        offset += size
+    return recording
+
+
+def array(recording: dict, placeholder: dict) -> np.ndarray:
+    """The array a message refers to by a binary placeholder."""
+    return np.frombuffer(recording["buffers"][placeholder["__binary_index"]], dtype=placeholder["dtype"])
 
 
 def messages(recording: dict, kind: str, name: str | None = None) -> list[tuple[float, dict]]:
@@ -277,7 +289,17 @@ def test_html_replay_embeds_the_scene_and_the_recorded_trajectory(circle_run):
         pin.forwardKinematics(scenario.robot.model, data, result.q[min(round(t / result.dt), result.time.size)])
         np.testing.assert_allclose(message["position"], data.oMi[joint_id(scenario.robot, "arm_joint_5")].translation,
                                    atol=1e-6)
-    # the target follows the reference, the tool path is revealed segment by segment
+    # the reference line is the reference's positions, the target follows it, the tool path
+    # is revealed segment by segment, and is the recorded one
+    (line,) = [m for _, m in messages(recording, "LineSegmentsMessage", "/run0/reference")]
+    points = array(recording, line["props"]["points"]).reshape(-1, 2, 3)
+    times = [*np.arange(0, result.time.size, round(1 / (fps * result.dt))) * result.dt, result.time.size * result.dt]
+    expected = np.array([scenario.reference(t)[0][:3, 3].copy() for t in times])  # (a reused buffer)
+    np.testing.assert_allclose(points[:, 0], expected[:-1], atol=1e-6)
+    np.testing.assert_allclose(points[:, 1], expected[1:], atol=1e-6)
+    path = [array(recording, m["props"]["points"]).reshape(-1, 2, 3)
+            for _, m in messages(recording, "LineSegmentsMessage") if m["name"].startswith("/run0/path/")]
+    np.testing.assert_allclose(np.concatenate(path)[:, 0], result.tool_path[:-1], atol=1e-6)
     first, last = messages(recording, "SetPositionMessage", "/run0/target")[0], messages(
         recording, "SetPositionMessage", "/run0/target")[-1]
     np.testing.assert_allclose(last[1]["position"], scenario.reference(result.time.size * result.dt)[0][:3, 3])
@@ -447,7 +469,7 @@ def test_html_replay_in_a_headless_browser(browser_path, circle_run, tmp_path):
     rows, columns = region(project(camera, youbot_points(scenario.robot, result.q)))
     inside = robot[rows, columns].sum()
     assert inside > 500 and robot.sum() - inside == 0
-    targets = project(camera, np.array([scenario.reference(t)[0][:3, 3] for t in result.time]))
+    targets = project(camera, np.array([scenario.reference(t)[0][:3, 3].copy() for t in result.time]))
     assert hue_mask(image, (100, 160), 0.3)[region(targets)].sum() > 50  # the green target
     obstacle = project(camera, obstacle_pose[None, :3, 3])
     assert hue_mask(image, (345, 12), 0.2)[region(obstacle, 30)].sum() > 200  # the red obstacle

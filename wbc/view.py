@@ -277,7 +277,7 @@ class _RunTrack:
         if targets[0] is not None:
             points = np.array([t[:3, 3] if t.shape == (4, 4) else t for t in targets])
             server.scene.add_line_segments(f"{root}/reference", np.stack([points[:-1], points[1:]], axis=1),
-                                           TARGET_COLOUR, thickness=0.8 * self.scale)
+                                           TARGET_COLOUR, thickness=0.3 * self.scale)
             self.target_marker = server.scene.add_frame(
                 f"{root}/target", show_axes=result.orientation_tracked, axes_length=4 * self.scale,
                 axes_radius=0.2 * self.scale)
@@ -289,13 +289,13 @@ class _RunTrack:
                 points = result.tool_path[start:min(start + stride, self.ticks) + 1]
                 self.path_segments.append(server.scene.add_line_segments(
                     f"{root}/path/{start}", np.stack([points[:-1], points[1:]], axis=1), path_colour,
-                    thickness=0.35 * self.scale, visible=False))
+                    thickness=0.6 * self.scale, visible=False))
         self.shown_segments = 0
 
     def target(self, k: int) -> np.ndarray | None:
         """The reference task's target at tick ``k`` (4x4 or a point), None without a reference."""
         reference = self.scenario.reference
-        return None if reference is None else np.asarray(reference(k * self.result.dt)[0])
+        return None if reference is None else np.array(reference(k * self.result.dt)[0])  # (a reused buffer)
 
     def tick(self, t: float) -> int:
         """The recorded tick shown at time ``t`` [s]: the last one for t past the run's end."""
@@ -360,7 +360,7 @@ class Scene:
         camera = self.server.initial_camera
         camera.fov = math.radians(50.0)
         camera.look_at = centre
-        camera.position = centre + 2.6 * radius * np.array([0.55, -0.7, 0.45])
+        camera.position = centre + 2.2 * radius * np.array([0.55, -0.7, 0.45])
         camera.up = (0.0, 0.0, 1.0)
 
     def show(self, t: float) -> None:
