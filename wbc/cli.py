@@ -11,6 +11,7 @@ import math
 import os
 import sys
 from pathlib import Path
+from typing import TextIO
 
 from . import __version__
 from .errors import WbcError
@@ -56,7 +57,7 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _view(runs: list, port: int, out) -> None:
+def _view(runs: list, port: int, out: TextIO) -> None:
     """Serve the 3-D view of ``runs`` on 127.0.0.1:``port`` until Ctrl-C."""
     import threading
 
