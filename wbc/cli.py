@@ -1,4 +1,5 @@
-"""Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--sim mujoco]``, ``wbc solvers``,
+"""Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--html FILE.html] [--view [PORT]]
+[--sim mujoco]``, ``wbc solvers``,
 ``wbc singularities MODEL``, ``wbc bench SUITE``, ``wbc warmup``."""
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import math
 import os
 import sys
 from pathlib import Path
+from typing import TextIO
 
 from . import __version__
 from .errors import WbcError
@@ -46,7 +48,27 @@ def _run(args: argparse.Namespace) -> int:
 
         # with --json, stdout holds the JSON alone
         print(f"plot written to {plot_runs(runs, args.plot)}", file=sys.stderr if args.json else sys.stdout)
+    if args.html:
+        from .view import write_html
+
+        print(f"3-D replay written to {write_html(runs, args.html)}", file=sys.stderr if args.json else sys.stdout)
+    if args.view is not None:
+        _view(runs, args.view, sys.stderr if args.json else sys.stdout)
     return 0
+
+
+def _view(runs: list, port: int, out: TextIO) -> None:
+    """Serve the 3-D view of ``runs`` on 127.0.0.1:``port`` until Ctrl-C."""
+    import threading
+
+    from .view import LiveView
+
+    with LiveView(runs, port=port) as view:
+        print(f"3-D view at {view.url} (Ctrl-C to stop)", file=out, flush=True)
+        try:
+            view.serve(threading.Event())
+        except KeyboardInterrupt:
+            pass
 
 
 def _check_run_options(args: argparse.Namespace) -> None:
@@ -61,11 +83,22 @@ def _check_run_options(args: argparse.Namespace) -> None:
         _require("mujoco", "--sim mujoco", "sim")
     if args.plot:
         _require("matplotlib", "--plot", "plot")
-        folder = Path(args.plot).parent
-        try:
-            folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise CommandLineError(f"--plot: cannot create the folder {folder}: {exc}") from exc
+        _make_folder("--plot", args.plot)
+    if args.view is not None and not 0 < args.view < 65536:
+        raise CommandLineError(f"--view PORT must be a TCP port, 1 to 65535, got {args.view}")
+    if args.html or args.view is not None:
+        _require("viser", "--html" if args.html else "--view", "view")
+    if args.html:
+        _make_folder("--html", args.html)
+
+
+def _make_folder(option: str, path: str) -> None:
+    """Create the folder of the file ``option`` will write, or say why not."""
+    folder = Path(path).parent
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CommandLineError(f"{option}: cannot create the folder {folder}: {exc}") from exc
 
 
 def _require(module: str, option: str, extra: str) -> None:
@@ -211,6 +244,11 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser = sub.add_parser("run", help="run scenarios (tasks/*.toml) in closed loop")
     run_parser.add_argument("scenario", nargs="+", help="path of a scenario TOML file; give several to compare")
     run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run(s), overlaid")
+    run_parser.add_argument("--html", metavar="FILE.html",
+                            help="write a 3-D replay of the run(s): one self-contained page, no server needed")
+    run_parser.add_argument("--view", nargs="?", type=int, const=8080, metavar="PORT",
+                            help="after the run(s), serve a live 3-D view at http://127.0.0.1:PORT (default "
+                                 "8080, or the next free port) until Ctrl-C")
     run_parser.add_argument("--solver", help="override the scenario's QP solver")
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
     run_parser.add_argument("--json", action="store_true",

@@ -1,0 +1,460 @@
+"""3-D view of closed-loop runs in the browser: live (``wbc run ... --view``) or as a
+self-contained HTML replay (``wbc run ... --html FILE``).
+
+Built on `viser <https://viser.studio>`_ (the ``[view]`` extra), which only this module
+imports: ``import wbc`` does not load it. What is drawn, per run:
+
+* the robot from its URDF: the URDF's visual geometry (boxes, cylinders, spheres, capsules,
+  meshes) on the links that have some, and on the others a *skeleton* -- a cylinder from each
+  joint to its child joints and frames, a sphere on each joint it links;
+* the reference task's targets: a green marker at the current target (with axes if the
+  orientation is tracked) and the whole reference as a thin green line;
+* the tool path (the reference task's frame) traced up to the current time;
+* obstacles (:class:`Obstacle`, translucent red). Scenarios have none yet: this is the hook
+  through which a scenario's obstacles will be drawn.
+
+Several runs are overlaid, each robot in its own colour, on one timeline (a run that ends
+earlier holds its last configuration).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import threading
+import time
+import warnings
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+import numpy as np
+import pinocchio as pin
+import viser
+
+from .closed_loop import RunResult
+from .robot import Robot
+from .scenario import Scenario
+
+Colour = tuple[int, int, int]
+
+#: (robot links, tool path) colour of run number i (cycled)
+RUN_COLOURS: tuple[tuple[Colour, Colour], ...] = (
+    ((235, 120, 20), (30, 90, 230)),
+    ((140, 80, 210), (200, 40, 140)),
+    ((20, 160, 150), (110, 110, 20)),
+    ((200, 60, 120), (40, 150, 220)),
+)
+JOINT_COLOUR: Colour = (55, 55, 60)
+VISUAL_COLOUR: Colour = (80, 80, 90)  #: URDF visual geometry without a material
+TARGET_COLOUR: Colour = (30, 170, 70)
+OBSTACLE_COLOUR: Colour = (220, 40, 40)
+FPS = 30.0  #: frames per second of the replay (and of the live view's updates)
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A static shape in the world, drawn translucent red.
+
+    ``kind`` and ``size``: ``"box"`` (full extents x, y, z), ``"sphere"`` (radius,),
+    ``"cylinder"`` (radius, length; axis along the local z); ``pose``: 4x4 world pose of
+    its centre.
+    """
+
+    kind: Literal["box", "sphere", "cylinder"]
+    size: tuple[float, ...]
+    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+
+    def __post_init__(self) -> None:
+        sizes = {"box": 3, "sphere": 1, "cylinder": 2}
+        if self.kind not in sizes:
+            raise ValueError(f"obstacle kind must be one of {', '.join(sizes)}, got {self.kind!r}")
+        size = tuple(float(s) for s in self.size)
+        if len(size) != sizes[self.kind] or not all(0.0 < s < math.inf for s in size):
+            raise ValueError(f"a {self.kind} obstacle takes {sizes[self.kind]} finite sizes > 0 [m], got {self.size}")
+        pose = np.asarray(self.pose, dtype=np.float64)
+        if pose.shape != (4, 4) or not np.all(np.isfinite(pose)):
+            raise ValueError("obstacle pose must be a finite 4x4 homogeneous transform")
+        object.__setattr__(self, "size", size)
+        object.__setattr__(self, "pose", pose)
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A primitive (or mesh) that moves with one joint of a robot.
+
+    ``placement``: 4x4 pose in the joint frame (a cylinder's axis is its local z);
+    ``size``: box extents, (radius, length) of a cylinder, (radius,) of a sphere, the scale
+    of a mesh; ``vertices``/``faces``: a mesh's triangles.
+    """
+
+    kind: Literal["box", "cylinder", "sphere", "mesh"]
+    joint: int  #: Pinocchio joint index (0: the world)
+    placement: np.ndarray
+    size: tuple[float, ...]
+    colour: Colour
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+
+
+def robot_shapes(robot: Robot, colour: Colour = RUN_COLOURS[0][0]) -> list[Shape]:
+    """What is drawn of ``robot``: its URDF visuals, and a skeleton of cylinders (``colour``)
+    and joint spheres on the links without visuals (see the module docstring)."""
+    visuals = _urdf_visuals(robot)
+    covered = {shape.joint for shape in visuals}
+    model = robot.model
+    data = model.createData()
+    pin.forwardKinematics(model, data, robot.neutral())
+    origins = [data.oMi[j].translation.copy() for j in range(model.njoints)]
+    ends: dict[int, list[np.ndarray]] = {j: [] for j in range(model.njoints)}
+    for j in range(1, model.njoints):
+        ends[model.parents[j]].append(model.jointPlacements[j].translation.copy())
+    for frame in model.frames:
+        # a frame on a joint origin adds nothing; one elsewhere (a tool tip) is a bone end
+        world = data.oMi[frame.parentJoint].act(frame.placement.translation)
+        if not any(np.linalg.norm(world - origin) < 1e-6 for origin in origins):
+            ends[frame.parentJoint].append(frame.placement.translation.copy())
+    bones = [(j, end) for j, joint_ends in ends.items() if j not in covered
+             for end in _unique(joint_ends) if np.linalg.norm(end) > 1e-6]
+    radius = bone_radius(robot)
+    shapes = list(visuals)
+    linked = set()
+    for joint, end in bones:
+        shapes.append(Shape("cylinder", joint, _segment_placement(end), (radius, float(np.linalg.norm(end))), colour))
+        linked.add(joint)
+        linked.update(j for j in range(1, model.njoints)
+                      if model.parents[j] == joint and np.allclose(model.jointPlacements[j].translation, end))
+    shapes += [Shape("sphere", j, np.eye(4), (1.4 * radius,), JOINT_COLOUR) for j in sorted(linked) if j > 0]
+    return shapes + _chassis(robot, covered, radius, colour)
+
+
+def _chassis(robot: Robot, covered: set[int], radius: float, colour: Colour) -> list[Shape]:
+    """A mobile base without visual geometry: a disc under its heading joint, with a nose
+    (in ``colour``) pointing along the heading."""
+    if not robot.base.is_mobile:
+        return []
+    model = robot.model
+    joints = [next(j for j in range(1, model.njoints) if model.idx_vs[j] == index) for index in robot.base.indices]
+    if covered & set(joints):
+        return []
+    disc, thickness, heading = 8 * radius, 2 * radius, joints[2]
+    return [Shape("cylinder", heading, _translation([0.0, 0.0, -thickness / 2]), (disc, thickness), VISUAL_COLOUR),
+            Shape("box", heading, _translation([0.75 * disc, 0.0, 0.0]), (0.4 * disc, 0.2 * disc, 1.2 * thickness),
+                  colour)]
+
+
+def bone_radius(robot: Robot) -> float:
+    """Radius of the skeleton's cylinders [m]: 3 % of the robot's reach (the farthest joint
+    origin or frame from the world origin in the neutral configuration, at least 0.1 m)."""
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, robot.neutral())
+    pin.updateFramePlacements(robot.model, data)
+    reach = max([np.linalg.norm(p.translation) for p in list(data.oMi) + list(data.oMf)] + [0.1])
+    return 0.03 * float(reach)
+
+
+def _unique(points: list[np.ndarray]) -> list[np.ndarray]:
+    kept: list[np.ndarray] = []
+    for point in points:
+        if not any(np.linalg.norm(point - other) < 1e-6 for other in kept):
+            kept.append(point)
+    return kept
+
+
+def _segment_placement(end: np.ndarray) -> np.ndarray:
+    """Placement of a cylinder from the origin to ``end``: centred, z along the segment."""
+    z = end / np.linalg.norm(end)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    placement = np.eye(4)
+    placement[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    placement[:3, 3] = end / 2
+    return placement
+
+
+def _urdf_visuals(robot: Robot) -> list[Shape]:
+    """The URDF's visual geometry as shapes (none for a robot without a URDF file)."""
+    if robot.source is None or Path(robot.source).suffix != ".urdf":
+        return []
+    try:
+        geometry = pin.buildGeomFromUrdf(robot.model, str(robot.source), pin.GeometryType.VISUAL,
+                                         package_dirs=[str(Path(robot.source).parent)])
+    except (RuntimeError, ValueError, OSError) as exc:  # e.g. a mesh file not found
+        warnings.warn(f"{robot.source}: visual geometry not loaded ({exc}); drawing the skeleton", stacklevel=2)
+        return []
+    shapes = []
+    for item in geometry.geometryObjects:
+        colour = (tuple(int(round(255 * c)) for c in item.meshColor[:3]) if item.overrideMaterial
+                  else VISUAL_COLOUR)
+        placement, g, kind = item.placement.homogeneous, item.geometry, type(item.geometry).__name__
+        if kind == "Box":
+            shapes.append(Shape("box", item.parentJoint, placement, tuple(2 * g.halfSide), colour))
+        elif kind == "Sphere":
+            shapes.append(Shape("sphere", item.parentJoint, placement, (g.radius,), colour))
+        elif kind in ("Cylinder", "Capsule"):
+            shapes.append(Shape("cylinder", item.parentJoint, placement, (g.radius, 2 * g.halfLength), colour))
+            if kind == "Capsule":
+                for sign in (-1.0, 1.0):
+                    cap = placement @ _translation([0.0, 0.0, sign * g.halfLength])
+                    shapes.append(Shape("sphere", item.parentJoint, cap, (g.radius,), colour))
+        elif item.meshPath:
+            shapes.append(_mesh_shape(item, colour))
+        else:
+            warnings.warn(f"{robot.source}: visual {item.name!r} of type {kind} is not drawn", stacklevel=2)
+    return shapes
+
+
+def _mesh_shape(item, colour: Colour) -> Shape:
+    import trimesh  # a dependency of viser
+
+    mesh = trimesh.load(item.meshPath, force="mesh")
+    return Shape("mesh", item.parentJoint, item.placement.homogeneous, tuple(item.meshScale), colour,
+                 vertices=np.asarray(mesh.vertices) * np.asarray(item.meshScale), faces=np.asarray(mesh.faces))
+
+
+def _corners(shape: Shape) -> np.ndarray:
+    """(8, 3) corners of the box around ``shape`` in its own frame."""
+    if shape.kind == "mesh":
+        low, high = shape.vertices.min(axis=0), shape.vertices.max(axis=0)
+    else:
+        if shape.kind == "box":
+            high = np.asarray(shape.size) / 2
+        elif shape.kind == "sphere":
+            high = np.full(3, shape.size[0])
+        else:
+            high = np.array([shape.size[0], shape.size[0], shape.size[1] / 2])
+        low = -high
+    return np.array([[(low, high)[i][0], (low, high)[j][1], (low, high)[k][2]]
+                     for i in (0, 1) for j in (0, 1) for k in (0, 1)])
+
+
+def _translation(p) -> np.ndarray:
+    transform = np.eye(4)
+    transform[:3, 3] = p
+    return transform
+
+
+def _wxyz(rotation: np.ndarray) -> np.ndarray:
+    x, y, z, w = pin.Quaternion(rotation).coeffs()
+    return np.array([w, x, y, z])
+
+
+def _add_shape(scene, name: str, kind: str, size: tuple[float, ...], colour: Colour, placement: np.ndarray,
+               opacity: float | None = None, vertices: np.ndarray | None = None,
+               faces: np.ndarray | None = None) -> None:
+    pose = {"position": placement[:3, 3], "wxyz": _wxyz(placement[:3, :3])}
+    if kind == "box":
+        scene.add_box(name, colour, size, opacity=opacity, **pose)
+    elif kind == "sphere":
+        scene.add_icosphere(name, size[0], colour, opacity=opacity, **pose)
+    elif kind == "cylinder":
+        scene.add_cylinder(name, size[0], size[1], colour, opacity=opacity, **pose)
+    else:
+        scene.add_mesh_simple(name, vertices, faces, color=colour, opacity=opacity, **pose)
+
+
+class _RunTrack:
+    """One run in the scene: its robot's joint frames, its target marker and tool path."""
+
+    def __init__(self, server: viser.ViserServer, index: int, scenario: Scenario, result: RunResult, stride: int):
+        self.scenario, self.result, self.stride = scenario, result, stride
+        robot, root = scenario.robot, f"/run{index}"
+        robot_colour, path_colour = RUN_COLOURS[index % len(RUN_COLOURS)]
+        self.model, self.data = robot.model, robot.model.createData()
+        self.shapes = shapes = robot_shapes(robot, robot_colour)
+        self.frames = {j: server.scene.add_frame(f"{root}/j{j}", show_axes=False)
+                       for j in sorted({shape.joint for shape in shapes})}
+        self.scale = bone_radius(robot)
+        for n, shape in enumerate(shapes):
+            _add_shape(server.scene, f"{root}/j{shape.joint}/s{n}", shape.kind, shape.size, shape.colour,
+                       shape.placement, vertices=shape.vertices, faces=shape.faces)
+        self.ticks = result.time.size  # the last recorded configuration is q[ticks]
+        targets = [self.target(k) for k in [*range(0, self.ticks, stride), self.ticks]]
+        self.target_marker = None
+        if targets[0] is not None:
+            points = np.array([t[:3, 3] if t.shape == (4, 4) else t for t in targets])
+            server.scene.add_line_segments(f"{root}/reference", np.stack([points[:-1], points[1:]], axis=1),
+                                           TARGET_COLOUR, thickness=0.3 * self.scale)
+            self.target_marker = server.scene.add_frame(
+                f"{root}/target", show_axes=result.orientation_tracked, axes_length=4 * self.scale,
+                axes_radius=0.2 * self.scale)
+            # larger than the tool's bone: a halo around a tool on target
+            server.scene.add_icosphere(f"{root}/target/ball", 1.8 * self.scale, TARGET_COLOUR, opacity=0.6)
+        self.path_segments = []
+        if result.tool_path is not None:
+            for start in range(0, self.ticks, stride):
+                points = result.tool_path[start:min(start + stride, self.ticks) + 1]
+                self.path_segments.append(server.scene.add_line_segments(
+                    f"{root}/path/{start}", np.stack([points[:-1], points[1:]], axis=1), path_colour,
+                    thickness=0.6 * self.scale, visible=False))
+        self.shown_segments = 0
+
+    def target(self, k: int) -> np.ndarray | None:
+        """The reference task's target at tick ``k`` (4x4 or a point), None without a reference."""
+        reference = self.scenario.reference
+        return None if reference is None else np.array(reference(k * self.result.dt)[0])  # (a reused buffer)
+
+    def tick(self, t: float) -> int:
+        """The recorded tick shown at time ``t`` [s]: the last one for t past the run's end."""
+        return min(max(int(round(t / self.result.dt)), 0), self.ticks)
+
+    def show(self, t: float) -> None:
+        """Move the robot, target and tool path to time ``t`` [s]."""
+        k = self.tick(t)
+        pin.forwardKinematics(self.model, self.data, self.result.q[k])
+        for j, frame in self.frames.items():
+            placement = self.data.oMi[j]
+            frame.position, frame.wxyz = placement.translation, _wxyz(placement.rotation)
+        if self.target_marker is not None:
+            target = self.target(k)
+            self.target_marker.position = target[:3, 3] if target.shape == (4, 4) else target
+            if target.shape == (4, 4):
+                self.target_marker.wxyz = _wxyz(target[:3, :3])
+        shown = -(-k // self.stride)  # segments that end at or before tick k
+        for segment in self.path_segments[min(shown, self.shown_segments):max(shown, self.shown_segments)]:
+            segment.visible = shown > self.shown_segments
+        self.shown_segments = shown
+
+    def points(self) -> np.ndarray:
+        """World points the camera must see: the corners of the shapes' boxes at the start and
+        at the end, the tool path."""
+        points = [] if self.result.tool_path is None else [self.result.tool_path]
+        for q in (self.result.q[0], self.result.q[-1]):
+            pin.forwardKinematics(self.model, self.data, q)
+            for shape in self.shapes:
+                pose = self.data.oMi[shape.joint].homogeneous @ shape.placement
+                points.append(_corners(shape) @ pose[:3, :3].T + pose[:3, 3])
+        return np.vstack(points)
+
+
+class Scene:
+    """Runs (and obstacles) in a viser scene, on one timeline: :meth:`show` poses everything at a time."""
+
+    def __init__(self, server: viser.ViserServer, runs: Sequence[tuple[Scenario, RunResult]],
+                 obstacles: Sequence[Obstacle] = (), fps: float = FPS):
+        self.server, self.fps = server, fps
+        self.tracks = [_RunTrack(server, i, scenario, result, max(1, int(round(1.0 / (fps * result.dt)))))
+                       for i, (scenario, result) in enumerate(runs)]
+        self.duration = max([track.ticks * track.result.dt for track in self.tracks] + [0.0])
+        for n, obstacle in enumerate(obstacles):
+            _add_shape(server.scene, f"/obstacles/{n}", obstacle.kind, obstacle.size, OBSTACLE_COLOUR,
+                       obstacle.pose, opacity=0.5)
+        self._frame_the_view(obstacles)
+        self.show(0.0)
+
+    def _frame_the_view(self, obstacles: Sequence[Obstacle]) -> None:
+        """Ground grid under everything and a camera that sees it all."""
+        points = [track.points() for track in self.tracks]
+        points += [obstacle.pose[:3, 3] + np.array([[-1], [1]]) * max(obstacle.size) for obstacle in obstacles]
+        points = np.vstack(points) if points else np.zeros((1, 3))
+        low, high = points.min(axis=0), points.max(axis=0)
+        centre, radius = (low + high) / 2, max(float(np.linalg.norm(high - low)) / 2, 0.3)
+        side = 2 * math.ceil(radius + 0.5)
+        scene = self.server.scene
+        scene.set_up_direction("+z")
+        scene.add_grid("/ground", side, side, position=(centre[0], centre[1], min(low[2], 0.0) - 1e-3),
+                       cell_size=0.1, section_size=1.0)
+        camera = self.server.initial_camera
+        camera.fov = math.radians(50.0)
+        camera.look_at = centre
+        camera.position = centre + 2.2 * radius * np.array([0.55, -0.7, 0.45])
+        camera.up = (0.0, 0.0, 1.0)
+
+    def show(self, t: float) -> None:
+        """Everything at time ``t`` [s] of the timeline."""
+        with self.server.atomic():
+            for track in self.tracks:
+                track.show(t)
+
+    def frame_times(self) -> Iterator[float]:
+        """The replay's frame times, ``fps`` per second from 0 to the end of the longest run."""
+        count = int(math.ceil(self.duration * self.fps - 1e-9))
+        return (min(n / self.fps, self.duration) for n in range(count + 1))
+
+
+def _start_server(host: str, port: int) -> viser.ViserServer:
+    """A viser server on ``host``:``port`` (the next free port if taken; 0: any), without
+    the banner viser prints on stdout (which holds the summaries, or the JSON)."""
+    with contextlib.redirect_stdout(io.StringIO()):
+        return viser.ViserServer(host=host, port=port, verbose=False)
+
+
+def _stop_server(server: viser.ViserServer) -> None:
+    with contextlib.redirect_stdout(io.StringIO()):
+        server.stop()
+
+
+def replay_html(runs: Sequence[tuple[Scenario, RunResult]], obstacles: Sequence[Obstacle] = (),
+                fps: float = FPS) -> str:
+    """A self-contained HTML page replaying ``runs`` (viser's client with the recorded scene
+    embedded; no server, no network): play/pause, time slider and speed at the bottom."""
+    server = _start_server("127.0.0.1", 0)
+    try:
+        scene = Scene(server, runs, obstacles, fps)
+        recording = server.get_scene_serializer()
+        for t in scene.frame_times():
+            scene.show(t)
+            recording.insert_sleep(1.0 / fps)
+        recording.insert_sleep(1.0)  # hold the last frame before looping
+        return recording.as_html()
+    finally:
+        _stop_server(server)
+
+
+def write_html(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path, obstacles: Sequence[Obstacle] = (),
+               fps: float = FPS) -> Path:
+    """Write :func:`replay_html` to ``path``; returns the path."""
+    path = Path(path)
+    path.write_text(replay_html(runs, obstacles, fps), encoding="utf-8")
+    return path
+
+
+class LiveView:
+    """The runs in a viser server at ``http://host:port``, played in real time (looping) with
+    play/pause, a time slider and a speed setting; :meth:`serve` runs it until stopped."""
+
+    def __init__(self, runs: Sequence[tuple[Scenario, RunResult]], host: str = "127.0.0.1", port: int = 8080,
+                 obstacles: Sequence[Obstacle] = (), fps: float = FPS):
+        self.server = _start_server(host, port)
+        try:
+            self.scene = Scene(self.server, runs, obstacles, fps)
+        except BaseException:
+            _stop_server(self.server)
+            raise
+        gui = self.server.gui
+        self.playing = gui.add_checkbox("play", initial_value=True)
+        self.time = gui.add_slider("time [s]", min=0.0, max=max(self.scene.duration, 1e-3), step=1.0 / fps,
+                                   initial_value=0.0)
+        self.speed = gui.add_dropdown("speed", ("0.25", "0.5", "1", "2", "4"), initial_value="1")
+
+    @property
+    def url(self) -> str:
+        return f"http://{self.server.get_host()}:{self.server.get_port()}"
+
+    def serve(self, stop: threading.Event) -> None:
+        """Play until ``stop`` is set: time advances while ``play`` is ticked, wraps at the
+        end; moving the slider pauses and shows that time."""
+        t, written, last = 0.0, 0.0, time.perf_counter()
+        while not stop.wait(1.0 / self.scene.fps):
+            now = time.perf_counter()
+            if self.time.value != written:  # the user moved the slider
+                t, self.playing.value = self.time.value, False
+            elif self.playing.value:
+                t += (now - last) * float(self.speed.value)
+                t = 0.0 if t > self.scene.duration + 1.0 else t  # hold the end 1 s, then loop
+            last = now
+            self.scene.show(t)
+            self.time.value = min(t, self.scene.duration)
+            written = self.time.value
+
+    def close(self) -> None:
+        _stop_server(self.server)
+
+    def __enter__(self) -> LiveView:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
