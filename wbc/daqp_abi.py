@@ -136,7 +136,7 @@ def _load() -> Library | str:
                      "free_daqp_ldp"):
             getattr(lib, name)
         gettime = libc.clock_gettime
-    except (OSError, AttributeError) as exc:
+    except (OSError, AttributeError, TypeError) as exc:  # TypeError: no ctypes.CDLL(None) (Windows)
         return f"daqp's C entry points or libc's clock_gettime are not reachable ({exc})"
     if clock is None:
         return "this platform has no CLOCK_MONOTONIC"
