@@ -16,6 +16,7 @@ from numba import njit
 
 from . import prepare_cache
 from .assembly import normalise_cost
+from .manipulability import _jacobi_eigenvectors
 
 prepare_cache()  # before the first @njit below compiles: see wbc.kernels
 
@@ -94,44 +95,6 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
     for r in range(first_preview, last_preview):
         _band_row(stack_t, r, x, lower, upper, size, relative, data, row + 2 * slot * nv, h + 2 * slot)
         slot += 1
-
-
-@njit(cache=True, nogil=True)
-def _symmetric_eigen(matrix: np.ndarray, values: np.ndarray, vectors: np.ndarray) -> None:
-    """Eigenvalues and orthonormal eigenvectors (columns) of a small symmetric ``matrix`` (cyclic
-    Jacobi; ``matrix`` is overwritten). Raises nothing: at most 50 sweeps."""
-    n = matrix.shape[0]
-    for i in range(n):
-        for j in range(n):
-            vectors[i, j] = 1.0 if i == j else 0.0
-    for _ in range(50):
-        off, total = 0.0, 0.0
-        for i in range(n):
-            for j in range(n):
-                total += matrix[i, j] * matrix[i, j]
-                if i != j:
-                    off += matrix[i, j] * matrix[i, j]
-        if off <= 1e-30 * total:
-            break
-        for p in range(n - 1):
-            for q in range(p + 1, n):
-                if matrix[p, q] == 0.0:
-                    continue
-                theta = (matrix[q, q] - matrix[p, p]) / (2.0 * matrix[p, q])
-                t = (1.0 if theta >= 0.0 else -1.0) / (abs(theta) + math.sqrt(theta * theta + 1.0))
-                c = 1.0 / math.sqrt(t * t + 1.0)
-                s = t * c
-                for k in range(n):  # columns p, q
-                    mkp, mkq = matrix[k, p], matrix[k, q]
-                    matrix[k, p], matrix[k, q] = c * mkp - s * mkq, s * mkp + c * mkq
-                for k in range(n):  # rows p, q
-                    mpk, mqk = matrix[p, k], matrix[q, k]
-                    matrix[p, k], matrix[q, k] = c * mpk - s * mqk, s * mpk + c * mqk
-                for k in range(n):
-                    vkp, vkq = vectors[k, p], vectors[k, q]
-                    vectors[k, p], vectors[k, q] = c * vkp - s * vkq, s * vkp + c * vkq
-    for i in range(n):
-        values[i] = matrix[i, i]
 
 
 @njit("void(float64[:, :], float64[:], float64, float64[:])", cache=True, nogil=True)
@@ -222,7 +185,9 @@ def hierarchy_preview(stack_t: np.ndarray, ranges: np.ndarray, floor: float, pre
         if k == levels - 1:
             break
         values, vectors = np.empty(free), np.empty((free, free))
-        _symmetric_eigen(normal, values, vectors)
+        _jacobi_eigenvectors(normal, vectors)  # normal ends diagonal: its eigenvalues
+        for a in range(free):
+            values[a] = normal[a, a]
         largest = 0.0
         for a in range(free):
             largest = max(largest, values[a])
