@@ -27,11 +27,10 @@ import numpy as np
 from . import daqp_abi, kernels
 from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
 from .kernels import (
-    DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_ITERATIONS,
     DAQP_CONTROL_MASK,
+    DAQP_CONTROL_OUTCOME,
     DAQP_CONTROL_SIZE,
-    DAQP_CONTROL_TIME,
 )
 from .program import TickProgram
 from .qp import QP
@@ -54,9 +53,10 @@ class NativeWorkspace:
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
+        # the initial constraint states (equality rows active), what a cold tick re-reads;
+        # DAQP only reads the problem's sense (it copies it into the workspace's own)
         self._initial_sense = np.zeros(m, dtype=np.intc)
         self._initial_sense[qp.n + qp.n_ineq:] = daqp_abi.SENSE_EQUALITY
-        self._fresh_sense = self._initial_sense.copy()  # what a cold tick re-reads
         # the C structures, in memory this object owns
         self.problem_words, self.work_words = np.zeros(words(Problem)), np.zeros(words(Workspace))
         self.result_words, self.settings_words = np.zeros(words(Result)), np.zeros(words(Settings))
@@ -88,9 +88,8 @@ class NativeWorkspace:
         problem, qp = self.problem, self.qp
         problem.n, problem.m, problem.ms = qp.n, qp.n + qp.n_ineq + qp.n_eq, qp.n
         problem.break_points, problem.nh, problem.problem_type = None, 0, 0
-        self._fresh_sense[...] = self._initial_sense
         self._point(self._neutral_H, self._neutral_f, self._neutral_A, self._neutral_upper, self._neutral_lower)
-        problem.sense = self._fresh_sense.ctypes.data
+        problem.sense = self._initial_sense.ctypes.data
         flag = self._library.lib.setup_daqp(ctypes.addressof(problem), ctypes.addressof(self.work), None)
         if flag < 0:  # cannot happen on the neutral problem; never run on a half-made workspace
             raise RuntimeError(f"DAQP could not set up a {qp.n}-variable workspace (exit flag {flag})")
@@ -129,7 +128,7 @@ class NativeWorkspace:
 
     def outcome(self) -> tuple[int, float, float]:
         """(exit flag, answer defect, solve time [s]) of the latest compiled solve."""
-        exitflag, defect, elapsed = self.control[DAQP_CONTROL_EXITFLAG:DAQP_CONTROL_TIME + 1].tolist()
+        exitflag, defect, elapsed = self.control[DAQP_CONTROL_OUTCOME].tolist()
         return int(exitflag), defect, elapsed
 
     @property

@@ -72,7 +72,7 @@ import numpy as np
 from . import kernels
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
-from .kernels import DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME
+from .kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .layout import TaskStack
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -92,7 +92,6 @@ BAND = 1e-9
 #: Clarabel and HiGHS stopped short of their tolerances on every tick of a tracked circle
 SEMIDEFINITE_SOLVERS = frozenset({"clarabel", "highs", "osqp", "piqp", "proxqp"})
 
-_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)  # exit flag, defect, solve time [s]
 _REDUCTION_FAILURE = "reduced form: a constraint bounded the coupled base rates x, y"
 
 
@@ -291,7 +290,7 @@ class Hierarchy:
         program's BAND ops allow only after every level above did the same, with
         :data:`wbc.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
         level failed)."""
-        exitflag, defect, elapsed = self._last_control[_OUTCOME].tolist()
+        exitflag, defect, elapsed = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
         if exitflag >= 1.0 and defect <= tolerance:
             for control in self._upper_controls:
                 elapsed += control.item(DAQP_CONTROL_TIME)

@@ -223,10 +223,6 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
     return max(dual, gap)
 
 
-#: (exit flag, defect, time [s]): consecutive in the native solve's control vector
-_OUTCOME = slice(kernels.DAQP_CONTROL_EXITFLAG, kernels.DAQP_CONTROL_TIME + 1)
-
-
 class DaqpBackend(QPSolver):
     """DAQP on a persistent workspace that points into the QP's own buffers (no copy).
 
@@ -288,15 +284,11 @@ class DaqpBackend(QPSolver):
 
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
-        bound = self._bound
-        exitflag, defect, elapsed = bound.control[_OUTCOME].tolist()
-        if exitflag >= 1.0 and defect != math.inf:  # the control loop's path
-            return QPSolution(bound.x.copy(), True, "optimal", elapsed, defect)
-        return self._native_solution(bound, int(exitflag), defect, elapsed)
+        return self._native_solution(self._bound, *self._bound.outcome())
 
     def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
         bound = self._bound
-        exitflag, defect, elapsed = bound.control[_OUTCOME].tolist()
+        exitflag, defect, elapsed = bound.control[kernels.DAQP_CONTROL_OUTCOME].tolist()
         if exitflag >= 1.0 and defect <= tolerance:
             return bound.x.copy(), elapsed
         return None

@@ -105,6 +105,8 @@ DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
 #: answer), the solve time [s] and DAQP's iterations out
 DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS = range(5)
 DAQP_CONTROL_SIZE = 5
+#: (exit flag, defect, solve time [s]) of the control vector, read in one slice
+DAQP_CONTROL_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)
 #: exit flag of a solve that a NaN screen earlier in the program skipped
 DAQP_SKIPPED = 0
 
