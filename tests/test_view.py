@@ -89,24 +89,46 @@ def free_port() -> int:
         return probe.getsockname()[1]
 
 
-def test_view_option_serves_until_interrupted():
-    """``wbc run ... --view PORT``: the URL on stdout, viser's client served there, exit 0 on Ctrl-C."""
+def test_view_option_streams_the_run_then_replays_until_interrupted():
+    """``wbc run ... --view PORT``: the URL on stdout before the run, viser's client served there
+    while the run streams, then the replay line after the summary; exit 0 on Ctrl-C."""
     port = free_port()
-    process = subprocess.Popen([sys.executable, "-m", "wbc.cli", "run", CIRCLE, "--duration", "0.2", "--no-progress",
+    process = subprocess.Popen([sys.executable, "-m", "wbc.cli", "run", CIRCLE, "--duration", "0.5", "--no-progress",
                                 "--view", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                cwd=NEUTRAL)
     try:
         lines = iter(process.stdout.readline, "")
-        line = next((line for line in lines if line.startswith("3-D view at ")), "")
-        assert re.fullmatch(r"3-D view at http://127\.0\.0\.1:\d+ \(Ctrl-C to stop\)\n", line), line
-        url = line.split()[3]
+        first = next(lines, "")
+        assert re.fullmatch(r"3-D view at http://127\.0\.0\.1:\d+: the run\(s\) stream live, then replay "
+                            r"\(Ctrl-C to stop\)\n", first), first
+        url = first.split()[3].rstrip(":")
         with urllib.request.urlopen(url, timeout=60) as response:
             assert response.status == 200 and b"<html" in response.read(2000).lower()
+        rest = []
+        for line in lines:
+            rest.append(line)
+            if line.startswith("3-D view: replaying"):
+                break
+        assert rest[0].startswith("scenario youbot_circle"), rest  # the summary came in between
     finally:
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=60)
     assert process.returncode == 0, err
     assert "viser" not in out  # its banner is not printed
+
+
+def test_ctrl_c_during_a_streamed_run_stops_it_cleanly():
+    port = free_port()
+    process = subprocess.Popen([sys.executable, "-m", "wbc.cli", "run", CIRCLE, "--no-progress", "--view", str(port)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=NEUTRAL)
+    try:
+        assert process.stdout.readline().startswith("3-D view at ")
+        time.sleep(1.0)  # the 20 s run is streaming in real time
+    finally:
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    assert process.returncode == 130 and err.strip().endswith("wbc: interrupted"), err
+    assert "Traceback" not in err and "scenario youbot_circle" not in out  # no summary of a cut run
 
 
 # ------------------------------------------------------------------------ the robot's shapes
@@ -347,6 +369,87 @@ def wait_until(condition, timeout: float = 60.0) -> None:
         time.sleep(0.05)
 
 
+class FakeClock:
+    """A clock that advances only when slept on: the pacing of a stream, without waiting."""
+
+    def __init__(self) -> None:
+        self.now, self.sleeps, self.on_sleep = 100.0, [], None
+
+    def __call__(self) -> float:
+        return self.now
+
+    def sleep(self, seconds: float) -> None:
+        self.sleeps.append(seconds)
+        self.now += seconds
+        if self.on_sleep is not None:
+            self.on_sleep()
+
+
+def test_a_streamed_run_is_shown_as_it_runs_and_ends_as_the_recorded_run(circle_run):
+    scenario, result = circle_run
+    robot, ticks = scenario.robot, result.time.size
+    wrist = joint_id(robot, "arm_joint_5")
+    data = robot.model.createData()
+    clock = FakeClock()
+    with view.LiveView([(scenario, ticks)], port=free_port()) as live:
+        track = live.scene.tracks[0]
+        observer = live.follow(0, clock=clock, sleep=clock.sleep)
+        shown = []
+
+        def on_tick(k, q):
+            observer(k, q)
+            if k % track.stride == 0:  # a frame: the robot at q[k], the tool path up to k
+                pin.forwardKinematics(robot.model, data, q)
+                assert np.allclose(track.frames[wrist].position, data.oMi[wrist].translation, atol=1e-12)
+                assert track.shown_segments == k // track.stride
+                assert live.time.value == pytest.approx(k * scenario.dt)
+                shown.append(k)
+
+        streamed = run(scenario, duration=1.0, on_tick=on_tick)
+        assert live.time.disabled and "live" in live.status.content
+    assert shown == list(range(track.stride, ticks + 1, track.stride))
+    np.testing.assert_array_equal(streamed.q, result.q)  # streaming does not change the run
+    np.testing.assert_array_equal(track.q, result.q)
+    np.testing.assert_allclose(track.tool_path, result.tool_path, atol=1e-12)
+    assert len(track.path_segments) == -(-ticks // track.stride)
+    # held to real time: one run second of sleep in all at speed 1 (the fake clock does not move by itself)
+    assert sum(clock.sleeps) == pytest.approx(ticks * scenario.dt)
+
+
+def test_stream_pacing_follows_the_speed_and_does_not_make_up_a_pause(circle_run):
+    scenario, result = circle_run
+    clock = FakeClock()
+    with view.LiveView([(scenario, result.time.size)], port=free_port()) as live:
+        stride, fps = live.scene.tracks[0].stride, live.scene.fps
+        live.speed.value = "2"
+        observer = live.follow(0, clock=clock, sleep=clock.sleep)
+        for k in range(1, 2 * stride + 1):
+            observer(k, result.q[k])
+        assert clock.sleeps == pytest.approx([stride * scenario.dt / 2] * 2)  # twice as fast
+        clock.sleeps.clear()
+        live.playing.value = False  # paused: the run waits ...
+
+        def user():  # ... until the user ticks "play" again, 15 s later
+            clock.now += 5.0
+            live.playing.value = len(clock.sleeps) >= 3
+
+        clock.on_sleep = user
+        for k in range(2 * stride + 1, 3 * stride + 1):
+            observer(k, result.q[k])
+    # three waits of a frame each while paused, then one frame's worth of run time at speed 2:
+    # the pause is not made up for by running fast after it
+    assert clock.sleeps[:3] == pytest.approx([1.0 / fps] * 3)
+    assert clock.sleeps[3:] == pytest.approx([stride * scenario.dt / 2])
+
+
+def test_closed_loop_observer_sees_every_configuration(circle_run):
+    scenario, result = circle_run
+    seen = []
+    run(scenario, duration=1.0, on_tick=lambda k, q: seen.append((k, q.copy())))
+    assert [k for k, _ in seen] == list(range(1, result.time.size + 1))
+    np.testing.assert_array_equal(np.array([q for _, q in seen]), result.q[1:])
+
+
 # ------------------------------------------------------------------------ in a real browser
 WIDTH, HEIGHT = 900, 650
 UI_BAND = 80  #: bottom pixels holding the replay's controls (their blue bar), left out of the colour counts
@@ -488,23 +591,31 @@ def test_html_replay_without_a_robot_shows_none(browser_path, tmp_path):
 
 
 @pytest.mark.slow  # a browser rendering WebGL on the CPU: 10-20 s
-def test_live_view_in_a_headless_browser(browser_path, circle_run):
-    scenario, result = circle_run
-    stop = threading.Event()
-    with view.LiveView([circle_run], port=free_port()) as live:
-        live.playing.value = False  # a still scene
-        player = threading.Thread(target=live.serve, args=(stop,))
-        player.start()
+def test_live_view_in_a_headless_browser_while_the_run_streams(browser_path):
+    """The page opened while the controller runs: the robot is drawn where its streamed
+    configurations put it (the stream paused half-way for a still picture)."""
+    scenario = load_scenario(CIRCLE)
+    ticks = 50
+    with view.LiveView([(scenario, ticks)], port=free_port()) as live:
+        track = live.scene.tracks[0]
+        observer = live.follow(0)
+        runner = threading.Thread(target=run, args=(scenario,), kwargs={"duration": ticks * scenario.dt,
+                                                                        "on_tick": observer})
+        runner.start()
         try:
+            wait_until(lambda: track.recorded >= ticks // 2)
+            live.playing.value = False  # holds the run at its next frame
             camera = {"position": live.server.initial_camera.position, "look_at": live.server.initial_camera.look_at,
                       "fov": live.server.initial_camera.fov}
             with HeadlessBrowser(browser_path, WIDTH, HEIGHT) as browser:
                 browser.open(live.url)
                 browser.hide(NOTIFICATIONS)
                 image = browser.wait_for(steady(robot_shown))
+            recorded = track.recorded
         finally:
-            stop.set()
-            player.join(timeout=60)
+            live.playing.value = True
+            runner.join(timeout=60)
+    assert not runner.is_alive() and ticks // 2 <= recorded < ticks  # the picture is mid-run
     robot = robot_mask(image)
-    rows, columns = region(project(camera, youbot_points(scenario.robot, result.q)))
+    rows, columns = region(project(camera, youbot_points(scenario.robot, track.q[:recorded + 1])))
     assert robot[rows, columns].sum() > 500 and robot.sum() == robot[rows, columns].sum()

@@ -5,11 +5,13 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import math
 import os
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TextIO
 
@@ -32,43 +34,64 @@ def _run(args: argparse.Namespace) -> int:
 
     _check_run_options(args)
     scenarios = [load_scenario(path) for path in args.scenario]
-    runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration, progress=not args.no_progress,
-                           simulation=_simulation(args, scenario)))
-            for scenario in scenarios]
-    trace = manipulability_traces(runs)
-    summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
-                 | ({} if trace is None else trace.summary(k))
-                 for k, (scenario, result) in enumerate(runs)]
-    if args.json:
-        print(json.dumps(summaries, indent=2))
-    else:
-        print("\n".join(format_summary(summary["scenario"], summary["solver"], summary) for summary in summaries))
-    if args.plot:
-        from .plotting import plot_runs
+    messages = sys.stderr if args.json else sys.stdout  # with --json, stdout holds the JSON alone
+    with _live_view(args, scenarios, messages) as live:
+        try:
+            runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration,
+                                   progress=not args.no_progress and live is None,
+                                   simulation=_simulation(args, scenario),
+                                   on_tick=None if live is None else live.follow(k)))
+                    for k, scenario in enumerate(scenarios)]
+        except KeyboardInterrupt:
+            print("wbc: interrupted", file=sys.stderr)
+            return 130
+        trace = manipulability_traces(runs)
+        summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
+                     | ({} if trace is None else trace.summary(k))
+                     for k, (scenario, result) in enumerate(runs)]
+        if args.json:
+            print(json.dumps(summaries, indent=2))
+        else:
+            print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
+                            for summary in summaries))
+        if args.plot:
+            from .plotting import plot_runs
 
-        # with --json, stdout holds the JSON alone
-        print(f"plot written to {plot_runs(runs, args.plot)}", file=sys.stderr if args.json else sys.stdout)
-    if args.html:
-        from .view import write_html
+            print(f"plot written to {plot_runs(runs, args.plot)}", file=messages)
+        if args.html:
+            from .view import write_html
 
-        print(f"3-D replay written to {write_html(runs, args.html)}", file=sys.stderr if args.json else sys.stdout)
-    if args.view is not None:
-        _view(runs, args.view, sys.stderr if args.json else sys.stdout)
+            print(f"3-D replay written to {write_html(runs, args.html)}", file=messages)
+        if live is not None:
+            _replay(live, messages)
     return 0
 
 
-def _view(runs: list, port: int, out: TextIO) -> None:
-    """Serve the 3-D view of ``runs`` on 127.0.0.1:``port`` until Ctrl-C."""
-    import threading
-
+@contextlib.contextmanager
+def _live_view(args: argparse.Namespace, scenarios: list, out: TextIO) -> Iterator:
+    """With ``--view``: a LiveView of the runs to come, its URL printed before they start
+    (they are then streamed into it in real time); else None."""
+    if args.view is None:
+        yield None
+        return
+    from .closed_loop import tick_count
     from .view import LiveView
 
-    with LiveView(runs, port=port) as view:
-        print(f"3-D view at {view.url} (Ctrl-C to stop)", file=out, flush=True)
-        try:
-            view.serve(threading.Event())
-        except KeyboardInterrupt:
-            pass
+    with LiveView([(scenario, tick_count(scenario, args.duration)) for scenario in scenarios],
+                  port=args.view) as live:
+        print(f"3-D view at {live.url}: the run(s) stream live, then replay (Ctrl-C to stop)", file=out, flush=True)
+        yield live
+
+
+def _replay(live, out: TextIO) -> None:
+    """Serve the replay of the finished runs until Ctrl-C."""
+    import threading
+
+    print("3-D view: replaying the run(s) (Ctrl-C to stop)", file=out, flush=True)
+    try:
+        live.serve(threading.Event())
+    except KeyboardInterrupt:
+        pass
 
 
 def _check_run_options(args: argparse.Namespace) -> None:
@@ -247,8 +270,9 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--html", metavar="FILE.html",
                             help="write a 3-D replay of the run(s): one self-contained page, no server needed")
     run_parser.add_argument("--view", nargs="?", type=int, const=8080, metavar="PORT",
-                            help="after the run(s), serve a live 3-D view at http://127.0.0.1:PORT (default "
-                                 "8080, or the next free port) until Ctrl-C")
+                            help="serve a 3-D view at http://127.0.0.1:PORT (default 8080, or the next free "
+                                 "port): the run(s) stream into it in real time (held to real time, so a 20 s "
+                                 "scenario takes 20 s), then replay until Ctrl-C")
     run_parser.add_argument("--solver", help="override the scenario's QP solver")
     run_parser.add_argument("--duration", type=float, help="override the duration [s]")
     run_parser.add_argument("--json", action="store_true",

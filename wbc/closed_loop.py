@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -69,18 +69,31 @@ class RunResult:
         return summary
 
 
+#: ``on_tick(k, q)`` of :func:`run`: called after tick ``k - 1`` with the configuration ``q[k]``
+TickObserver = Callable[[int, np.ndarray], None]
+
+
+def tick_count(scenario: Scenario, duration: float | None = None) -> int:
+    """Ticks of a run of ``scenario``: its own, or ``duration`` [s] worth of its period."""
+    return scenario.ticks if duration is None else int(round(duration / scenario.dt))
+
+
 def run(scenario: Scenario, solver: str | None = None, duration: float | None = None,
-        progress: bool = False, controller: Controller | None = None, simulation=None) -> RunResult:
+        progress: bool = False, controller: Controller | None = None, simulation=None,
+        on_tick: TickObserver | None = None) -> RunResult:
     """Run ``scenario`` in closed loop and record everything needed for the summary and plots.
 
     Without ``simulation`` the loop is kinematic, ``q <- integrate(q, v, dt)``. With a
     :class:`~wbc.simulation.MujocoSimulation` the controller sees the (noisy) measured
     positions, the servos track ``v`` in MuJoCo, and the recorded ``q`` and tracking
-    errors are those of the true simulated state.
+    errors are those of the true simulated state. ``on_tick(k, q)``, if given, sees every
+    new configuration as it is reached (``k`` = 1 .. ticks; the live 3-D view streams the run
+    through it); it runs outside ``Controller.step``, so it does not enter the recorded latencies,
+    and it must not modify ``q``.
     """
     controller = controller or scenario.make_controller(solver)
     robot, dt = scenario.robot, scenario.dt
-    ticks = scenario.ticks if duration is None else int(round(duration / dt))
+    ticks = tick_count(scenario, duration)
     q = scenario.q0.copy()
     if simulation is not None:
         simulation.reset(q)
@@ -116,6 +129,8 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
             simulation.advance()
             q = simulation.q
         qs[k + 1] = q
+        if on_tick is not None:
+            on_tick(k + 1, qs[k + 1])
     ratio = velocity_ratio(robot, qs[:-1], vs)
     return RunResult(
         scenario=scenario.name, solver=controller.solver.name, dt=dt, time=np.arange(ticks) * dt,
@@ -127,8 +142,13 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         tool_path=None if task is None else np.array([robot.frame_pose(q, task.frame)[:3, 3] for q in qs]),
         wheel_ratio=wheel_ratio(robot, qs[:-1], vs),
         lateral_slip=lateral_slip(robot, qs[:-1], vs),
-        orientation_tracked=isinstance(task, FrameTask) and bool(np.any(task.orientation_cost > 0)),
+        orientation_tracked=orientation_tracked(task),
     )
+
+
+def orientation_tracked(task) -> bool:
+    """Whether a reference task weighs the orientation (a FrameTask with an orientation cost > 0)."""
+    return isinstance(task, FrameTask) and bool(np.any(task.orientation_cost > 0))
 
 
 @dataclass

@@ -25,7 +25,7 @@ import math
 import threading
 import time
 import warnings
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
@@ -34,11 +34,13 @@ import numpy as np
 import pinocchio as pin
 import viser
 
-from .closed_loop import RunResult
+from .closed_loop import RunResult, TickObserver, orientation_tracked
 from .robot import Robot
 from .scenario import Scenario
 
 Colour = tuple[int, int, int]
+Run = tuple[Scenario, RunResult]  #: a finished run
+PlannedRun = tuple[Scenario, int]  #: a run still to come (streamed into a LiveView): scenario, ticks
 
 #: (robot links, tool path) colour of run number i (cycled)
 RUN_COLOURS: tuple[tuple[Colour, Colour], ...] = (
@@ -257,54 +259,93 @@ def _add_shape(scene, name: str, kind: str, size: tuple[float, ...], colour: Col
 
 
 class _RunTrack:
-    """One run in the scene: its robot's joint frames, its target marker and tool path."""
+    """One run in the scene: its robot's joint frames, its target marker and tool path.
 
-    def __init__(self, server: viser.ViserServer, index: int, scenario: Scenario, result: RunResult, stride: int):
-        self.scenario, self.result, self.stride = scenario, result, stride
-        robot, root = scenario.robot, f"/run{index}"
-        robot_colour, path_colour = RUN_COLOURS[index % len(RUN_COLOURS)]
+    Built before the run (:meth:`record` then receives its configurations as they come: the
+    live view) or from a finished run (:meth:`from_result`); it shows what has been recorded."""
+
+    def __init__(self, server: viser.ViserServer, index: int, scenario: Scenario, ticks: int,
+                 orientation_tracked: bool, stride: int):
+        self.server, self.scenario, self.stride, self.dt = server, scenario, stride, scenario.dt
+        robot, self.root = scenario.robot, f"/run{index}"
+        robot_colour, self.path_colour = RUN_COLOURS[index % len(RUN_COLOURS)]
         self.model, self.data = robot.model, robot.model.createData()
+        self.ticks = ticks  # the last configuration is q[ticks]
+        self.q = np.tile(scenario.q0, (ticks + 1, 1))
+        self.recorded = 0  #: q[0 .. recorded] are known
+        task = scenario.reference_task
+        self.tool_frame = None if task is None else robot.model.getFrameId(task.frame)
+        self.tool_path = None if task is None else np.zeros((ticks + 1, 3))
         self.shapes = shapes = robot_shapes(robot, robot_colour)
-        self.frames = {j: server.scene.add_frame(f"{root}/j{j}", show_axes=False)
+        self.frames = {j: server.scene.add_frame(f"{self.root}/j{j}", show_axes=False)
                        for j in sorted({shape.joint for shape in shapes})}
         self.scale = bone_radius(robot)
         for n, shape in enumerate(shapes):
-            _add_shape(server.scene, f"{root}/j{shape.joint}/s{n}", shape.kind, shape.size, shape.colour,
+            _add_shape(server.scene, f"{self.root}/j{shape.joint}/s{n}", shape.kind, shape.size, shape.colour,
                        shape.placement, vertices=shape.vertices, faces=shape.faces)
-        self.ticks = result.time.size  # the last recorded configuration is q[ticks]
-        targets = [self.target(k) for k in [*range(0, self.ticks, stride), self.ticks]]
+        targets = [self.target(k) for k in [*range(0, ticks, stride), ticks]]
+        self.reference_points = None
         self.target_marker = None
         if targets[0] is not None:
-            points = np.array([t[:3, 3] if t.shape == (4, 4) else t for t in targets])
-            server.scene.add_line_segments(f"{root}/reference", np.stack([points[:-1], points[1:]], axis=1),
+            self.reference_points = points = np.array([t[:3, 3] if t.shape == (4, 4) else t for t in targets])
+            server.scene.add_line_segments(f"{self.root}/reference", np.stack([points[:-1], points[1:]], axis=1),
                                            TARGET_COLOUR, thickness=0.3 * self.scale)
             self.target_marker = server.scene.add_frame(
-                f"{root}/target", show_axes=result.orientation_tracked, axes_length=4 * self.scale,
+                f"{self.root}/target", show_axes=orientation_tracked, axes_length=4 * self.scale,
                 axes_radius=0.2 * self.scale)
             # larger than the tool's bone: a halo around a tool on target
-            server.scene.add_icosphere(f"{root}/target/ball", 1.8 * self.scale, TARGET_COLOUR, opacity=0.6)
-        self.path_segments = []
-        if result.tool_path is not None:
-            for start in range(0, self.ticks, stride):
-                points = result.tool_path[start:min(start + stride, self.ticks) + 1]
-                self.path_segments.append(server.scene.add_line_segments(
-                    f"{root}/path/{start}", np.stack([points[:-1], points[1:]], axis=1), path_colour,
-                    thickness=0.6 * self.scale, visible=False))
+            server.scene.add_icosphere(f"{self.root}/target/ball", 1.8 * self.scale, TARGET_COLOUR, opacity=0.6)
+        self.path_segments: list = []
         self.shown_segments = 0
+        self.record(0, scenario.q0)
+
+    @classmethod
+    def from_result(cls, server: viser.ViserServer, index: int, scenario: Scenario, result: RunResult,
+                    stride: int) -> _RunTrack:
+        """The track of a finished run (every configuration recorded)."""
+        track = cls(server, index, scenario, result.time.size, result.orientation_tracked, stride)
+        track.q[:] = result.q
+        if track.tool_path is not None:
+            track.tool_path[:] = result.tool_path
+        track.recorded = track.ticks
+        track._extend_path()
+        return track
+
+    def record(self, k: int, q: np.ndarray) -> None:
+        """The run reached ``q`` = q[k] (``k`` counts up from 0, one tick at a time)."""
+        self.q[k] = q
+        if self.tool_path is not None:
+            pin.forwardKinematics(self.model, self.data, self.q[k])
+            self.tool_path[k] = pin.updateFramePlacement(self.model, self.data, self.tool_frame).translation
+        self.recorded = k
+        self._extend_path()
+
+    def _extend_path(self) -> None:
+        """Add the tool path's segments (``stride`` ticks each, hidden until shown) that the
+        recorded ticks complete."""
+        if self.tool_path is None:
+            return
+        start = len(self.path_segments) * self.stride
+        while start < self.ticks and min(start + self.stride, self.ticks) <= self.recorded:
+            points = self.tool_path[start:min(start + self.stride, self.ticks) + 1]
+            self.path_segments.append(self.server.scene.add_line_segments(
+                f"{self.root}/path/{start}", np.stack([points[:-1], points[1:]], axis=1), self.path_colour,
+                thickness=0.6 * self.scale, visible=False))
+            start += self.stride
 
     def target(self, k: int) -> np.ndarray | None:
         """The reference task's target at tick ``k`` (4x4 or a point), None without a reference."""
         reference = self.scenario.reference
-        return None if reference is None else np.array(reference(k * self.result.dt)[0])  # (a reused buffer)
+        return None if reference is None else np.array(reference(k * self.dt)[0])  # (a reused buffer)
 
     def tick(self, t: float) -> int:
-        """The recorded tick shown at time ``t`` [s]: the last one for t past the run's end."""
-        return min(max(int(round(t / self.result.dt)), 0), self.ticks)
+        """The tick shown at time ``t`` [s]: the last one recorded for t past it."""
+        return min(max(int(round(t / self.dt)), 0), self.recorded)
 
     def show(self, t: float) -> None:
         """Move the robot, target and tool path to time ``t`` [s]."""
         k = self.tick(t)
-        pin.forwardKinematics(self.model, self.data, self.result.q[k])
+        pin.forwardKinematics(self.model, self.data, self.q[k])
         for j, frame in self.frames.items():
             placement = self.data.oMi[j]
             frame.position, frame.wxyz = placement.translation, _wxyz(placement.rotation)
@@ -313,16 +354,18 @@ class _RunTrack:
             self.target_marker.position = target[:3, 3] if target.shape == (4, 4) else target
             if target.shape == (4, 4):
                 self.target_marker.wxyz = _wxyz(target[:3, :3])
-        shown = -(-k // self.stride)  # segments that end at or before tick k
+        shown = min(-(-k // self.stride), len(self.path_segments))  # segments that end at or before tick k
         for segment in self.path_segments[min(shown, self.shown_segments):max(shown, self.shown_segments)]:
             segment.visible = shown > self.shown_segments
         self.shown_segments = shown
 
     def points(self) -> np.ndarray:
         """World points the camera must see: the corners of the shapes' boxes at the start and
-        at the end, the tool path."""
-        points = [] if self.result.tool_path is None else [self.result.tool_path]
-        for q in (self.result.q[0], self.result.q[-1]):
+        at the last recorded tick, the tool path so far and the whole reference."""
+        points = [] if self.tool_path is None else [self.tool_path[:self.recorded + 1]]
+        if self.reference_points is not None:
+            points.append(self.reference_points)
+        for q in (self.q[0], self.q[self.recorded]):
             pin.forwardKinematics(self.model, self.data, q)
             for shape in self.shapes:
                 pose = self.data.oMi[shape.joint].homogeneous @ shape.placement
@@ -333,17 +376,22 @@ class _RunTrack:
 class Scene:
     """Runs (and obstacles) in a viser scene, on one timeline: :meth:`show` poses everything at a time."""
 
-    def __init__(self, server: viser.ViserServer, runs: Sequence[tuple[Scenario, RunResult]],
+    def __init__(self, server: viser.ViserServer, runs: Sequence[Run | PlannedRun],
                  obstacles: Sequence[Obstacle] = (), fps: float = FPS):
         self.server, self.fps = server, fps
-        self.tracks = [_RunTrack(server, i, scenario, result, max(1, int(round(1.0 / (fps * result.dt)))))
-                       for i, (scenario, result) in enumerate(runs)]
-        self.duration = max([track.ticks * track.result.dt for track in self.tracks] + [0.0])
+        self.tracks = [self._track(i, scenario, what) for i, (scenario, what) in enumerate(runs)]
+        self.duration = max([track.ticks * track.dt for track in self.tracks] + [0.0])
         for n, obstacle in enumerate(obstacles):
             _add_shape(server.scene, f"/obstacles/{n}", obstacle.kind, obstacle.size, OBSTACLE_COLOUR,
                        obstacle.pose, opacity=0.5)
         self._frame_the_view(obstacles)
         self.show(0.0)
+
+    def _track(self, index: int, scenario: Scenario, what: RunResult | int) -> _RunTrack:
+        stride = max(1, int(round(1.0 / (self.fps * scenario.dt))))
+        if isinstance(what, RunResult):
+            return _RunTrack.from_result(self.server, index, scenario, what, stride)
+        return _RunTrack(self.server, index, scenario, what, orientation_tracked(scenario.reference_task), stride)
 
     def _frame_the_view(self, obstacles: Sequence[Obstacle]) -> None:
         """Ground grid under everything and a camera that sees it all."""
@@ -387,7 +435,7 @@ def _stop_server(server: viser.ViserServer) -> None:
         server.stop()
 
 
-def replay_html(runs: Sequence[tuple[Scenario, RunResult]], obstacles: Sequence[Obstacle] = (),
+def replay_html(runs: Sequence[Run], obstacles: Sequence[Obstacle] = (),
                 fps: float = FPS) -> str:
     """A self-contained HTML page replaying ``runs`` (viser's client with the recorded scene
     embedded; no server, no network): play/pause, time slider and speed at the bottom."""
@@ -404,7 +452,7 @@ def replay_html(runs: Sequence[tuple[Scenario, RunResult]], obstacles: Sequence[
         _stop_server(server)
 
 
-def write_html(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path, obstacles: Sequence[Obstacle] = (),
+def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstacle] = (),
                fps: float = FPS) -> Path:
     """Write :func:`replay_html` to ``path``; returns the path."""
     path = Path(path)
@@ -413,10 +461,16 @@ def write_html(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path, obs
 
 
 class LiveView:
-    """The runs in a viser server at ``http://host:port``, played in real time (looping) with
-    play/pause, a time slider and a speed setting; :meth:`serve` runs it until stopped."""
+    """Runs in a viser server at ``http://host:port``, with play/pause, a time slider and a
+    speed setting in its panel.
 
-    def __init__(self, runs: Sequence[tuple[Scenario, RunResult]], host: str = "127.0.0.1", port: int = 8080,
+    ``runs`` may hold finished runs ``(scenario, result)`` and runs still to come
+    ``(scenario, ticks)``: :meth:`follow` gives the ``on_tick`` observer of
+    :func:`wbc.closed_loop.run` that streams one of those into the view while the controller
+    runs, paced to real time (times the speed setting; "play" unticked pauses the run).
+    :meth:`serve` then plays everything on one timeline, looping, until stopped."""
+
+    def __init__(self, runs: Sequence[Run | PlannedRun], host: str = "127.0.0.1", port: int = 8080,
                  obstacles: Sequence[Obstacle] = (), fps: float = FPS):
         self.server = _start_server(host, port)
         try:
@@ -425,6 +479,7 @@ class LiveView:
             _stop_server(self.server)
             raise
         gui = self.server.gui
+        self.status = gui.add_markdown("")
         self.playing = gui.add_checkbox("play", initial_value=True)
         self.time = gui.add_slider("time [s]", min=0.0, max=max(self.scene.duration, 1e-3), step=1.0 / fps,
                                    initial_value=0.0)
@@ -434,10 +489,43 @@ class LiveView:
     def url(self) -> str:
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
+    def follow(self, index: int, clock: Callable[[], float] = time.perf_counter,
+               sleep: Callable[[float], None] = time.sleep) -> TickObserver:
+        """The ``on_tick(k, q)`` observer that streams the run ``runs[index]`` (given as
+        ``(scenario, ticks)``) into the view: every configuration is recorded, and every
+        1/fps s of the run's time the scene is shown at that time and the run is held until the
+        same time has passed on ``clock`` (divided by the speed setting; not made up for when
+        the run falls behind real time). The other runs are shown at the same time."""
+        track = self.scene.tracks[index]
+        name, end = track.scenario.name, track.ticks * track.dt
+        self.time.disabled = True  # the stream sets the time
+        paced = {"time": 0.0, "wall": clock()}
+
+        def on_tick(k: int, q: np.ndarray) -> None:
+            track.record(k, q)
+            if k % track.stride and k != track.ticks:
+                return
+            t = k * track.dt
+            self.scene.show(t)
+            self.time.value = t
+            self.status.content = f"**live**: {name}, {t:.2f} / {end:.2f} s"
+            while not self.playing.value:
+                sleep(1.0 / self.scene.fps)
+                paced["wall"] = clock()
+            deadline = paced["wall"] + (t - paced["time"]) / float(self.speed.value)
+            now = clock()
+            if deadline > now:
+                sleep(deadline - now)
+            paced["time"], paced["wall"] = t, max(deadline, now)
+
+        return on_tick
+
     def serve(self, stop: threading.Event) -> None:
         """Play until ``stop`` is set: time advances while ``play`` is ticked, wraps at the
         end; moving the slider pauses and shows that time."""
-        t, written, last = 0.0, 0.0, time.perf_counter()
+        self.time.disabled = False
+        self.status.content = "**replay** of the run(s)"
+        t, written, last = 0.0, self.time.value, time.perf_counter()
         while not stop.wait(1.0 / self.scene.fps):
             now = time.perf_counter()
             if self.time.value != written:  # the user moved the slider
