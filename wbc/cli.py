@@ -87,8 +87,8 @@ def _replay(live, out: TextIO) -> None:
     """Serve the replay of the finished runs until Ctrl-C."""
     import threading
 
-    print("3-D view: replaying the run(s) (Ctrl-C to stop)", file=out, flush=True)
     try:
+        print("3-D view: replaying the run(s) (Ctrl-C to stop)", file=out, flush=True)
         live.serve(threading.Event())
     except KeyboardInterrupt:
         pass
