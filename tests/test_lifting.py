@@ -169,3 +169,76 @@ def test_a_row_declared_diagonal_but_dense_is_refused_not_misread(chain32):
     assert controller._lifted is not None and controller._lifted.k == 6
     v = controller.step(q0)
     assert controller.last.outcome is wbc.Outcome.ZERO and np.all(v == 0.0)
+
+
+# ------------------------------------------------------------- the certificate of a lifted answer
+@pytest.fixture(scope="module")
+def mobile_chain24(tmp_path_factory) -> wbc.Robot:
+    """A 24-DOF chain on a planar base: the base coordinates have no posture row, so in the
+    lifted QP only the damping holds them (tests/test_fuzz.py's chain24)."""
+    folder = tmp_path_factory.mktemp("mobile-chain")
+    (folder / "chain24.urdf").write_text(chain_urdf(24))
+    (folder / "chain24.toml").write_text('name = "chain24"\nurdf = "chain24.urdf"\nend_effector = "ee"\n'
+                                         '[base]\nkind = "planar"\njoints = ["base_x", "base_y", "base_yaw"]\n'
+                                         'max_linear_speed = 0.8\nmax_yaw_rate = 1.0\n')
+    return wbc.load_robot(folder / "chain24.urdf")
+
+
+def weighted_far_apart(robot: wbc.Robot, q: np.ndarray) -> wbc.Controller:
+    """The fuzz suite's case: posture weights 1 and 1e12 and a pose weight 1e12 (the damping
+    floor then holds the base), every arm joint on its lower limit."""
+    pose = wbc.FrameTask("ee", 1e12, 1e12, gain=1.0)
+    target = robot.frame_pose(q, "ee")
+    target[:3, 3] += (0.15, -0.06, 0.07)
+    pose.set_target(target)
+    return wbc.Controller(robot, [wbc.PostureTask(1.0, gain=1.0), pose, wbc.PostureTask(1e12, gain=1.0)],
+                          [wbc.JointPositionLimits(gain=1.0)], dt=0.01)
+
+
+def test_an_uncertified_lifted_answer_is_replaced_by_the_dense_optimum(mobile_chain24, monkeypatch):
+    """DAQP stops on this lifted QP 0.2 rad/s from the optimum (its dual is ill-conditioned);
+    the certificate declines that answer and the dense QP of the tick answers instead: the
+    command is the minimiser written out in the test (quadprog) and the dense controller's."""
+    robot = mobile_chain24
+    q = robot.neutral()
+    q[3:] = robot.model.lowerPositionLimit[3:]
+    lifted = weighted_far_apart(robot, q)
+    assert lifted._lifted is not None
+    v = lifted.step(q)
+    assert lifted.last.success and lifted._lifted.dense_ticks == 1
+    reference = dense_minimiser(lifted, "quadprog")
+    assert np.max(np.abs(v - reference)) < 1e-6 * np.max(np.abs(reference))
+    monkeypatch.setattr(lifting, "LIFT_MIN_DOF", 10**6)
+    dense = weighted_far_apart(robot, q)
+    assert dense._lifted is None
+    np.testing.assert_allclose(v, dense.step(q), rtol=0, atol=1e-9 * np.max(np.abs(reference)))
+
+
+def test_ordinary_lifted_ticks_are_certified(chain32):
+    """The benchmarks' stack along a closed loop with limits active: no tick needs the dense QP."""
+    q = initial_configuration(32)
+    controller = stack(chain32, q)
+    for _ in range(60):
+        q = chain32.integrate(q, controller.step(q), controller.dt)
+        assert controller.last.success
+    assert controller._lifted.dense_ticks == 0
+
+
+def test_the_stationarity_certificate_is_zero_at_the_optimum_only(chain32):
+    """``kernels.lifted_stationarity`` against the v-problem written out here: at its
+    minimiser (no limit active) ~1e-15, a step of 1e-4 away from it well above the tolerance."""
+    q0 = initial_configuration(32)
+    controller = stack(chain32, q0, constraints=[])
+    controller.step(q0)
+    lifted, nv, k = controller.qp, 32, controller._lifted.k
+    n = nv + k
+    D, W = np.diag(lifted.H)[:nv], np.diag(lifted.H)[nv:]
+    d, c_w = lifted.c[:nv], lifted.c[nv:]
+    U = lifted.C[:, :nv]  # [U -I]: the only rows without limits
+    v = np.linalg.solve(np.diag(D) + U.T @ np.diag(W) @ U, -(d + U.T @ c_w))
+    lam = np.zeros(n + k)  # no bound or inequality active; the equality multipliers are not read
+    x = np.concatenate([v, U @ v])
+    scratch = np.zeros(2 * nv)
+    assert wbc.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) < 1e-12
+    x[:nv] += 1e-4 * np.sign(np.arange(nv) % 3 - 1.0)
+    assert wbc.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) > 1e-5

@@ -259,6 +259,8 @@ class Controller:
         # the solve itself, when the backend can run in the program (native DAQP) and no
         # Python step (the input reduction) stands between the QP and the solver
         self._solve_in_program = not self.reduced and self.solver.bind_program(rest, self.qp)
+        if self._lifted is not None:  # lifting needs native DAQP, so the solve is in the program
+            self._lifted.add_check_op(rest, self._solver.bound)
         self._collector = self._solver  # reads the outcome of the solve in the program (collect_optimal)
         self._finish_program(program, rest)
 
@@ -334,21 +336,31 @@ class Controller:
     def _answer(self, has_nan: bool, qp_failure: str) -> tuple[np.ndarray, float, Outcome, str]:
         """(x, solve time [s], outcome, status) of this tick off the fast path: the backend's
         answer checked against the QP's bounds and rows, or the fallback chain's."""
+        qp = self.qp
         if has_nan:
             solution = QPSolution(None, False, qp_failure, 0.0)
         elif self._hierarchy is not None:  # strict priorities: the cascade, every level's answer checked
             solution = self._hierarchy.solve()
         else:
             solution = self._solver.collect() if self._solve_in_program else self._solver.solve(self.qp)
-            if solution.success:
-                defect = solution.defect if solution.defect is not None else kernels.qp_defect(self.qp.data,
-                                                                                                solution.x)
-                if defect > ANSWER_TOLERANCE:
-                    solution = self._rejected(solution, defect)
+            solution = self._checked(solution, self.qp)
+            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.lifting)
+                spent = solution.solve_time
+                qp = self._lifted.fill_dense(self._stack_t, self._n_plain, self._cost_scaling)
+                solution = self._checked(self._solver.solve(qp), qp)
+                solution = solution._replace(solve_time=spent + solution.solve_time)
         if solution.success:
             return solution.x, solution.solve_time, _OPTIMAL, "optimal"
-        solution, outcome, status = self._fallback.answer(self.qp, solution, self._solver.name, self._tick, has_nan)
+        solution, outcome, status = self._fallback.answer(qp, solution, self._solver.name, self._tick, has_nan)
         return solution.x, solution.solve_time, outcome, status
+
+    def _checked(self, solution: QPSolution, qp: QP) -> QPSolution:
+        """``solution`` of ``qp``, or a failure when its answer's defect exceeds :data:`ANSWER_TOLERANCE`."""
+        if solution.success:
+            defect = solution.defect if solution.defect is not None else kernels.qp_defect(qp.data, solution.x)
+            if defect > ANSWER_TOLERANCE:
+                return self._rejected(solution, defect)
+        return solution
 
     def _rejected(self, solution: QPSolution, defect: float) -> QPSolution:
         """A backend's answer that violates a bound or row of the QP it solved by ``defect`` >

@@ -13,9 +13,23 @@ to form (:func:`wbc.kernels.lift_qp`). The controller uses it (:data:`LIFT_MIN_D
 :func:`worth_lifting`) with DAQP's native path, when no Python step needs H itself (the
 input reduction, the steering preview). ``controller.qp`` is then this QP over ``(v, w)``;
 the command is its first nv entries.
+
+**Certified, else dense.** The lifted QP has the v-problem's minimiser, but DAQP solves it
+through its dual, whose conditioning is not the v-problem's: with costs and damping far apart
+(e.g. a posture weight 1e12 next to coordinates held only by the damping floor) DAQP was seen
+to stop on the lifted QP 0.2 rad/s from the optimum, or at its iteration limit, where the dense
+QP of the same tick is solved exactly. So every lifted answer is certified in the tick
+program (:data:`~wbc.kernels.OP_LIFT_CHECK`): its stationarity *in v*
+(:func:`wbc.kernels.lifted_stationarity`, relative) joins its defect, both held to
+:data:`wbc.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
+followed, in the same tick, by the dense QP (:meth:`LiftedQP.fill_dense`) solved by the same
+backend -- the answer then costs a normal-equations pass and a second solve; only if that
+fails too does the fallback chain answer. :attr:`LiftedQP.dense_ticks` counts those ticks.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -23,6 +37,9 @@ from . import kernels
 from .layout import TaskStack
 from .program import TickProgram
 from .qp import QP
+
+if TYPE_CHECKING:
+    from .daqp_native import NativeWorkspace
 
 #: smallest number of velocity coordinates at which the lifted form is used: below it the
 #: dense QP is as fast (measured: benchmarks/README.md, "Scaling")
@@ -52,6 +69,25 @@ class LiftedQP:
         self.source, self.diagonal = source, diagonal
         self.k = k = int(np.count_nonzero(diagonal == 0.0))  #: auxiliary variables (dense rows)
         self.qp = QP(source.n + k, source.n_ineq, source.n_eq + k)  #: what the solver sees
+        self._scratch = np.zeros(2 * source.n)  # of the certificate
+        self.dense_ticks = 0  #: ticks whose lifted answer was not certified: the dense QP answered
+
+    def add_check_op(self, program: TickProgram, workspace: NativeWorkspace) -> None:
+        """Append the certificate of the answer of ``workspace`` (the native DAQP solve of
+        :attr:`qp`, appended before): its stationarity in v joins its defect."""
+        source, qp = self.source, self.qp
+        program.add(kernels.OP_LIFT_CHECK, lifted=qp.data, x=workspace.x, lam=workspace.lam, scratch=self._scratch,
+                    control=workspace.control, nv=source.n, k=self.k, p=source.n_ineq, e=source.n_eq,
+                    lifted_size=qp.data.size)
+
+    def fill_dense(self, stack_t: np.ndarray, rows: int, scaling: np.ndarray) -> QP:
+        """The dense v-QP of this tick: its H and c from the stack's first ``rows`` rows,
+        normalised as the controller's (its bounds and rows are this tick's already). Returns it."""
+        source = self.source
+        kernels.normal_equations(stack_t, 0, rows, True, source.Hc)
+        kernels.normalise_cost(source.Hc, scaling[0], scaling[1])
+        self.dense_ticks += 1
+        return source
 
     def add_op(self, program: TickProgram, stack_t: np.ndarray, scaling: np.ndarray) -> None:
         """Fill :attr:`qp` from the stack and the v-QP's limits every tick (a NaN met counts

@@ -86,6 +86,8 @@ OP_EXTERNAL = 100
 OP_FORWARD_KINEMATICS = 15
 #: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
+#: the optimality certificate of a lifted QP's answer (wbc.lifting)
+OP_LIFT_CHECK = 20
 
 # ------------------------------------------------------------------ chains
 
@@ -119,7 +121,7 @@ COMPILED = {
     "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
     "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
-                 "qp_defect", "has_nan", "has_non_finite", "lift_qp"),
+                 "qp_defect", "has_nan", "has_non_finite", "lift_qp", "lifted_stationarity"),
     "native_qp": ("daqp_solve",),
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),

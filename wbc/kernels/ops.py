@@ -32,6 +32,7 @@ from . import (
     OP_HIERARCHY_PREVIEW,
     OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
+    OP_LIFT_CHECK,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -110,6 +111,12 @@ OP_SPECS: dict[int, OpSpec] = {
         ("k", None), ("p", None), ("e", None), ("source_size", None), ("lifted_size", None)),
         ("1 <= nv", "0 <= k <= rows <= stack_rows", "0 <= p", "0 <= e",
          "source_size == nv * nv + 3 * nv + (p + e) * (nv + 2)",
+         "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
+    OP_LIFT_CHECK: OpSpec("LIFT_CHECK", (
+        ("lifted", ("lifted_size",)), ("x", ("nv + k",)), ("lam", ("nv + k + p + e + k",)), ("scratch", ("2 * nv",)),
+        ("control", (DAQP_CONTROL_SIZE,)), ("nv", None), ("k", None), ("p", None), ("e", None),
+        ("lifted_size", None)),
+        ("1 <= nv", "0 <= k", "0 <= p", "0 <= e",
          "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
     OP_FORWARD_KINEMATICS: OpSpec("FORWARD_KINEMATICS", (
         ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),

@@ -35,6 +35,7 @@ from . import (
     OP_HIERARCHY_PREVIEW,
     OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
+    OP_LIFT_CHECK,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -48,7 +49,16 @@ from . import (
     POSITION_SETTINGS,
     prepare_cache,
 )
-from .assembly import has_nan, has_non_finite, lift_qp, merge_bounds, normal_equations, normalise_cost, preview_solve
+from .assembly import (
+    has_nan,
+    has_non_finite,
+    lift_qp,
+    lifted_stationarity,
+    merge_bounds,
+    normal_equations,
+    normalise_cost,
+    preview_solve,
+)
 from .chain import forward_kinematics
 from .frames import frame_task_rows, position_task_rows
 from .hierarchy import band_rows, hierarchy_preview, level_constraints, normalise_level
@@ -129,6 +139,9 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
     * EXTERNAL: address of a CompiledOp's C callback, then its operands (its own declaration)
     * LIFT: stack, diagonal (rows), source QP data, lifted QP data, (damping, floor), nv, stack rows,
       rows, k, p, e, source size, lifted size; a NaN met counts as a HAS_NAN row's
+    * LIFT_CHECK: lifted QP data, x (nv + k), DAQP's multipliers, scratch (2 nv), the solve's
+      control, nv, k, p, e, lifted size: after a successful solve, the defect becomes the larger
+      of the answer's defect and its stationarity in v (:func:`lifted_stationarity`)
     * LEVEL_CONSTRAINTS: source QP data, target QP data, n, p, e, band rows, source size, target size
     * NORMALISE_LEVEL: Hc ((nv + 1) x nv), (damping, damping floor), nv
     * BAND: stack, first, last, first preview row, last preview row, the level's answer x (nv), lower,
@@ -216,6 +229,15 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
             found_nan = lift_qp(_matrix(addresses, op[1], nv + 1, op[7]), _vector(addresses, op[2], rows),
                                 _vector(addresses, op[3], op[12]), _vector(addresses, op[4], op[13]), nv, op[9],
                                 op[10], op[11], scaling[0], scaling[1]) or found_nan
+        elif code == OP_LIFT_CHECK:
+            nv, k, p, e = op[6], op[7], op[8], op[9]
+            control = _vector(addresses, op[5], DAQP_CONTROL_SIZE)
+            if control[DAQP_CONTROL_EXITFLAG] >= 1:
+                stationarity = lifted_stationarity(
+                    _vector(addresses, op[1], op[10]), _vector(addresses, op[2], nv + k),
+                    _vector(addresses, op[3], nv + k + p + e + k), _vector(addresses, op[4], 2 * nv), nv, k, p,
+                    e)
+                control[DAQP_CONTROL_DEFECT] = max(control[DAQP_CONTROL_DEFECT], stationarity)
         elif code == OP_FORWARD_KINEMATICS:
             joints = op[6]
             forward_kinematics(_vector(addresses, op[1], op[5]), _matrix(addresses, op[2], joints, CHAIN_COLUMNS),
