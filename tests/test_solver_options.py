@@ -111,3 +111,28 @@ def test_fallback_budget_carries_the_main_backends_time_budget(name, options, ex
 def test_fallback_budget_includes_a_default_time_cap():
     """OSQP's default safety cap (DEFAULT_SETTINGS) is a time budget the fallback gets too."""
     assert make_solver("osqp").fallback_budget == {"time_limit": 0.1}
+
+
+def test_daqp_primal_tolerance_is_tight_alone_and_daqps_own_in_hierarchy_levels(youbot):
+    """One QP: primal_tol 1e-9 (DAQP's 1e-6 stopped 1e-7 short of the optimum in the fuzz
+    suite); the levels of a strict hierarchy: DAQP's 1e-6 (their band rows need the slack);
+    a primal_tol the user gives holds for both."""
+    from wbc.solvers import DaqpBackend
+
+    backend = make_solver("daqp")
+    assert backend.settings["primal_tol"] == 1e-9 and backend.for_levels().settings["primal_tol"] == 1e-6
+    chosen = make_solver("daqp", {"primal_tol": 1e-8, "iter_limit": 500})
+    levels = chosen.for_levels()
+    assert isinstance(levels, DaqpBackend)
+    assert levels.settings == chosen.settings == {"primal_tol": 1e-8, "iter_limit": 500}
+
+    pose, posture = wbc.FrameTask("ee"), wbc.PostureTask(1.0)
+    pose.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+    single = wbc.Controller(youbot, [pose, posture], [wbc.JointVelocityLimits()])
+    strict = wbc.Controller(youbot, [[pose], [posture]], [wbc.JointVelocityLimits()])
+    single.step(youbot.neutral())
+    strict.step(youbot.neutral())
+    if single.solver.native:  # what DAQP itself reads: the settings structure of each workspace
+        assert single.solver.bound.settings.primal_tol == 1e-9
+        assert [w.settings.primal_tol for w in strict._hierarchy._workspaces] == [1e-6, 1e-6]
+    assert strict._hierarchy.solver.settings["primal_tol"] == 1e-6 and strict.last.success

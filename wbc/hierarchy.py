@@ -25,11 +25,12 @@ level infeasible (its own answer is feasible for the next), and linearly depende
 tasks of one level asking for the same thing) need no rank decision. ``v_j`` is projected onto
 the bounds before ``y_a`` is taken, so an answer a hair outside a bound does not move the band
 off it. A backend may stop outside a band row by its own primal tolerance, like outside any row:
-DAQP's (default 1e-6, in its scaled rows; measured up to 8e-7 relative) is then the effective
-relaxation, within the answer check of every tick (:data:`wbc.fallback.ANSWER_TOLERANCE`). A
-tighter one (``solver_options={"primal_tol": 1e-9}``) holds the bands closer, but DAQP then
-called some feasible levels infeasible when a level above saturated the limits (1.5% of the
-ticks of a fast reach, answered by the fallback).
+DAQP's in the levels (:data:`wbc.solvers.LEVEL_PRIMAL_TOL`, DAQP's default 1e-6 in its scaled
+rows, though a single-level controller uses 1e-9; measured up to 8e-7 relative) is then the
+effective relaxation, within the answer check of every tick
+(:data:`wbc.fallback.ANSWER_TOLERANCE`). A tighter one (``solver_options={"primal_tol": 1e-9}``)
+holds the bands closer, but DAQP then called some feasible levels infeasible when a level above
+saturated the limits (1.5% of the ticks of a fast reach, answered by the fallback).
 
 **Damping.** The controller's ``damping |v|^2`` belongs to the last level only: it regularises
 the command, as in one level. A level above it has a cost that is flat along its null space
@@ -77,7 +78,7 @@ from .layout import TaskStack
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
-from .solvers import DaqpBackend, QPSolution
+from .solvers import DaqpBackend, QPSolution, QPSolver
 from .tasks.task import Task
 from .validation import as_items
 
@@ -217,6 +218,8 @@ class Hierarchy:
             self.solver_qps = [reduction.qp for reduction in self._reductions]
         self._upper_scaling = np.zeros(2)  # (damping, floor) of the levels above the last: set by add_ops
         self._settings = np.array([ANSWER_TOLERANCE, BAND])  # operand of the BAND op
+        #: the backend of the levels: the controller's (DAQP: :meth:`~wbc.solvers.DaqpBackend.for_levels`)
+        self.solver: QPSolver = controller.solver
         self._workspaces: list[NativeWorkspace] | None = None
         self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
         #: each level's answer (over v) in the latest tick; None for a level not solved
@@ -258,7 +261,7 @@ class Hierarchy:
             rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
             screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
             rest.add(kernels.OP_HAS_NAN, data=screened, size=screened.size, infinite=0)
-        solver = c.solver
+        solver = self.solver = c.solver.for_levels() if isinstance(c.solver, DaqpBackend) else c.solver
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
         self._workspaces = None
         if isinstance(solver, DaqpBackend) and solver.native:
@@ -343,7 +346,7 @@ class Hierarchy:
     def _solve_level(self, k: int) -> QPSolution:
         """Level k by the controller's backend (its own native DAQP workspace, if it has one)."""
         if self._workspaces is None:
-            return self._controller.solver.solve(self.solver_qps[k])
+            return self.solver.solve(self.solver_qps[k])
         workspace = self._workspaces[k]
         exitflag, defect, elapsed = workspace.solve()
         if exitflag >= 1 and np.isfinite(defect):
@@ -365,7 +368,7 @@ class Hierarchy:
         if self._workspaces is not None:
             self._workspaces[k].reset()
         else:
-            self._controller.solver.reset()
+            self.solver.reset()
         return solution._replace(status=f"level {k}: {solution.status}")
 
 
