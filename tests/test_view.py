@@ -442,6 +442,11 @@ def test_stream_pacing_follows_the_speed_and_does_not_make_up_a_pause(circle_run
     assert clock.sleeps[3:] == pytest.approx([stride * scenario.dt / 2])
 
 
+def test_only_a_planned_run_can_be_streamed(circle_run):
+    with view.LiveView([circle_run], port=free_port()) as live, pytest.raises(ValueError, match="finished run"):
+        live.follow(0)
+
+
 def test_closed_loop_observer_sees_every_configuration(circle_run):
     scenario, result = circle_run
     seen = []

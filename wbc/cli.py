@@ -38,7 +38,7 @@ def _run(args: argparse.Namespace) -> int:
     with _live_view(args, scenarios, messages) as live:
         try:
             runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration,
-                                   progress=not args.no_progress and live is None,
+                                   progress=not args.no_progress,
                                    simulation=_simulation(args, scenario),
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]

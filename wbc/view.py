@@ -497,6 +497,9 @@ class LiveView:
         same time has passed on ``clock`` (divided by the speed setting; not made up for when
         the run falls behind real time). The other runs are shown at the same time."""
         track = self.scene.tracks[index]
+        if track.recorded:
+            raise ValueError(f"run {index} of the view is a finished run: only a run given as (scenario, ticks) "
+                             "can be streamed")
         name, end = track.scenario.name, track.ticks * track.dt
         self.time.disabled = True  # the stream sets the time
         paced = {"time": 0.0, "wall": clock()}
