@@ -451,3 +451,77 @@ def test_the_plot_of_priorities_shows_the_posture_next_to_the_weighted_stack():
     assert [line.get_label() for line in axes["posture"].get_lines()] == [scenario.name for scenario, _ in runs]
     circle = load_scenario(TASKS / "youbot_circle.toml")
     assert posture_traces([(circle, run(circle, duration=0.05))]) is None  # no levels: no panel
+
+
+# ---------------------------------------------- found by the fuzz suite (tests/test_fuzz.py)
+PUMA_Q = np.array([-2.792526803190927, -0.7853981633974483, -3.9269908169872414, -1.9198621771937625,
+                   -1.7453292519943295, -4.642575810304916])  # outside the limits, damper gain 1
+PUMA_TARGET = np.array([[-0.056032099528763195, 0.8756487679422087, -0.47968702194627966, 0.06752401721830886],
+                        [0.3548026892228373, 0.4665459865462646, 0.8102159552599636, 0.18425660712555375],
+                        [0.9332606578778736, -0.12479614432691602, -0.33682408883346515, -0.2850287081163513],
+                        [0.0, 0.0, 0.0, 1.0]])
+
+
+def posture_over_pose(posture_cost, orientation_cost, solver):
+    puma = wbc.load_robot("puma560")
+    pose = wbc.FrameTask("ee", 1.0, orientation_cost, gain=1.0)
+    pose.set_target(PUMA_TARGET)
+    return puma, wbc.Controller(puma, [[wbc.PostureTask(posture_cost, gain=1.0)], [pose]],
+                                [wbc.JointPositionLimits(gain=1.0), wbc.JointVelocityLimits()], solver=solver, dt=DT)
+
+
+@pytest.mark.parametrize("solver", ["daqp", "quadprog"])
+def test_a_level_weighted_1e_12_binds_the_levels_below_as_one_weighted_1(solver):
+    """A posture at level 0 fixes every coordinate, whatever its weight: the pose below cannot
+    move v. Its band rows are unit rows (weighted 1e-12, rows of norm 1e-6 were inside every
+    1e-6 tolerance, and level 1 answered v = 0 instead of level 0's v)."""
+    puma, controller = posture_over_pose(1e-12, 10.0, solver)
+    v = controller.step(PUMA_Q)
+    # level 0 alone: the posture's speed (q* - q) / dt = -q / dt within [lower, upper], per joint
+    qp = controller._hierarchy.qps[0]
+    expected = np.clip(-PUMA_Q / DT, qp.lb, qp.ub)
+    assert controller.last.success
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-6 * np.max(np.abs(expected)))
+
+
+def test_a_level_below_a_fully_determined_one_falls_back_to_its_answer(monkeypatch):
+    """DAQP calls level 1 infeasible under a posture that fixes every coordinate on the velocity
+    bounds (its bands touch the bounds). The elastic re-solve (regularised on its second try)
+    answers with level 0's point; had it failed too, the command is level 0's answer
+    (Outcome.LEVEL_ABOVE), not v = 0 -- within every limit, optimal for level 0."""
+    puma, controller = posture_over_pose(1.0, 1e9, "daqp")
+    qp = controller._hierarchy.qps[0]
+    v = controller.step(PUMA_Q)
+    expected = np.clip(-PUMA_Q / DT, qp.lb, qp.ub)
+    assert controller.last.outcome in (wbc.Outcome.OPTIMAL, wbc.Outcome.ELASTIC), controller.last.status
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-6 * np.max(np.abs(expected)))
+
+    def fails(self, qp):
+        return wbc.solvers.QPSolution(None, False, "exitflag -1", 0.0)
+
+    monkeypatch.setattr(wbc.fallback.Fallback, "elastic_solve", fails)
+    puma, controller = posture_over_pose(1.0, 1e9, "daqp")
+    v = controller.step(PUMA_Q)
+    assert controller.last.outcome is wbc.Outcome.LEVEL_ABOVE, controller.last.status
+    assert controller.last.status.startswith("fallback: level 0's answer after daqp: level 1:")
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-9 * np.max(np.abs(expected)))
+    assert np.all(np.abs(v) <= puma.velocity_limit + 1e-12)
+
+
+def test_a_semidefinite_upper_level_the_backend_refuses_is_re_solved_with_the_floor():
+    """Clarabel gets a level above the last without the regularisation floor (it takes a
+    semidefinite H); qpsolvers refused this one ("unbounded below": c barely outside the range
+    of H). The elastic re-solve is DAQP's, which factorises H: it gets the floor, and answers
+    (it had called the level unbounded and the tick fell to v = 0)."""
+    robot = wbc.load_robot("deluca_mm")
+    q = np.array([0.0, 0.0, 0.0, -2.792526803190927, -0.7853981633974483, -2.356194490192345])
+    wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=1.0)
+    wrist.set_target(np.array([0.11889918564360491, 0.0432757644527636, 0.29452987052741136]))
+    levels = [[wrist, wbc.ManipulabilityTask("wrist_center", cost=1.0, gain=1.0, target=1.0)],
+              [wbc.PostureTask(1.0, gain=1.0), wbc.PostureTask(1.0, gain=1.0)]]
+    controller = wbc.Controller(robot, levels, solver="clarabel", reduced=True, dt=DT)
+    reference = wbc.Controller(robot, levels, solver="daqp", reduced=True, dt=DT)
+    v, expected = controller.step(q), reference.step(q)
+    assert reference.last.success
+    assert controller.last.outcome in (wbc.Outcome.OPTIMAL, wbc.Outcome.ELASTIC), controller.last.status
+    np.testing.assert_allclose(v, expected, rtol=0, atol=1e-6 * (1 + np.max(np.abs(expected))))

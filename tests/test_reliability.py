@@ -294,3 +294,27 @@ def test_a_backend_that_cycles_is_cut_off_and_answered_by_the_fallback(youbot):
     v = highs.step(q)
     assert highs.last.status == "optimal" or highs.last.status.startswith("fallback: elastic")
     np.testing.assert_allclose(v, reference, atol=1e-6)
+
+
+def test_a_qp_daqp_calls_infeasible_at_the_damping_floor_is_answered_elastically(youbot):
+    """Found by the fuzz suite: an orientation weighted 1e12 beside a position weighted 1 leaves
+    the base's x, y to the damping floor (1e-10 of the largest curvature), and DAQP calls the
+    QP -- feasible: no rows but the hard wheel limits, which v = 0 meets -- infeasible, and so did
+    its elastic re-solve, so the tick fell to v = 0 with the arm outside its limits. The elastic
+    re-solve's second, regularised try answers: the arm moves back in, every hard limit holds."""
+    q = np.array([0.0, 0.0, 0.0, -3.449606435870417, 2.0707963267948966, 1.5762504807073792, -1.7889624832941877,
+                  -2.923426497090502])
+    pose = wbc.FrameTask("ee", 1.0, 1e12, gain=1.0)
+    pose.set_target(np.array([[0.19799944904722505, -0.3544226504327777, -0.913882269790371, -0.13144004666471476],
+                              [-0.29012016277888997, -0.911756374430492, 0.2907414742249803, 0.09469086863403209],
+                              [-0.9362833488459281, 0.2075690211605998, -0.28335241683861595, -0.1070873236412225],
+                              [0.0, 0.0, 0.0, 1.0]]))
+    point = wbc.PositionTask("ee", cost=1.0, gain=1.0)
+    point.set_target(np.array([-0.13144004666471476, 0.09469086863403209, -0.1070873236412225]))
+    controller = wbc.Controller(youbot, [pose, point, wbc.ManipulabilityTask("ee", cost=1.0, gain=1.0, target=1.0)],
+                                [wbc.JointPositionLimits(gain=1e-10), wbc.MecanumWheelLimits()])
+    v = controller.step(q)
+    assert controller.last.outcome in (wbc.Outcome.OPTIMAL, wbc.Outcome.ELASTIC), controller.last.status
+    lower = youbot.model.lowerPositionLimit[3]
+    assert v[3] >= (lower - q[3]) / controller.dt * (1 - 1e-9)  # joint 1, below its range: back at full margin
+    assert np.max(np.abs(youbot.wheel_speeds(q, v))) <= youbot.base.wheels.max_speed * (1 + 1e-6)

@@ -1,7 +1,11 @@
 """The fallback chain of a tick whose QP the backend could not solve (see :class:`wbc.Controller`).
 
 1. The same QP is solved again by DAQP with the rows of soft constraints *elastic*
-   (violations penalised, DAQP's soft constraints); hard limits hold and are checked.
+   (violations penalised, DAQP's soft constraints); hard limits hold and are checked. If
+   DAQP fails on it, once more with ``H + ELASTIC_REGULARISATION max(diag H) I``: at the
+   damping floor (1e-10 of the largest curvature, a pose weighted 1e12 beside a position
+   weighted 1) DAQP called a feasible QP infeasible (hard wheel rows on coordinates that only
+   the floor held), which twice the floor already cured.
 2. If that fails too, or the QP data holds NaN, the command is ``v = 0``, which satisfies
    every shipped hard limit (speed, wheel and no-slip limits).
 
@@ -23,6 +27,9 @@ from .solvers import QPSolution
 #: largest relative violation of its own constraints accepted in an answer
 #: (:func:`wbc.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
 ANSWER_TOLERANCE = 1e-6
+
+#: the regularisation of the elastic solve's second try (relative to the largest diagonal of H)
+ELASTIC_REGULARISATION = 1e-8
 
 _SOFT, _EQUALITY = 8, 5  # DAQP's sense flags
 
@@ -54,6 +61,10 @@ class Fallback:
                 return (QPSolution(elastic.x, False, "", elapsed), Outcome.ELASTIC,
                         f"fallback: elastic soft rows after {reason}")
             reason += f"; elastic: {elastic.status}"
+        return self.last_resort(qp, reason, elapsed, has_nan)
+
+    def last_resort(self, qp: QP, reason: str, elapsed: float, has_nan: bool) -> tuple[QPSolution, Outcome, str]:
+        """The command when nothing else answered: ``v = 0``."""
         return (QPSolution(np.zeros(qp.n), False, "", elapsed), Outcome.ZERO,
                 f"fallback: zero command after {reason}")
 
@@ -65,10 +76,16 @@ class Fallback:
         sense = np.zeros(qp.n + qp.n_ineq + qp.n_eq, dtype=np.int32)
         sense[qp.n + self.soft_rows] = _SOFT
         sense[qp.n + qp.n_ineq:] = _EQUALITY
-        try:
-            x, _, exitflag, _ = daqp.solve(qp.H, qp.c, qp.C, qp.upper, qp.lower, sense, **self.budget)
-        except Exception as exc:  # noqa: BLE001 -- any backend error means: no elastic solution
-            return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+        H = qp.H
+        for attempt in range(2):
+            try:
+                x, _, exitflag, _ = daqp.solve(H, qp.c, qp.C, qp.upper, qp.lower, sense, **self.budget)
+            except Exception as exc:  # noqa: BLE001 -- any backend error means: no elastic solution
+                return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+            if exitflag >= 1 and np.all(np.isfinite(x)):
+                break
+            if attempt == 0:  # once more, regularised (module docstring)
+                H = qp.H + ELASTIC_REGULARISATION * max(float(np.max(np.diag(qp.H))), 1e-300) * np.eye(qp.n)
         elapsed = time.perf_counter() - start
         if exitflag < 1 or not np.all(np.isfinite(x)):
             return QPSolution(None, False, f"exitflag {exitflag}", elapsed)

@@ -20,7 +20,10 @@ targets within the constraints (infeasible alone) takes its least-squares optimu
 levels below still use whatever freedom remains.
 
 **The relaxation.** Each band row is two inequality rows ``+-a v <= +-y_a + eps_a`` with
-``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``: the rounding of ``y_a`` never makes a
+``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``, written divided by ``|a|`` (unit rows: the
+solvers' tolerances and the answer check then hold a band of a task weighted 1e-12 as tightly as
+one weighted 1e12; unscaled, a posture weighted 1e-12 had rows of norm 1e-6, which the 1e-6
+tolerances let a level below ignore entirely). The rounding of ``y_a`` never makes a
 level infeasible (its own answer is feasible for the next), and linearly dependent rows (two
 tasks of one level asking for the same thing) need no rank decision. ``v_j`` is projected onto
 the bounds before ``y_a`` is taken, so an answer a hair outside a bound does not move the band
@@ -51,12 +54,16 @@ solved from Python, the bands written by the same kernel.
 **Fallback.** When a level's solve fails (or its answer does not check), the cascade is re-solved
 from that level on by DAQP with the soft rows elastic (:meth:`wbc.fallback.Fallback.elastic_solve`;
 the band rows, like the hard limits, stay hard): the hierarchy is kept, and where the soft rows
-can hold, the elastic answer is the level's exact one. If that fails too, the command is
-``v = 0``. The first-order and interior-point backends (OSQP, ProxQP, Clarabel, PIQP) and HiGHS
-report some levels below a saturated one as infeasible or unsolved -- their feasible set is then
+can hold, the elastic answer is the level's exact one. If that fails too, the command is the
+answer of the deepest level solved this tick (``Outcome.LEVEL_ABOVE``: optimal for it and the
+levels above, every hard limit kept -- e.g. below a level that fixes every coordinate, whose bands
+DAQP can call infeasible when they touch a bound), and ``v = 0`` only when no level was solved.
+The first-order and interior-point backends (OSQP, ProxQP, Clarabel, PIQP) and HiGHS report some
+levels below a saturated one as infeasible or unsolved -- their feasible set is then
 a thin sliver around the answer above -- and those ticks are answered by the elastic cascade (the
 README has the measured rates); DAQP and quadprog, exact active-set methods, solved every level
-of the tests and scenarios.
+of the tests and scenarios (DAQP did call a level infeasible under a fully determined level whose
+answer sat on a velocity bound: a fuzz case, answered by the level above).
 
 **Steering preview.** Tasks that need the holonomic preview (SteeringTask) get the cascade of the
 hierarchy without constraints (:func:`wbc.kernels.hierarchy_preview`: the classical null-space
@@ -75,6 +82,7 @@ from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .layout import TaskStack
+from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
@@ -224,10 +232,17 @@ class Hierarchy:
         self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
         #: each level's answer (over v) in the latest tick; None for a level not solved
         self.answers: list[np.ndarray | None] = [None] * count
+        #: the same in the solver's variables (u with ``reduced``), for :meth:`CascadeFallback.last_resort`
+        self.solutions: list[np.ndarray | None] = [None] * count
         self.failed = 0  #: the level whose solve failed in the latest failed tick
         self.fallback = CascadeFallback(self, controller._fallback)
 
     # ----------------------------------------------------------------- program
+    @property
+    def upper_floor(self) -> float:
+        """The regularisation floor of the levels above the last (0: a semidefinite backend's)."""
+        return float(self._upper_scaling[1])
+
     def add_ops(self, program: TickProgram) -> tuple[list, TickProgram, QP, bool]:
         """Append every level's assembly -- and with native DAQP the cascade itself -- to the
         controller's tick program, after its items' ops. Returns what the controller keeps:
@@ -297,7 +312,7 @@ class Hierarchy:
         if exitflag >= 1.0 and defect <= tolerance:
             for control in self._upper_controls:
                 elapsed += control.item(DAQP_CONTROL_TIME)
-            self.answers = self._native_answers
+            self.answers = self.solutions = self._native_answers
             return self._native_answers[-1].copy(), elapsed
         return None
 
@@ -313,8 +328,10 @@ class Hierarchy:
             exitflag, defect, spent = workspace.outcome()
             elapsed += spent
             if exitflag < 1 or not defect <= ANSWER_TOLERANCE:
+                self.answers = [x.copy() for x in self._native_answers[:k]] + [None] * (self.count - k)
+                self.solutions = list(self.answers)
                 return self._failure(k, QPSolution(None, False, _native_status(exitflag, defect), elapsed))
-        self.answers = self._native_answers
+        self.answers = self.solutions = self._native_answers
         return QPSolution(workspace.x.copy(), True, "optimal", elapsed, defect)
 
     def cascade(self, start: int, solve: Callable[[int], QPSolution], check: bool = True) -> QPSolution:
@@ -323,6 +340,7 @@ class Hierarchy:
         what must hold itself: the elastic solves) and writes its band."""
         c = self._controller
         self.answers = self.answers[:start] + [None] * (self.count - start)
+        self.solutions = self.solutions[:start] + [None] * (self.count - start)
         elapsed = 0.0
         for k in range(start, self.count):
             if self._reductions is not None and k and not self._reductions[k].reduce(self.qps[k], c._S):
@@ -338,7 +356,7 @@ class Hierarchy:
                 status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
                 return self._failure(k, QPSolution(None, False, status, elapsed))
             v = solution.x if self._reductions is None else c._S @ solution.x
-            self.answers[k] = v
+            self.answers[k], self.solutions[k] = v, solution.x
             for j in range(k + 1, self.count):
                 self._write_band(k, v, self.qps[j])
         return QPSolution(solution.x, True, "optimal", elapsed, defect)
@@ -392,8 +410,36 @@ class CascadeFallback(Fallback):
         super().__init__(plain.soft_rows, plain.budget, plain.strict)
         self._hierarchy = hierarchy
 
+    def last_resort(self, qp: QP, reason: str, elapsed: float, has_nan: bool) -> tuple[QPSolution, Outcome, str]:
+        """The answer of the deepest level solved this tick (:attr:`Hierarchy.solutions`): optimal
+        for its level and those above, within every bound and row of the QP (its QP has them all,
+        and it was checked) -- e.g. a level below that DAQP calls infeasible because the bands of
+        a fully determined level above are thinner than its tolerance. ``v = 0`` when none was."""
+        solved = [k for k, x in enumerate(self._hierarchy.solutions) if x is not None]
+        if has_nan or not solved:
+            return super().last_resort(qp, reason, elapsed, has_nan)
+        k = solved[-1]
+        return (QPSolution(self._hierarchy.solutions[k].copy(), False, "", elapsed), Outcome.LEVEL_ABOVE,
+                f"fallback: level {k}'s answer after {reason}")
+
     def elastic_solve(self, qp: QP) -> QPSolution:
         """The elastic cascade from :attr:`Hierarchy.failed` (``qp``, the last level's, is solved last)."""
         hierarchy = self._hierarchy
-        return hierarchy.cascade(hierarchy.failed, lambda k: Fallback.elastic_solve(self, hierarchy.solver_qps[k]),
+        return hierarchy.cascade(hierarchy.failed, lambda k: Fallback.elastic_solve(self, self._factorisable(k)),
                                  check=False)
+
+    def _factorisable(self, k: int) -> QP:
+        """Level k's QP for DAQP, which factorises H: a level above the last that reached a
+        semidefinite backend unregularised gets the regularisation floor the others have
+        (:data:`wbc.controller.DAMPING_FLOOR` of its normalised H) in a copy; DAQP called such
+        a level unbounded (exit flag -3) and the tick fell to the zero command."""
+        from .controller import DAMPING_FLOOR  # (the controller module imports this one)
+
+        hierarchy = self._hierarchy
+        qp = hierarchy.solver_qps[k]
+        if k == hierarchy.count - 1 or hierarchy.upper_floor > 0.0:
+            return qp
+        copy = QP(qp.n, qp.n_ineq, qp.n_eq)
+        copy.data[:] = qp.data
+        copy.H.flat[::qp.n + 1] += DAMPING_FLOOR * max(float(np.max(np.diag(qp.H))), 1.0)
+        return copy

@@ -11,4 +11,7 @@ class Outcome(Enum):
 
     OPTIMAL = "optimal"  #: the backend's answer to the full QP, checked
     ELASTIC = "fallback: elastic"  #: DAQP with the soft rows elastic (hard limits kept, checked)
+    #: strict priorities: the answer of the deepest level solved this tick, when a level below it
+    #: and its elastic re-solve failed (optimal for its level and those above; hard limits kept, checked)
+    LEVEL_ABOVE = "fallback: level above"
     ZERO = "fallback: zero command"  #: v = 0, which satisfies every shipped hard limit

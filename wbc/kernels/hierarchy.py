@@ -58,16 +58,22 @@ def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> Non
 @njit(cache=True, nogil=True)
 def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray, size: float,
               relative: float, data: np.ndarray, row: int, h: int) -> None:
-    """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``."""
+    """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``,
+    divided by ``|a|`` (unit rows: a band is as tight for a task weighted 1e-12 as for one
+    weighted 1e12, in the solvers' and the answer check's absolute and relative tolerances)."""
     nv = x.shape[0]
-    value, norm = 0.0, 0.0
+    norm = 0.0
     for j in range(nv):
-        a = stack_t[j, r]
+        norm += stack_t[j, r] * stack_t[j, r]
+    norm = math.sqrt(norm)
+    scale = 1.0 / norm if norm > 0.0 else 0.0
+    value = 0.0
+    for j in range(nv):
+        a = stack_t[j, r] * scale
         value += a * min(max(x[j], lower[j]), upper[j])
-        norm += a * a
         data[row + j] = a
         data[row + nv + j] = -a
-    width = relative * math.sqrt(norm) * size
+    width = relative * size if norm > 0.0 else 0.0
     data[h] = value + width
     data[h + 1] = width - value
 
@@ -81,7 +87,8 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
     For each stack row ``a`` of the level (rows ``first:last`` and ``first_preview:last_preview``
     of ``A = stack_t^T``) two inequality rows ``a v <= y + eps`` and ``-a v <= -y + eps``, with
     ``y = a x`` at the level's answer ``x`` projected onto the bounds ``[lower, upper]`` (exact
-    on the bounds whatever the solver's tolerance) and ``eps = relative |a| max(1, |x|_inf)``.
+    on the bounds whatever the solver's tolerance) and ``eps = relative |a| max(1, |x|_inf)``, each
+    row divided by ``|a|``.
     They are written into the QP buffer ``data`` from its entry ``row`` on (C, row-major) and
     from its entry ``h`` on (upper bounds); their lower bounds stay ``-inf``.
     """
