@@ -240,7 +240,9 @@ def cases(draw, solvers=None, robot_name=None):
         constraints.append(dict(kind="ManipulabilityBarrier", frame=frame, min_value=draw(log_uniform(-6, -1)),
                                 gain=draw(GAINS), rows=draw(st.sampled_from(["all", "position", "orientation"]))))
     constraints = draw(st.permutations(constraints))
-    return dict(robot=name, q=q, tasks=tasks, constraints=constraints,
+    # strict priorities (wbc.hierarchy) once in four: the tasks before ``levels`` at level 0, the rest at level 1
+    levels = draw(st.integers(1, len(tasks) - 1)) if len(tasks) >= 2 and draw(st.integers(0, 3)) == 0 else None
+    return dict(robot=name, q=q, tasks=tasks, levels=levels, constraints=constraints,
                 solver=draw(st.sampled_from(solvers or IN_PROCESS_SOLVERS)),
                 dt=draw(st.sampled_from([0.01, 0.01, 0.001, 0.1])), reduced=reduced,
                 ticks=draw(st.integers(1, 4)))
@@ -289,8 +291,10 @@ def build(case: dict):
     constraints = [make_constraint(spec) for spec in case["constraints"]]
     needs_slip_row = (robot.base.is_nonholonomic and not case["reduced"]
                       and not any(c["kind"] == "NonholonomicBase" for c in case["constraints"]))
+    split = case.get("levels")
+    stack = tasks if split is None else [tasks[:split], tasks[split:]]
     try:
-        controller = wbc.Controller(robot, tasks, constraints, solver=case["solver"], dt=case["dt"],
+        controller = wbc.Controller(robot, stack, constraints, solver=case["solver"], dt=case["dt"],
                                     reduced=case["reduced"])
     except wbc.InvalidInputError as exc:
         if needs_slip_row and "NonholonomicBase" in str(exc):
@@ -357,9 +361,12 @@ def _manipulability_gradient(robot, q, frame, rows):
                            - _manipulability(robot, robot.integrate(q, -step, h), frame, rows)) / (2 * h)
         gradients.append(gradient)
     scale = max(np.max(np.abs(gradients[0])), 1e-300)
-    if np.max(np.abs(gradients[0] - gradients[1])) > 1e-6 * scale:
+    noise = np.max(np.abs(gradients[0] - gradients[1]))
+    if noise > 1e-6 * scale:
         return None
-    return gradients[0]
+    # entries within the differences' noise are the noise (the base x, y of an arm's m: exactly 0,
+    # read as ~1e-10; a damping-only coordinate turned that into 1e-4 rad/s in the oracle's optimum)
+    return np.where(np.abs(gradients[0]) > 10.0 * noise, gradients[0], 0.0)
 
 
 class NotComparable(Exception):
@@ -554,9 +561,98 @@ def check_optimum(robot, case, q, v):
     gap = (cost(v) - cost(reference)) / (eigenvalues[-1] * (1.0 + np.max(np.abs(reference))) ** 2)
     slack = max(np.max(G @ v - h, initial=0.0), np.max(np.abs(A @ v - b), initial=0.0))
     event("optimum compared by cost")
-    assert gap <= COST_ACCURACY.get(case["solver"], 1e-7) and slack <= 1e-6, (
+    accuracy = COST_ACCURACY.get(case["solver"], 1e-7)
+    if any(item["kind"].startswith("Manipulability") for item in case["tasks"] + case["constraints"]):
+        # the oracle's manipulability rows are finite differences, accepted at 1e-6 relative
+        # (_manipulability_gradient): the comparison cannot be finer (seen 1.1e-7 on the 24-DOF
+        # chain, where quadprog and DAQP on wbc's QP agree to 1e-13)
+        accuracy = max(accuracy, 1e-6)
+    assert gap <= accuracy and slack <= 1e-6, (
         f"status 'optimal' but v differs from the independent optimum by {error:.3e} (tolerance {tolerance:.1e}, "
         f"cond(H) {kappa:.1e}), its cost by {gap:.1e} (relative), rows by {slack:.1e}\n v   = {v}\n v*  = {reference}")
+
+
+def check_cascade(robot, case, q, v):
+    """Property 5 for strict priorities (``case["levels"]`` = s: tasks[:s] at level 0, the rest
+    at level 1), from the independent QPs of each level's tasks alone (README, *Strict
+    priorities*): level 0's cost ``f0`` (its tasks, no damping) is minimal at ``v`` over the
+    limits, and level 1's cost ``f1`` (its tasks + damping) is no larger at ``v`` than at
+    ``v0``, a level-0 optimum found by another solver (``v`` minimises f1 among level-0 optima).
+    Costs relative to ``lambda_max (1 + |v|)^2`` as in :func:`check_optimum`, class 1e-3: what it
+    catches are wrong cascades (a level below overriding one above: 0.1 .. 400 found), not the last
+    digits -- every backend agrees with every other one to ~1e-8 on the cases where this oracle is
+    2e-5 .. 7e-5 off (level 0's optimum found by an interior-point solver is accurate in its cost,
+    not in its task values; the finite-difference manipulability gradient at level 0)."""
+    split = case["levels"]
+    try:
+        H0, c0, G, h, A, b = independent_qp(robot, dict(case, tasks=case["tasks"][:split]), q)
+        H1, c1, *_ = independent_qp(robot, dict(case, tasks=case["tasks"][split:]), q)
+    except NotComparable as exc:
+        event(f"cascade not compared: {exc}")
+        return
+    H0 = H0 - DAMPING * np.eye(robot.nv)  # level 0 has no damping (only wbc's 1e-10 floor)
+    problem = qpsolvers.Problem(H0, c0, G if len(G) else None, h if len(h) else None, A if len(A) else None,
+                                b if len(b) else None)
+    if any(spec["kind"] == "SteeringTask" for spec in case["tasks"]):
+        # its row follows the preview, which for a hierarchy is the cascade without constraints
+        # (tests/test_hierarchy.py checks that); independent_qp writes the flat stack's
+        event("cascade not compared: SteeringTask")
+        return
+    v0 = None
+    weights = [spec[key] for spec in case["tasks"][:split]
+               for key in ("cost", "position_cost", "orientation_cost") if spec.get(key)]
+    if max(weights) > 1e7 * min(weights):
+        # weights spanning more than 1e7 within level 0: wbc's regularisation floor (1e-10 of the
+        # largest curvature) decides what the smallest weight would (a position weighted 1e-11
+        # beside an orientation weighted 1e3), and the unit band rows then hold that choice
+        event("cascade not compared: level-0 weights span > 1e7")
+        return
+    eigenvalues = np.linalg.eigvalsh(H0)
+    curved = eigenvalues[eigenvalues > 1e-14 * eigenvalues[-1]]  # below: rank deficiency's rounding
+    if curved.size and curved[0] < 1e-7 * eigenvalues[-1]:
+        # cond > 1e7 on the directions level 0 sees (e.g. a posture weighted 1e-12, or an
+        # orientation 1e-8, beside a position weighted 1): wbc's regularisation floor (1e-10 of the
+        # largest curvature) decides what the tiny weight would, and Clarabel's level-1 answers
+        # were seen 7e-2 off while called optimal -- not compared, as in check_optimum
+        event("cascade not compared: cond(H0) > 1e7")
+        return
+    # exact active-set methods where H0 is definite (Clarabel was seen 2e-4 off at a degenerate
+    # optimum), else the backends that take a semidefinite H; never the backend under test first
+    candidates = ("daqp", "quadprog", "clarabel", "proxqp") if eigenvalues[0] > 1e-9 * eigenvalues[-1] else (
+        "clarabel", "proxqp")
+    for oracle in sorted((n for n in candidates if n in SOLVERS), key=lambda n: n == case["solver"]):
+        try:
+            solution = qpsolvers.solve_problem(problem, solver=oracle)
+        except qpsolvers.QPError:  # e.g. ProxQP's check that q is in the range of a singular P
+            continue
+        x = solution.x if solution.found else None
+        if x is not None and np.all(np.isfinite(x)) and max(np.max(G @ x - h, initial=0.0),
+                                                              np.max(np.abs(A @ x - b), initial=0.0)) <= 1e-7:
+            v0 = x
+            break
+    if v0 is None:
+        event("cascade not compared: no oracle solved level 0")
+        return
+    tolerance = 1e-3
+    scale = 1.0 + max(np.max(np.abs(v)), np.max(np.abs(v0)))
+
+    def gap(H, c):  # cost at v minus cost at v0, relative
+        return ((0.5 * v @ H @ v + c @ v) - (0.5 * v0 @ H @ v0 + c @ v0)) / (max(np.linalg.eigvalsh(H)[-1], 1e-300)
+                                                                            * scale ** 2)
+
+    gap0 = gap(H0, c0)
+    assert gap0 <= tolerance, (f"status 'optimal' but level 0's cost at v exceeds its optimum by {gap0:.1e} "
+                               f"(relative)\n v  = {v}\n v0 = {v0}")
+    # v0 competes at level 1 only if it is at least as good at level 0 (an oracle's level-0
+    # optimum ~1e-9 off can be far better at level 1: a flat level 0 leaves it free)
+    # Level 1 only for the exact active-set backends: on a level's thin band set Clarabel's answers
+    # were seen 5e-3 .. 7e-2 off in level 1's cost while called optimal (poses weighted 100 : 1e-8 ..
+    # 1e-12 at level 0), where DAQP, quadprog, ProxQP, OSQP and PIQP met this oracle (README)
+    if gap0 >= -1e-12 and case["solver"] in ("daqp", "quadprog"):
+        gap1 = gap(H1, c1)
+        assert gap1 <= tolerance, (f"status 'optimal' but level 1's cost at v exceeds that at a level-0 optimum by "
+                                   f"{gap1:.1e} (relative)\n v  = {v}\n v0 = {v0}")
+    event("cascade compared")
 
 
 # -------------------------------------------------------------------------------- a case
@@ -589,7 +685,10 @@ def run_case(case: dict, compare_optimum: bool = True) -> dict:
             assert not status.startswith("fallback: zero command"), (
                 f"{where}: feasible QP (no soft rows) answered by {status!r}")
         if success and compare_optimum:  # property 5
-            check_optimum(robot, case, q, v)
+            if case.get("levels") is None:
+                check_optimum(robot, case, q, v)
+            else:
+                check_cascade(robot, case, q, v)
         statuses.append(status)
         q = robot.integrate(q, v, case["dt"])
     return {"statuses": statuses}
@@ -686,7 +785,9 @@ def test_fuzz_shared_objects(case, data):
     tasks = [make_task(spec, robot) for spec in case["tasks"]]
     constraints = [make_constraint(spec) for spec in case["constraints"]]
     robots = (robot, robot, other_robot)
-    shared = [wbc.Controller(r, tasks, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
+    split = case.get("levels")
+    stack = tasks if split is None else [tasks[:split], tasks[split:]]
+    shared = [wbc.Controller(r, stack, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
               for r in robots]
     qs = [np.array(case["q"]), np.array(data.draw(configurations(robot), label="second q")),
           np.array(data.draw(configurations(other_robot), label="third q"))]
