@@ -195,9 +195,14 @@ def executor(workers: int | None = None, scheduler: str | None = None, timeout: 
             # the worker processes inherit it: their distributed loggers start at WARNING (qpbenchmark gives
             # their root logger a handler when they import it)
             stack.enter_context(_environment("DASK_LOGGING__DISTRIBUTED", "warning"))
-            cluster = stack.enter_context(distributed.LocalCluster(
-                n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address="127.0.0.1:0", silence_logs=logging.WARNING))
+            try:
+                cluster = stack.enter_context(distributed.LocalCluster(
+                    n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                    dashboard_address="127.0.0.1:0", silence_logs=logging.WARNING))
+            except (OSError, RuntimeError) as exc:  # RuntimeError: "Nanny failed to start" (a worker process died)
+                raise SweepError(f"could not start {workers} local Dask workers ({type(exc).__name__}: {exc}); the "
+                                 "worker processes re-import the main module: run the command as a script or "
+                                 "with python -m, not from an interactive session") from exc
             address, description = cluster.scheduler_address, "on a local Dask cluster (LocalCluster)"
         else:
             address, description = scheduler, f"on the Dask cluster at {scheduler}"
