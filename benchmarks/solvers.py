@@ -2,6 +2,7 @@
 
     python -m benchmarks.solvers [--ticks 200] [--settings default high_accuracy ...]
                                  [--solvers daqp osqp ...] [--scenarios ...] [--qpbenchmark-only]
+                                 [--starts N] [--workers N | --scheduler ADDRESS]
                                  [--out benchmarks/output/solvers]
 
 1. The test set is :class:`benchmarks.wbc_qpbenchmark.WbcQpbenchmark`: ``--ticks`` ticks of
@@ -22,6 +23,14 @@
    µs-scale QPs (the same mean with shift 10 µs, median, p99, solves slower than the control
    period, largest residuals, distance to the reference solution), per scenario and with /
    without active constraints; the back-to-back pass next to qpbenchmark's; plots.
+
+5. Sweeps: ``--starts N`` adds N - 1 seeded perturbed starts of every scenario
+   (:mod:`benchmarks.starts`). Steps 2 and 3 run as work units (one scenario and start, at most
+   ``UNIT_PROBLEMS`` QPs, both passes) here one after another, or with ``--workers N`` on a local
+   Dask cluster of N processes, with ``--scheduler ADDRESS`` on an existing one
+   (:mod:`benchmarks.sweep`, extra ``[distributed]``); gathered in the test set's order, every
+   column but the timings equals the serial run's. Timings of a parallel run share the cores:
+   take timing tables from a serial run.
 
 Conventions and where they differ from qpbenchmark's: benchmarks/README.md, section 2.
 """
