@@ -82,8 +82,7 @@ def record_start(job: StartJob) -> dict:
         q0 = perturbed_configuration(scenario.robot, scenario.q0, job.scenario, job.start, job.seed)
         result = ds.record_scenario(path, job.ticks * scenario.dt, show_progress=False, q0=q0)
     result["entry"].update(start=job.start, start_seed=job.seed, requested_ticks=job.ticks,
-                           dataset_created=job.dataset_created, file=start_path(Path("."), job.scenario,
-                                                                                job.start).name)
+                           dataset_created=job.dataset_created, file=start_path(Path(), job.scenario, job.start).name)
     return result
 
 
@@ -116,7 +115,8 @@ def _jobs(folder: Path, index: dict, nominal: Sequence[ds.ScenarioQPs], starts: 
             stored = _read(start_path(folder, sc.name, start))
             if stored is not None:
                 meta, arrays = stored
-                scenario = scenario or load_scenario(source)
+                if scenario is None:
+                    scenario = load_scenario(source)
                 expected = perturbed_configuration(scenario.robot, scenario.q0, sc.name, start, seed)
                 if (meta.get("start_seed") == seed and meta.get("requested_ticks") == sc.ticks
                         and meta.get("dataset_created") == index["created"]
