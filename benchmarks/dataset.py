@@ -96,6 +96,14 @@ class ScenarioQPs:
     q: np.ndarray
     time: np.ndarray
     meta: dict = field(default_factory=dict)
+    #: 0: recorded from the scenario's initial configuration; s >= 1: from its perturbed start s
+    #: (:mod:`benchmarks.starts`)
+    start: int = 0
+
+    @property
+    def label(self) -> str:
+        """``<scenario>`` for the nominal start, ``<scenario>_s<start>`` for a perturbed one."""
+        return self.name if self.start == 0 else f"{self.name}_s{self.start}"
 
     @property
     def ticks(self) -> int:
@@ -113,11 +121,15 @@ class ScenarioQPs:
         return float(0.5 * x @ self.H[k] @ x + self.c[k] @ x)
 
 
+def version_folder(folder: Path | str) -> Path:
+    """The folder holding ``index.json``: ``folder`` itself or ``folder/v<VERSION>``."""
+    folder = Path(folder)
+    return folder if (folder / "index.json").exists() else folder / f"v{VERSION}"
+
+
 def load(folder: Path | str = OUTPUT / "dataset") -> tuple[dict, list[ScenarioQPs]]:
     """Read a dataset written by :func:`record_all` (``folder`` or ``folder/v<VERSION>``)."""
-    folder = Path(folder)
-    if not (folder / "index.json").exists():
-        folder = folder / f"v{VERSION}"
+    folder = version_folder(folder)
     index = json.loads((folder / "index.json").read_text())
     if index.get("version") != VERSION:
         raise RuntimeError(f"{folder}: dataset version {index.get('version')}, this code reads {VERSION}; "
@@ -128,12 +140,17 @@ def load(folder: Path | str = OUTPUT / "dataset") -> tuple[dict, list[ScenarioQP
             continue
         with np.load(folder / entry["file"]) as data:
             arrays = {key: data[key] for key in data.files}
-        out.append(ScenarioQPs(
-            name=entry["scenario"], H=arrays["H"], c=arrays["c"], C=arrays["C"], upper=arrays["upper"],
-            lower=arrays["lower"], n_ineq=int(arrays["n_ineq"]), n_eq=int(arrays["n_eq"]),
-            x_ref=arrays["x_ref"], x_controller=arrays["x_controller"], active=arrays["active"],
-            ref_residuals=arrays["ref_residuals"], q=arrays["q"], time=arrays["time"], meta=entry))
+        out.append(scenario_qps(entry, arrays))
     return index, out
+
+
+def scenario_qps(entry: dict, arrays: dict[str, np.ndarray], start: int = 0) -> ScenarioQPs:
+    """A :class:`ScenarioQPs` from its index entry and the arrays of its ``.npz`` file."""
+    return ScenarioQPs(
+        name=entry["scenario"], H=arrays["H"], c=arrays["c"], C=arrays["C"], upper=arrays["upper"],
+        lower=arrays["lower"], n_ineq=int(arrays["n_ineq"]), n_eq=int(arrays["n_eq"]),
+        x_ref=arrays["x_ref"], x_controller=arrays["x_controller"], active=arrays["active"],
+        ref_residuals=arrays["ref_residuals"], q=arrays["q"], time=arrays["time"], meta=entry, start=start)
 
 
 # ---------------------------------------------------------------------- reference
@@ -174,8 +191,13 @@ def active_set(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarra
 
 
 # ---------------------------------------------------------------------- recording
-def record_scenario(path: Path, duration: float | None = None, show_progress: bool = True) -> dict:
-    """Run one scenario in closed loop; return its arrays and per-tick metadata."""
+def record_scenario(path: Path, duration: float | None = None, show_progress: bool = True,
+                    q0: np.ndarray | None = None) -> dict:
+    """Run one scenario in closed loop; return its arrays and per-tick metadata.
+
+    ``q0``: start the loop there instead of the scenario's initial configuration (its tasks and
+    reference, built from the initial configuration, are unchanged: a perturbed start).
+    """
     from wbc.errors import SolverError
     from wbc.scenario import load_scenario
 
@@ -194,7 +216,7 @@ def record_scenario(path: Path, duration: float | None = None, show_progress: bo
         "q": np.zeros((ticks, robot.nq)), "time": np.arange(ticks) * dt,
     }
     rows: list[dict] = []
-    q = scenario.q0.copy()
+    q = (scenario.q0 if q0 is None else robot.check_configuration(q0)).copy()
     status = "ok"
     iterator = range(ticks)
     if show_progress:

@@ -2,6 +2,7 @@
 
     python -m benchmarks.solvers [--ticks 200] [--settings default high_accuracy ...]
                                  [--solvers daqp osqp ...] [--scenarios ...] [--qpbenchmark-only]
+                                 [--starts N] [--workers N | --scheduler ADDRESS]
                                  [--out benchmarks/output/solvers]
 
 1. The test set is :class:`benchmarks.wbc_qpbenchmark.WbcQpbenchmark`: ``--ticks`` ticks of
@@ -23,6 +24,14 @@
    period, largest residuals, distance to the reference solution), per scenario and with /
    without active constraints; the back-to-back pass next to qpbenchmark's; plots.
 
+5. Sweeps: ``--starts N`` adds N - 1 seeded perturbed starts of every scenario
+   (:mod:`benchmarks.starts`). Steps 2 and 3 run as work units (one scenario and start, at most
+   ``UNIT_PROBLEMS`` QPs, both passes) here one after another, or with ``--workers N`` on a local
+   Dask cluster of N processes, with ``--scheduler ADDRESS`` on an existing one
+   (:mod:`benchmarks.sweep`, extra ``[distributed]``); gathered in the test set's order, every
+   column but the timings equals the serial run's. Timings of a parallel run share the cores:
+   take timing tables from a serial run.
+
 Conventions and where they differ from qpbenchmark's: benchmarks/README.md, section 2.
 """
 
@@ -38,6 +47,7 @@ import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -47,11 +57,14 @@ import qpsolvers
 from qpbenchmark.utils import time_solve_problem
 
 from . import dataset as ds
-from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, progress, shifted_geometric_mean
+from . import sweep
+from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, shifted_geometric_mean
 from .wbc_qpbenchmark import SETTINGS, TICKS, WbcProblem, WbcQpbenchmark
 
-#: ticks per call of ``qpbenchmark.run`` (its cost per solve grows with its results table)
+#: problems per call of ``qpbenchmark.run`` (its cost per solve grows with its results table)
 PART_TICKS = 25
+#: problems per work unit at most (a unit holds the QPs of one scenario and start)
+UNIT_PROBLEMS = 50
 #: qpbenchmark's shift [s] (its report's runtime and residual means)
 SHIFT_S = 10.0
 #: wbc's shift [µs]: the same 10, in the unit of these runtimes
@@ -102,18 +115,24 @@ def _quiet_logging() -> Iterator[None]:
         root.setLevel(level)
 
 
-def run_qpbenchmark(test_set: WbcQpbenchmark, show_progress: bool = True) -> tuple[pandas.DataFrame, dict]:
-    """``qpbenchmark.run`` over ``test_set``, part by part: (its results table, the extras)."""
+def run_qpbenchmark(test_set: WbcQpbenchmark) -> tuple[pandas.DataFrame, dict]:
+    """``qpbenchmark.run`` over ``test_set``, part by part: (its results table, the extras). The
+    table's rows in the test set's order: problem, solver by name, settings in the set's order
+    (``qpbenchmark.run`` goes through the solvers in the order of a ``set``, which differs between
+    processes)."""
     frames, extras = [], {}
-    parts = list(test_set.parts(PART_TICKS))
-    iterator = progress(parts, desc="qpbenchmark", unit="part") if show_progress else parts
     with tempfile.TemporaryDirectory() as folder, _quiet_logging():
-        for i, part in enumerate(iterator):
+        for i, part in enumerate(test_set.parts(PART_TICKS)):
             results = ExtendedResults(Path(folder) / f"part{i}.csv", part)
             qpbenchmark.run(part, results, **_QUIET_RUN)
             frames.append(results.df)
             extras.update(results.extras)
-    return pandas.concat(frames, ignore_index=True), extras
+    df = pandas.concat(frames, ignore_index=True)
+    problem_rank = {problem.name: i for i, problem in enumerate(test_set)}
+    settings_rank = {settings: i for i, settings in enumerate(test_set.solver_settings)}
+    order = sorted(range(len(df)), key=lambda i: (problem_rank[df["problem"].iat[i]], df["solver"].iat[i],
+                                                  settings_rank[df["settings"].iat[i]]))
+    return df.iloc[order].reset_index(drop=True), extras
 
 
 def make_rows(df: pandas.DataFrame, extras: dict, test_set: WbcQpbenchmark) -> list[dict]:
@@ -136,24 +155,37 @@ def result_row(source: str, problem: WbcProblem, solver: str, settings: str, war
     tolerance = test_set.tolerances[settings]
     primal, dual, gap = (float(np.nan if value is None else value) for value in residuals)
     success = found and primal < tolerance.primal and dual < tolerance.dual and gap < tolerance.gap
-    return {"pass": source, "problem": problem.name, "scenario": problem.scenario, "tick": problem.tick,
-            "active": problem.active, "solver": solver, "settings": settings, "warm": warm, "found": found,
+    return {"pass": source, "problem": problem.name, "scenario": problem.scenario, "start": problem.start,
+            "tick": problem.tick, "active": problem.active, "solver": solver, "settings": settings, "warm": warm,
+            "found": found,
             "success": bool(success), "runtime": float(runtime), "time_limit": tolerance.runtime,
             "primal_residual": primal, "dual_residual": dual, "duality_gap": gap, **extras}
 
 
-def back_to_back_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bool = True) -> list[dict]:
-    """Per problem, every solver and settings cold, and warm (``initvals`` = the previous tick's
-    reference solution) for the backends whose qpsolvers wrapper uses it, in a random order."""
+def back_to_back_configs(test_set: WbcQpbenchmark) -> list[tuple[str, str, bool]]:
+    """(solver, settings, warm) of the back-to-back pass: every solver and settings cold, and warm for
+    the backends whose qpsolvers wrapper uses ``initvals``."""
+    return [(solver, settings, warm) for solver in sorted(test_set.solvers) for settings in test_set.solver_settings
+            for warm in ((False, True) if WARM_START.get(solver) else (False,))]
+
+
+def pass_orders(test_set: WbcQpbenchmark, seed: int) -> list[np.ndarray]:
+    """The back-to-back pass's random order of :func:`back_to_back_configs` for every problem of the
+    set, drawn here once (seeded), so that a work unit runs its problems in the serial run's order."""
     rng = np.random.default_rng(seed)
-    configs = [(solver, settings, warm) for solver in sorted(test_set.solvers) for settings in test_set.solver_settings
-               for warm in ((False, True) if WARM_START.get(solver) else (False,))]
-    problems = list(test_set)
-    iterator = progress(problems, desc="back to back", unit="QP") if show_progress else problems
+    count = len(back_to_back_configs(test_set))
+    return [rng.permutation(count) for _ in test_set]
+
+
+def back_to_back_pass(test_set: WbcQpbenchmark, orders: list[np.ndarray]) -> list[dict]:
+    """Per problem, every solver and settings cold, and warm (``initvals`` = the previous tick's
+    reference solution) for the backends whose qpsolvers wrapper uses it, in the order ``orders``
+    (one permutation of :func:`back_to_back_configs` per problem)."""
+    configs = back_to_back_configs(test_set)
     rows: list[dict] = []
     with _quiet_logging():
-        for problem in iterator:
-            for i in rng.permutation(len(configs)):
+        for problem, order in zip(test_set, orders, strict=True):
+            for i in order:
                 solver, settings, warm = configs[i]
                 options = dict(test_set.solver_settings[settings][solver])
                 if warm:
@@ -163,6 +195,58 @@ def back_to_back_pass(test_set: WbcQpbenchmark, seed: int = 0, show_progress: bo
                 rows.append(result_row("back to back", problem, solver, settings, warm, bool(solution.found),
                                        runtime, residuals, solution_extras(problem, solution), test_set))
     return rows
+
+
+# ------------------------------------------------------------------------ work units
+@dataclass
+class Unit:
+    """A piece of the sweep: consecutive problems of one scenario and start, both passes."""
+
+    label: str
+    test_set: WbcQpbenchmark  #: a subset: the problems' arrays and the settings, no recorded scenario
+    orders: list[np.ndarray] | None  #: the back-to-back pass's order per problem; None: no back-to-back pass
+
+
+@dataclass
+class UnitResult:
+    """What a unit gives back: qpbenchmark's results table and wbc's rows of both passes."""
+
+    df: pandas.DataFrame
+    rows: list[dict]
+    second: list[dict]
+
+
+def make_units(test_set: WbcQpbenchmark, seed: int, back_to_back: bool = True,
+               size: int = UNIT_PROBLEMS) -> list[Unit]:
+    """The test set cut into units in its order: per scenario and start, at most ``size`` problems each."""
+    problems = list(test_set)
+    orders = pass_orders(test_set, seed) if back_to_back else None
+    units, first = [], 0
+    while first < len(problems):
+        origin = (problems[first].scenario, problems[first].start)
+        last = first + 1
+        while last < len(problems) and last - first < size and (problems[last].scenario,
+                                                                 problems[last].start) == origin:
+            last += 1
+        label = f"{origin[0]} start {origin[1]} ticks {problems[first].tick}-{problems[last - 1].tick}"
+        units.append(Unit(label, test_set.subset(problems[first:last]),
+                          orders[first:last] if orders is not None else None))
+        first = last
+    return units
+
+
+def run_unit(unit: Unit) -> UnitResult:
+    """qpbenchmark's pass, then the back-to-back pass, on the unit's problems (here or on a worker)."""
+    df, extras = run_qpbenchmark(unit.test_set)
+    rows = make_rows(df, extras, unit.test_set)
+    return UnitResult(df, rows, [] if unit.orders is None else back_to_back_pass(unit.test_set, unit.orders))
+
+
+def run_units(units: list[Unit], run: sweep.Mapper) -> tuple[pandas.DataFrame, list[dict], list[dict]]:
+    """Every unit through ``run``; qpbenchmark's table and both passes' rows concatenated in the units' order."""
+    results = run(run_unit, units, [unit.label for unit in units])
+    return (pandas.concat([r.df for r in results], ignore_index=True), [row for r in results for row in r.rows],
+            [row for r in results for row in r.second])
 
 
 # ------------------------------------------------------------------------ metrics
@@ -273,7 +357,7 @@ def back_to_back_table(rows: list[dict], second: list[dict], settings: str,
 
 # ------------------------------------------------------------------------ report
 def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark, args: argparse.Namespace,
-                 out: Path, elapsed: float, loads: tuple[float, float]) -> Path:
+                 out: Path, elapsed: float, loads: tuple[float, float], where: str) -> Path:
     """``out/report.md``: both passes, per settings, scenario and active / inactive; its path."""
     tolerances = test_set.tolerances
     index = test_set.index
@@ -285,7 +369,11 @@ def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark,
     lines = [
         "# Solver comparison on recorded control QPs", "",
         f"Measured {machine_note()}; load average {loads[0]:.2f} at the start, {loads[1]:.2f} at the end. "
-        f"Command: `{args.command_line}` ({elapsed:.0f} s).", "",
+        f"Command: `{args.command_line}` ({elapsed:.0f} s); run {where}." + (
+            "" if args.workers is None and args.scheduler is None else
+            " The work units ran side by side, sharing the machines' cores: the runtimes below are those of "
+            "solves competing for the cores, for an accuracy / robustness sweep; timing tables come from a "
+            "serial run."), "",
         f"Dataset v{index['version']} (`{index['generator']}`, commit {index['git_commit']}). Test set "
         f"`benchmarks/wbc_qpbenchmark.py`: {len(test_set.selection)} QPs: {composition}.", "",
         "Versions: " + ", ".join(f"{k} {v}" for k, v in versions.items()) + ".", "",
@@ -320,9 +408,10 @@ def write_report(rows: list[dict], second: list[dict], test_set: WbcQpbenchmark,
         for settings in tolerances:
             lines += [f"### back to back, settings: {settings}", "",
                       back_to_back_table(rows, second, settings, tolerances), ""]
-    for sc in test_set.scenarios:
+    for sc in [sc for sc in test_set.scenarios if sc.start == 0]:  # a scenario's section holds all its starts
         sc_rows = [r for r in rows if r["scenario"] == sc.name]
-        lines += [f"## {sc.name}", "", f"n = {sc.n}, {sc.n_ineq} inequality and {sc.n_eq} equality rows.", ""]
+        lines += [f"## {sc.name}", "", f"n = {sc.n}, {sc.n_ineq} inequality and {sc.n_eq} equality rows"
+                  + (f"; its {test_set.starts} starts together." if test_set.starts > 1 else "."), ""]
         for settings in tolerances:
             lines += [f"### {sc.name}, settings: {settings}", "", settings_table(sc_rows, settings, tolerances), ""]
     lines += ["## Plots", "", "![runtime distributions](runtime_distributions.png)", "",
@@ -409,35 +498,55 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--time-limit", type=float, help="[s] (default: the control period of the scenarios)")
     parser.add_argument("--author", default="anonymous", help="GitHub user named in qpbenchmark's report")
     parser.add_argument("--seed", type=int, default=0, help="order of the back-to-back pass")
+    parser.add_argument("--starts", type=int, default=1, metavar="N",
+                        help="per scenario the recording from its initial configuration and from N - 1 seeded "
+                             "perturbations of it (benchmarks/starts.py; default %(default)s: unperturbed only)")
+    parser.add_argument("--start-seed", type=int, default=0, help="seed of the perturbed starts (default %(default)s)")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=int, metavar="N",
+                       help="run the work units on a local Dask cluster of N worker processes of 1 thread "
+                            f"(needs {sweep.INSTALL}); results as in the serial run, timings not (they share cores)")
+    where.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run the work units on an existing Dask cluster, e.g. tcp://host:8786 (same versions "
+                            "of wbc, numpy, qpsolvers, qpbenchmark and the backends on every worker, checked first)")
+    parser.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
+                        help="[s] to reach the scheduler and find a worker (default %(default)s)")
     parser.add_argument("--no-progress", action="store_true")
     args = parser.parse_args(argv)
     args.command_line = "python -m benchmarks.solvers " + " ".join(argv if argv is not None else sys.argv[1:])
+    if args.starts < 1:
+        parser.error(f"--starts {args.starts}: give 1 (the scenarios' own initial configuration) or more")
 
     if args.regenerate:
         print(f"recording the dataset into {args.dataset} ...", file=sys.stderr)
         ds.record_all(args.dataset, show_progress=not args.no_progress)
+    backends = [_DIST.get(solver, solver) for solver in sorted(qpsolvers.available_solvers)]
     try:
-        test_set = WbcQpbenchmark(args.dataset, args.ticks, args.scenarios, args.settings, args.solvers,
-                                  args.time_limit)
-    except ValueError as exc:
-        parser.error(str(exc))
-    for entry in test_set.index["scenarios"]:
-        if entry["status"] != "ok":
-            print(f"warning: dataset scenario {entry['scenario']}: {entry['status']}", file=sys.stderr)
-    args.out.mkdir(parents=True, exist_ok=True)
-    start, load_start = time.perf_counter(), os.getloadavg()[0]
-    df, extras = run_qpbenchmark(test_set, not args.no_progress)
+        with sweep.executor(args.workers, args.scheduler, args.connect_timeout, backends,
+                            not args.no_progress) as run:
+            try:
+                test_set = WbcQpbenchmark(args.dataset, args.ticks, args.scenarios, args.settings, args.solvers,
+                                          args.time_limit, args.starts, args.start_seed, run)
+            except ValueError as exc:
+                parser.error(str(exc))
+            for sc in test_set.scenarios:
+                if sc.meta["status"] != "ok":
+                    print(f"warning: dataset scenario {sc.label}: {sc.meta['status']}", file=sys.stderr)
+            args.out.mkdir(parents=True, exist_ok=True)
+            start, load_start = time.perf_counter(), os.getloadavg()[0]
+            df, rows, second = run_units(make_units(test_set, args.seed, not args.qpbenchmark_only), run)
+            elapsed = time.perf_counter() - start
+    except sweep.SweepError as exc:
+        parser.exit(1, f"{parser.prog}: error: {exc}\n")
     complete = qpbenchmark.Results(None, test_set)
     complete.df = df
     complete.write(str(args.out / "results.csv"))
     with _quiet_logging():
         qpbenchmark.Report(args.author, qpbenchmark.Results(str(args.out / "results.csv"), test_set)).write(
             str(args.out / "wbc_qpbenchmark.md"))
-    rows = make_rows(df, extras, test_set)
-    second = [] if args.qpbenchmark_only else back_to_back_pass(test_set, args.seed, not args.no_progress)
-    elapsed = time.perf_counter() - start
     write_rows(rows + second, args.out / "solves.csv")
-    report = write_report(rows, second, test_set, args, args.out, elapsed, (load_start, os.getloadavg()[0]))
+    report = write_report(rows, second, test_set, args, args.out, elapsed, (load_start, os.getloadavg()[0]),
+                          run.description)
     plot(rows, args.out)
     for settings in test_set.tolerances:
         print(f"settings: {settings}\n{settings_table(rows, settings, test_set.tolerances)}\n")

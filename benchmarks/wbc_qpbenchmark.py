@@ -26,6 +26,8 @@ import qpbenchmark
 if __package__ in (None, ""):  # loaded by path (qpbenchmark's CLI or `python benchmarks/wbc_qpbenchmark.py`)
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks import dataset as ds  # noqa: E402
+from benchmarks import starts as st  # noqa: E402
+from benchmarks import sweep  # noqa: E402
 from benchmarks.common import OUTPUT  # noqa: E402
 
 #: ticks per scenario (0: every recorded tick)
@@ -54,6 +56,7 @@ class WbcProblem(qpbenchmark.Problem):
     """A qpbenchmark problem that knows where it comes from and its reference solution."""
 
     scenario: str
+    start: int  #: 0: the scenario's initial configuration; s >= 1: its perturbed start s (benchmarks.starts)
     tick: int
     active: bool  #: a bound or inequality is active at the reference solution
     x_ref: np.ndarray  #: reference solution (DAQP at 1e-12, checked by its KKT residuals)
@@ -65,13 +68,16 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
 
     def __init__(self, dataset: Path | str | None = None, ticks: int = TICKS, scenarios: Sequence[str] | None = None,
                  settings: Sequence[str] = SETTINGS, solvers: Sequence[str] | None = None,
-                 time_limit: float | None = None) -> None:
-        """Load (or record) the dataset and select ``ticks`` per scenario (0: all).
+                 time_limit: float | None = None, starts: int = 1, start_seed: int = 0,
+                 record: sweep.Mapper | None = None) -> None:
+        """Load (or record) the dataset and select ``ticks`` per scenario and start (0: all).
 
         ``dataset``: default ``$WBC_QPBENCHMARK_DATASET``, else ``benchmarks/output/dataset``
         (qpbenchmark's CLI builds the test set without arguments). ``scenarios``, ``solvers``:
         subsets (default: every recorded scenario, every installed solver qpbenchmark knows).
-        ``time_limit`` [s]: default the shortest control period of the scenarios.
+        ``time_limit`` [s]: default the shortest control period of the scenarios. ``starts``: the
+        nominal start and ``starts - 1`` perturbed ones per scenario (:mod:`benchmarks.starts`, seed
+        ``start_seed``), recorded first where missing, through ``record`` (default: here, one by one).
         """
         folder = Path(dataset or os.environ.get("WBC_QPBENCHMARK_DATASET") or OUTPUT / "dataset")
         if not (folder / f"v{ds.VERSION}" / "index.json").exists() and not (folder / "index.json").exists():
@@ -83,9 +89,17 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
             if unknown:
                 raise ValueError(f"not in the dataset: {', '.join(sorted(unknown))}")
             recorded = [sc for sc in recorded if sc.name in scenarios]
+        if starts < 1:
+            raise ValueError(f"starts = {starts}: give 1 (the scenarios' own initial configuration) or more")
+        if starts > 1:
+            version = ds.version_folder(folder)
+            st.ensure_starts(version, self.index, recorded, starts, start_seed, record or sweep.Here(False))
+            recorded = st.load_starts(version, recorded, starts)
         self.scenarios = recorded
+        self.starts, self.start_seed = starts, start_seed
         self.selection: list[tuple[ds.ScenarioQPs, int]] = [
             (sc, int(k)) for sc in recorded for k in select_ticks(self.tick_has_active_constraint(sc), ticks)]
+        self.problems: list[WbcProblem] = [problem for sc, k in self.selection for problem in self.tick_problems(sc, k)]
         self.time_limit = time_limit if time_limit is not None else min(sc.meta["dt"] for sc in recorded)
         self.requested_settings = tuple(settings)
         unknown = set(settings) - set(SETTINGS) - {"wbc"}
@@ -103,8 +117,9 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
         return "wbc test set: whole-body velocity control QPs"
 
     def composition(self) -> list[dict]:
-        """Per scenario: name, selected and recorded ticks, selected ticks with an active constraint, sizes."""
-        return [{"scenario": sc.name, "selected": len(ticks), "recorded": sc.ticks,
+        """Per scenario and start: name (with the start), selected and recorded ticks, selected ticks with
+        an active constraint, sizes."""
+        return [{"scenario": sc.label, "selected": len(ticks), "recorded": sc.ticks,
                  "active": int(self.tick_has_active_constraint(sc)[ticks].sum()), "n": sc.n,
                  "n_ineq": sc.n_ineq, "n_eq": sc.n_eq}
                 for sc in self.scenarios for ticks in [[k for s, k in self.selection if s is sc]]]
@@ -124,6 +139,8 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
             f"{counts}; {active} of the {len(self.selection)} QPs have an active bound or inequality at the "
             f"reference solution (DAQP at 1e-12, KKT residuals < {ds.REF_TOL:g}). The time limit is the "
             f"control period, {self.time_limit:g} s."
+            + (f" Each scenario also from {self.starts - 1} perturbed initial configurations (<scenario>_s<start>, "
+               f"seed {self.start_seed}; benchmarks/starts.py)." if self.starts > 1 else "")
         )
 
     @property
@@ -158,29 +175,34 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
         return sc.active[:, :sc.n + sc.n_ineq].any(axis=1)
 
     def tick_problems(self, sc: ds.ScenarioQPs, k: int) -> list[WbcProblem]:
-        """The QPs the controller solved at tick ``k`` of ``sc``: one, named ``<scenario>_<tick>``.
+        """The QPs the controller solved at tick ``k`` of ``sc``: one, named ``<scenario>_<tick>``
+        (``<scenario>_s<start>_<tick>`` for a perturbed start).
 
         Hook for strict priorities: a hierarchical controller solves one QP per priority level
         per tick. Record them in the dataset with a level axis and return one problem per
         level here, named ``<scenario>_<tick>_L<level>``, level 0 first.
         """
         qp = sc.problem(k)
-        problem = WbcProblem(qp.P, qp.q, qp.G, qp.h, qp.A, qp.b, qp.lb, qp.ub, name=f"{sc.name}_{k:05d}")
-        problem.scenario, problem.tick = sc.name, k
+        problem = WbcProblem(qp.P, qp.q, qp.G, qp.h, qp.A, qp.b, qp.lb, qp.ub, name=f"{sc.label}_{k:05d}")
+        problem.scenario, problem.start, problem.tick = sc.name, sc.start, k
         problem.active, problem.x_ref = bool(self.tick_has_active_constraint(sc)[k]), sc.x_ref[k]
         problem.x_previous = sc.x_ref[k - 1] if k > 0 else np.zeros(sc.n)
         return [problem]
 
     def __iter__(self) -> Iterator[WbcProblem]:
-        for sc, k in self.selection:
-            yield from self.tick_problems(sc, k)
+        yield from self.problems
+
+    def subset(self, problems: list[WbcProblem]) -> WbcQpbenchmark:
+        """A test set of ``problems`` only (same settings, solvers, limits), without the recorded
+        scenarios: what a work unit ships to a worker (the problems' arrays, nothing else)."""
+        part = copy.copy(self)
+        part.problems, part.scenarios, part.selection = problems, [], []
+        return part
 
     def parts(self, size: int) -> Iterator[WbcQpbenchmark]:
-        """This test set in consecutive parts of ``size`` ticks (same settings, solvers, limits)."""
-        for start in range(0, len(self.selection), size):
-            part = copy.copy(self)
-            part.selection = self.selection[start:start + size]
-            yield part
+        """This test set in consecutive parts of ``size`` problems."""
+        for start in range(0, len(self.problems), size):
+            yield self.subset(self.problems[start:start + size])
 
 
 if __name__ == "__main__":
