@@ -342,8 +342,8 @@ class Controller:
         elif self._hierarchy is not None:  # strict priorities: the cascade, every level's answer checked
             solution = self._hierarchy.solve()
         else:
-            solution = self._solver.collect() if self._solve_in_program else self._solver.solve(self.qp)
-            solution = self._checked(solution, self.qp)
+            solution = self._solver.collect() if self._solve_in_program else self._solver.solve(qp)
+            solution = self._checked(solution, qp)
             if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.lifting)
                 spent = solution.solve_time
                 qp = self._lifted.fill_dense(self._stack_t, self._n_plain, self._cost_scaling)

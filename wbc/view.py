@@ -274,7 +274,7 @@ class _RunTrack:
         self.q = np.tile(scenario.q0, (ticks + 1, 1))
         self.recorded = 0  #: q[0 .. recorded] are known
         task = scenario.reference_task
-        self.tool_frame = None if task is None else robot.model.getFrameId(task.frame)
+        self.tool_frame = None if task is None else task.frame
         self.tool_path = None if task is None else np.zeros((ticks + 1, 3))
         self.shapes = shapes = robot_shapes(robot, robot_colour)
         self.frames = {j: server.scene.add_frame(f"{self.root}/j{j}", show_axes=False)
@@ -314,9 +314,8 @@ class _RunTrack:
     def record(self, k: int, q: np.ndarray) -> None:
         """The run reached ``q`` = q[k] (``k`` counts up from 0, one tick at a time)."""
         self.q[k] = q
-        if self.tool_path is not None:
-            pin.forwardKinematics(self.model, self.data, self.q[k])
-            self.tool_path[k] = pin.updateFramePlacement(self.model, self.data, self.tool_frame).translation
+        if self.tool_path is not None:  # as wbc.closed_loop.run records it
+            self.tool_path[k] = self.scenario.robot.frame_pose(self.q[k], self.tool_frame)[:3, 3]
         self.recorded = k
         self._extend_path()
 
