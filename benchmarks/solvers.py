@@ -56,6 +56,8 @@ import qpbenchmark
 import qpsolvers
 from qpbenchmark.utils import time_solve_problem
 
+from wbc.solvers import make_solver
+
 from . import dataset as ds
 from . import sweep
 from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, shifted_geometric_mean
@@ -237,6 +239,8 @@ def make_units(test_set: WbcQpbenchmark, seed: int, back_to_back: bool = True,
 
 def run_unit(unit: Unit) -> UnitResult:
     """qpbenchmark's pass, then the back-to-back pass, on the unit's problems (here or on a worker)."""
+    for name in unit.test_set.solvers:  # each backend's first use in this process, silenced (wbc.quiet)
+        make_solver(name)
     df, extras = run_qpbenchmark(unit.test_set)
     rows = make_rows(df, extras, unit.test_set)
     return UnitResult(df, rows, [] if unit.orders is None else back_to_back_pass(unit.test_set, unit.orders))

@@ -31,6 +31,18 @@ def test_run_json_summary(capsys):
     assert summary["worst_position_limit_violation"] == 0.0
 
 
+@pytest.mark.parametrize("solver", wbc.available_solvers())
+def test_json_alone_on_stdout_with_every_backend(solver):
+    """`--json` leaves stdout to the JSON whatever the backend prints on first use (highspy 1.16's
+    banner), in a process of its own as a user runs it."""
+    result = subprocess.run([sys.executable, "-c", "from wbc.cli import main; raise SystemExit(main())", "run",
+                             str(TASKS / "youbot_circle.toml"), "--duration", "0.1", "--solver", solver, "--json",
+                             "--no-progress"], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr
+    (summary,) = json.loads(result.stdout)
+    assert summary["solver"] == solver and summary["ticks"] == 10
+
+
 def test_json_has_one_shape_for_one_file_and_several(capsys):
     """Always a list of objects, one per file in the order given, the same keys for the same
     scenario (with --plot too: tests/test_manipulability_scenario.py)."""

@@ -114,6 +114,40 @@ def test_solvers_print_nothing(capfd, name):
     assert out == "" and err == ""
 
 
+QUIET_PROBE = r"""
+import sys
+
+import numpy as np
+import wbc
+
+name = sys.argv[1]
+robot = wbc.load_robot("youbot")
+ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.5, gain=0.5)
+controller = wbc.Controller(robot, [ee, wbc.PostureTask(cost=1e-3, gain=0.05)],
+                            [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()],
+                            solver=name, dt=0.01)
+q = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
+target = robot.frame_pose(q, "ee")
+target[:3, 3] += [1.0, 0.5, 0.6]  # far and partly out of reach: speed limits active
+ee.set_target(target)
+for _ in range(20):
+    q = robot.integrate(q, controller.step(q), controller.dt)
+"""
+
+
+@pytest.mark.parametrize("name", wbc.available_solvers())
+def test_a_fresh_process_prints_nothing_with_any_backend(name):
+    """From ``import wbc`` to the last tick, nothing reaches fd 1 or 2 in a new process, where a
+    backend's first use happens (highspy 1.16 prints a banner on stdout at its first Highs()):
+    wbc runs that first use silenced when the backend is built (wbc.quiet)."""
+    # the kernels compiled beforehand: a cold numba cache is announced on stderr (once after an install)
+    subprocess.run([sys.executable, "-c", "from wbc.cli import main; main(['warmup'])"], capture_output=True,
+                   check=True, timeout=600)
+    result = subprocess.run([sys.executable, "-c", QUIET_PROBE, name], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout == "" and result.stderr == ""
+
+
 CRASH_PROBE = r"""
 import sys
 import subprocess

@@ -14,6 +14,7 @@ import re
 from functools import cache
 
 from .errors import InvalidInputError
+from .quiet import silenced
 
 #: generic budget key -> the backend's own setting; a backend without an entry cannot
 #: honour that budget (quadprog runs to completion, ProxQP and PIQP have no clock)
@@ -91,7 +92,9 @@ def _piqp() -> dict[str, object]:
 def _highs() -> dict[str, object]:
     import highspy
 
-    return _attributes(highspy.Highs().getOptions())
+    with silenced():  # highspy >= 1.16 prints a banner on stdout when its first Highs() is made
+        solver = highspy.Highs()
+    return _attributes(solver.getOptions())
 
 
 _SETTINGS = {"daqp": _daqp, "osqp": _osqp, "proxqp": _proxqp, "clarabel": _clarabel, "piqp": _piqp,

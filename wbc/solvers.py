@@ -25,6 +25,7 @@ from .daqp_native import NativeWorkspace
 from .errors import UnknownSolverError
 from .program import TickProgram
 from .qp import QP
+from .quiet import silenced
 from .solver_options import BUDGET_KEYS, validate_options
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
@@ -64,6 +65,9 @@ DEFAULT_SETTINGS: dict[str, dict] = {
 }
 
 _SPARSE_SOLVERS = set(getattr(qpsolvers, "sparse_solvers", ()))
+
+#: backends that ran once in this process (:meth:`QpsolversBackend._first_use`)
+_FIRST_USE_DONE: set[str] = set()
 
 #: qpsolvers backends that use a primal warm start (``initvals``); DAQP warm-starts its
 #: active set through :class:`DaqpBackend`; the others ignore it
@@ -166,6 +170,23 @@ class QpsolversBackend(QPSolver):
         self.settings = settings
         self._sparse = name in _SPARSE_SOLVERS
         self._previous: np.ndarray | None = None
+        if name not in _FIRST_USE_DONE:
+            self._first_use()
+
+    def _first_use(self) -> None:
+        """Solve a small QP with fds 1 and 2 silenced (:func:`wbc.quiet.silenced`): whatever the
+        backend prints the first time it runs in a process (highspy >= 1.16: a banner on
+        stdout) is swallowed here, when the controller is built, never inside a tick."""
+        qp = QP(2, 1, 1)
+        qp.H[:] = np.eye(2)
+        qp.c[:] = (1.0, -1.0)
+        qp.G[:], qp.h[:] = ((1.0, 1.0),), 1.0
+        qp.A[:], qp.b[:] = ((1.0, -1.0),), 0.0
+        qp.lb[:], qp.ub[:] = -1.0, 1.0
+        with silenced():
+            self.solve(qp)  # its outcome does not matter; a backend that fails fails its real solves too
+        _FIRST_USE_DONE.add(self.name)
+        self._previous = None
 
     def reset(self) -> None:
         self._previous = None
