@@ -1,5 +1,5 @@
 """Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--html FILE.html] [--view [PORT]]
-[--sim mujoco]``, ``wbc solvers``,
+[--sim mujoco]``, ``wbc scenarios``, ``wbc solvers``,
 ``wbc singularities MODEL``, ``wbc bench SUITE``, ``wbc warmup``."""
 
 from __future__ import annotations
@@ -179,6 +179,16 @@ def _solvers(args: argparse.Namespace) -> int:
     return 0
 
 
+def _scenarios(args: argparse.Namespace) -> int:
+    from . import shipped
+
+    names = shipped.scenario_names()
+    width = max(map(len, names))
+    print("\n".join(f"{name:<{width}}  {shipped.scenario_description(name)}" for name in names))
+    print(f"(run one by name: wbc run {names[0]}; the files are in {shipped.folder('scenarios')})")
+    return 0
+
+
 def _warmup(args: argparse.Namespace) -> int:
     """Load the compiled kernels -- compiling them if the cache is cold -- and say how long it took."""
     import time
@@ -264,8 +274,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
     parser.add_argument("--version", action="version", version=f"wbc {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    run_parser = sub.add_parser("run", help="run scenarios (tasks/*.toml) in closed loop")
-    run_parser.add_argument("scenario", nargs="+", help="path of a scenario TOML file; give several to compare")
+    run_parser = sub.add_parser("run", help="run scenarios (TOML files, or shipped scenarios by name) in closed loop")
+    run_parser.add_argument("scenario", nargs="+",
+                            help="a scenario TOML file, or the name of a shipped scenario (wbc scenarios lists "
+                                 "them); give several to compare")
     run_parser.add_argument("--plot", metavar="FILE.png", help="write a figure of the run(s), overlaid")
     run_parser.add_argument("--html", metavar="FILE.html",
                             help="write a 3-D replay of the run(s): one self-contained page, no server needed")
@@ -287,6 +299,8 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--delay", type=int, choices=[0, 1],
                             help="with --sim mujoco: ticks between command and actuation (default 0)")
     run_parser.set_defaults(handler=_run)
+    scenarios_parser = sub.add_parser("scenarios", help="list the shipped scenarios (wbc run NAME runs one)")
+    scenarios_parser.set_defaults(handler=_scenarios)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
     solvers_parser.set_defaults(handler=_solvers)
     warmup_parser = sub.add_parser("warmup", help="compile (or load) the numba kernels now and report the time",

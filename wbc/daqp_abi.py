@@ -11,7 +11,7 @@ must be one of :data:`SUPPORTED_VERSIONS`, and a set-up probe problem must show 
 dimensions, problem pointer and settings pointer at the offsets written here and solve to
 its known answer through the compiled path. When anything differs, the native path is off
 (:func:`native` returns None, :func:`unavailable_reason` says why) and
-:class:`wbc.daqp_backend.DaqpBackend` uses DAQP's Python binding instead.
+:class:`wbc.solvers.DaqpBackend` uses DAQP's Python binding instead.
 
 The structures live in memory wbc owns (numpy arrays, see :func:`struct_in`), so the
 compiled code reads and writes only buffers that outlive it.
@@ -177,7 +177,7 @@ def _probe_failure() -> str | None:
 def probe(library: Library) -> str | None:
     """Check the layouts of this module on the installed DAQP; None when they hold.
 
-    The sizes and offsets the compiled kernels assume (``wbc.kernels.DAQP_*``) must be those
+    The sizes and offsets the compiled kernels assume (the ``DAQP_*`` constants of :mod:`wbc.kernels`) must be those
     of the structures here. Then it sets up ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``,
     ``|x| <= 10`` through :class:`wbc.daqp_native.NativeWorkspace` and checks what ``setup_daqp`` wrote at
     the offsets of :class:`Workspace` (dimensions, problem and settings pointers) and the

@@ -18,7 +18,6 @@ import difflib
 import math
 import sys
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 from typing import Annotated, Literal
 
@@ -26,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 from pydantic import Field, ValidationError
 
+from . import shipped
 from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .errors import InvalidInputError, ModelError, UnknownFrameError
 from .schema import Positive, Table, explain, suggest
@@ -212,8 +212,8 @@ class Robot:
 
 # ---------------------------------------------------------------------------- loading
 def shipped_models() -> list[str]:
-    """Names of the robots shipped in ``models/``."""
-    root = resources.files("wbc.models")
+    """Names of the robots shipped with wbc (the folders of ``models/``, :mod:`wbc.shipped`)."""
+    root = shipped.folder("models")
     return sorted(p.name for p in root.iterdir() if p.is_dir() and (p / f"{p.name}.toml").is_file())
 
 
@@ -221,7 +221,7 @@ def model_path(name: str, kind: str = "urdf") -> Path:
     """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``."""
     if name not in shipped_models():
         raise ModelError(f"no shipped model {name!r}; available: {shipped_models()}")
-    folder = Path(str(resources.files("wbc.models") / name))
+    folder = shipped.folder("models") / name
     spec, _ = _read_sidecar(folder / f"{name}.toml")
     filename = {"toml": f"{name}.toml", "urdf": spec.urdf, "mjcf": spec.mjcf}.get(kind)
     if filename is None:

@@ -6,6 +6,7 @@ wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are
 :class:`~wbc.errors.ScenarioError` naming the file, the key and the fix::
 
     name = "..."      optional, default: the file name
+    description = "..."  optional: what the scenario shows, one line (``wbc scenarios`` lists it)
     [robot]           name = shipped model ("youbot") or URDF / sidecar path (relative to the file)
                       initial_configuration = [nq numbers] (default: the model's neutral pose)
     [controller]      solver = "daqp", dt = 0.01 [s] (> 0, <= duration), duration = 10.0 [s]
@@ -45,6 +46,7 @@ import numpy as np
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from . import constraints as constraint_module
+from . import shipped
 from . import tasks as task_module
 from .controller import Controller
 from .errors import ScenarioError, WbcError
@@ -162,6 +164,7 @@ class ScenarioFile(Table):
     """The whole file."""
 
     name: str | None = None
+    description: str = ""
     robot: RobotTable
     controller: ControllerTable = ControllerTable()
     tasks: list[TaskEntry] = []
@@ -189,6 +192,8 @@ class Scenario:
     spec: dict = field(default_factory=dict)
     #: the priority level of each task (``[[tasks]] level``); empty: one level
     levels: list[int] = field(default_factory=list)
+    #: what the scenario shows, one line (the file's ``description``)
+    description: str = ""
 
     def __post_init__(self) -> None:
         if type(self.reduced) is not bool:
@@ -215,9 +220,24 @@ class Scenario:
         return int(round(self.duration / self.dt))
 
 
+def scenario_file(name_or_path: str | Path) -> Path:
+    """The file of a scenario given by path, or by the name of a shipped scenario
+    (``"youbot_circle"``: a string without a folder or a suffix that names no existing file;
+    :func:`wbc.shipped.scenario_names` lists them)."""
+    path = Path(name_or_path)
+    if isinstance(name_or_path, str) and path.name == name_or_path and not path.suffix and not path.exists():
+        if name_or_path in shipped.scenario_names():
+            return shipped.scenario_path(name_or_path)
+        raise ScenarioError(f"no scenario file or shipped scenario {name_or_path!r}"
+                            f"{suggest(name_or_path, shipped.scenario_names())}; shipped scenarios "
+                            f"(`wbc scenarios`): {', '.join(shipped.scenario_names())}")
+    return path
+
+
 def load_scenario(path: str | Path) -> Scenario:
-    """Parse and validate a scenario file; any mistake is a ScenarioError naming the file and key."""
-    path = Path(path)
+    """Parse and validate a scenario file, given by path or by the name of a shipped scenario
+    (:func:`scenario_file`); any mistake is a ScenarioError naming the file and key."""
+    path = scenario_file(path)
     try:
         with open(path, "rb") as stream:
             spec = tomllib.load(stream)
@@ -242,6 +262,7 @@ def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
         name=checked.name or path.stem, robot=robot, q0=q0, tasks=tasks, constraints=constraints,
         solver=control.solver, dt=control.dt, duration=control.duration, damping=control.damping,
         reduced=control.reduced, source=path, spec=spec, levels=_levels(checked.tasks),
+        description=checked.description,
     )
     if checked.reference is not None:
         scenario.reference_task, scenario.reference = _reference(checked.reference, tasks, robot, q0)
