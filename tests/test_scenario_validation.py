@@ -3,13 +3,15 @@ naming the file, the key (with its table) and the fix; nothing is silently dropp
 
 import math
 import shutil
+import subprocess
+import sys
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import wbc
-from conftest import ROOT, TASKS
+from conftest import NEUTRAL, ROOT, TASKS
 from wbc.errors import ModelError, ScenarioError
 from wbc.scenario import load_scenario
 
@@ -68,6 +70,15 @@ def test_every_shipped_scenario_loads():
      ["[[constraints]] #3 (MecanumWheelLimits)", "did you mean 'max_speed'?"]),
     ('type = "JointPositionLimits"\ngain = 0.5', 'type = "JointPositionLimits"\ngain = 0.0',
      ["[[constraints]] #1 (JointPositionLimits)", "gain"]),
+    # files that crashed instead of erring (issue 22 §2)
+    ("start_axis = [0.0, 1.0, 0.0]", "start_axis = [0.0, 0.0, 2.0]", ["[reference] (circle)", "start_axis",
+                                                                      "parallel to normal"]),
+    ("normal = [0.0, 0.0, 1.0]", "normal = [0.0, 0.0, 0.0]", ["[reference] (circle)", "normal must be a nonzero"]),
+    ('type = "FrameTask"', 'type = "FrameTask"\nlevel = 1000000000', ["[[tasks]] level = 1000000000",
+                                                                      "without gaps"]),
+    ('target = "initial"', 'target = "initial"\njoints = ["nope"]', ["[[tasks]] #2 (PostureTask)",
+                                                                    "unknown joint 'nope'"]),
+    ('target = "initial"', "target = [0.0, 1.0]", ["[[tasks]] #2 (PostureTask)", "target must have shape (8,)"]),
 ])
 def test_mistakes_are_scenario_errors_naming_file_key_and_fix(tmp_path, old, new, expected):
     path = write(tmp_path, edited(old, new))
@@ -188,3 +199,98 @@ def test_urdf_without_velocity_limit_is_unbounded(tmp_path):
         '<limit lower="-1" upper="1" effort="1" velocity="1"/>', ""), "free.urdf")
     robot = wbc.load_robot(urdf)
     assert robot.velocity_limit[0] == 1.5 and math.isinf(robot.velocity_limit[1])
+
+
+def test_a_scenario_file_that_is_not_utf8_is_a_scenario_error(tmp_path):
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(CIRCLE.replace('name = "youbot_circle"', 'name = "youbot_circl\xe9"').encode("latin-1"))
+    with pytest.raises(ScenarioError, match=r"latin1\.toml: not UTF-8 text \(byte 0xe9 .*save it as UTF-8"):
+        load_scenario(path)
+
+
+def test_a_sidecar_that_is_not_utf8_is_a_model_error(tmp_path):
+    sidecar = tmp_path / "youbot.toml"
+    shutil.copy(ROOT / "models" / "youbot" / "youbot.urdf", tmp_path / "youbot.urdf")
+    sidecar.write_bytes((YOUBOT + "# caf\xe9\n").encode("latin-1"))
+    with pytest.raises(ModelError, match=r"youbot\.toml: not UTF-8 text \(byte 0xe9"):
+        wbc.load_robot(sidecar)
+    with pytest.raises(ModelError, match=r"not UTF-8"):
+        wbc.load_robot(tmp_path / "youbot.urdf")  # the sidecar next to a URDF is read too
+
+
+@pytest.mark.parametrize("joints, expected", [
+    ('["base_y", "base_x", "base_yaw"]', "'base_y' (the x coordinate) must hang from the root"),
+    ('["base_x", "base_x", "base_yaw"]', "names a joint twice"),
+    ('["base_x", "base_y", "arm_joint_1"]', "'arm_joint_1' (the heading coordinate) must hang from 'base_y'"),
+    ('["base_x", "base_yaw", "base_y"]', "'base_yaw' (the y coordinate) must hang from 'base_x'"),
+])
+def test_sidecar_base_joints_must_be_the_x_y_heading_joints_in_order(tmp_path, joints, expected):
+    """Swapped joints loaded and gave the wrong base twist and wheel speeds, 'optimal' (issue 22 §5)."""
+    sidecar = youbot_copy(tmp_path, edited('joints = ["base_x", "base_y", "base_yaw"]', f"joints = {joints}", YOUBOT))
+    with pytest.raises(ModelError) as info:
+        wbc.load_robot(sidecar)
+    assert str(sidecar) in str(info.value) and "[base] joints" in str(info.value) and expected in str(info.value)
+
+
+def test_a_sidecar_base_on_an_axis_other_than_the_world_one_is_refused(tmp_path):
+    """base_x made prismatic along y in the URDF: the type matches, the axis does not."""
+    sidecar = youbot_copy(tmp_path, YOUBOT)
+    urdf = tmp_path / "youbot.urdf"
+    text = urdf.read_text()
+    start = text.index('<joint name="base_x"')
+    end = text.index("</joint>", start)
+    joint = text[start:end]
+    assert '<axis xyz="1 0 0"/>' in joint
+    urdf.write_text(text[:start] + joint.replace('<axis xyz="1 0 0"/>', '<axis xyz="0 1 0"/>') + text[end:])
+    with pytest.raises(ModelError, match=r"'base_x' is the x coordinate, so it must be prismatic along world "
+                                         r"\[1.0, 0.0, 0.0\]; it is prismatic along \[0.0, 1.0, 0.0\]"):
+        wbc.load_robot(sidecar)
+
+
+@pytest.mark.parametrize("edit, expected", [
+    (('lower="-1" upper="1" effort="1" velocity="1.5"', 'lower="1" upper="-1" effort="1" velocity="1.5"'),
+     r"joint 'j1' has lower limit \[1.0\] above its upper limit \[-1.0\]; swap them"),
+    (('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>'), r"joint 'j1' moves nothing .* unit <axis"),
+])
+def test_urdf_joints_that_cannot_move_are_model_errors(tmp_path, edit, expected):
+    """Both loaded before: lower > upper froze the joint at v = 0 'optimal', a zero axis fed NaN to
+    every tick's QP (issue 22 §5)."""
+    urdf = write(tmp_path, ARM.format(velocity="1").replace(*edit), "arm.urdf")
+    with pytest.raises(ModelError, match=expected):
+        wbc.load_robot(urdf)
+
+
+def test_a_urdf_without_joints_is_a_model_error(tmp_path):
+    urdf = write(tmp_path, '<robot name="rock"><link name="root"/></robot>', "rock.urdf")
+    with pytest.raises(ModelError, match="no movable joint"):
+        wbc.load_robot(urdf)
+
+
+def test_a_robot_too_large_for_pinocchios_data_is_refused_before_it_is_built(tmp_path):
+    """Pinocchio's Data takes O(nv^3) memory (~4 GB at 400 joints); a 1000-joint chain was killed
+    at 24 GB. The limit is checked on the parsed model, before any Data exists."""
+    from wbc.robot import MAX_VELOCITY_DOF
+
+    links = "".join(f'<link name="l{i}"/>' for i in range(MAX_VELOCITY_DOF + 2))
+    joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'
+                     f'<origin xyz="0 0 0.01"/><axis xyz="0 0 1"/>'
+                     f'<limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+                     for i in range(MAX_VELOCITY_DOF + 1))
+    urdf = write(tmp_path, f'<robot name="snake">{links}{joints}</robot>', "snake.urdf")
+    with pytest.raises(ModelError, match=rf"{MAX_VELOCITY_DOF + 1} velocity DOF; wbc handles at most "
+                                         rf"{MAX_VELOCITY_DOF} .*grows as nv\^3"):
+        wbc.load_robot(urdf)
+
+
+def test_every_file_is_checked_before_the_first_run_starts(tmp_path):
+    """`wbc run long.toml bad.toml` ran the first file, then refused the second (an unknown
+    joint is only seen when the controller is built): every file is now checked, controller
+    included, before any run; one line on stderr, nothing else (no progress bar of a run)."""
+    long = write(tmp_path, edited("duration = 20.0", "duration = 30.0"), "long.toml")
+    bad = write(tmp_path, edited('target = "initial"', 'target = "initial"\njoints = ["nope"]'), "bad.toml")
+    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", code, "run", str(long), str(bad), "--json"], cwd=NEUTRAL,
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 2 and result.stdout == ""
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"wbc: error: {bad}: [[tasks]] #2 (PostureTask)") and "unknown joint 'nope'" in line

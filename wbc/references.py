@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .errors import InvalidInputError
 from .validation import as_pose, as_positive, as_vector
 
 
@@ -77,10 +78,14 @@ class Circle:
         self.period = as_positive(self.period, "period")
         normal = as_vector(self.normal, 3, "normal")
         axis = as_vector(self.start_axis, 3, "start_axis")
-        normal = normal / np.linalg.norm(normal)
+        size = float(np.linalg.norm(normal))
+        if not size > 1e-12:
+            raise InvalidInputError(f"normal must be a nonzero vector (the circle plane's normal), got {normal}")
+        normal = normal / size
         axis = axis - normal * (normal @ axis)
-        if np.linalg.norm(axis) < 1e-9:
-            raise ValueError("start_axis must not be parallel to normal")
+        if np.linalg.norm(axis) < 1e-9 * max(1.0, float(np.linalg.norm(self.start_axis))):
+            raise InvalidInputError(f"start_axis {self.start_axis} is parallel to normal {self.normal} (or zero): "
+                                    "give a direction in the circle plane, from its centre toward the start point")
         self.normal, self.start_axis = normal, axis / np.linalg.norm(axis)
         self._b = np.cross(self.normal, self.start_axis)
         self.centre = self.start[:3, 3] - self.radius * self.start_axis

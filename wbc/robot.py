@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import difflib
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Literal
@@ -28,15 +27,15 @@ from pydantic import Field, ValidationError
 from . import shipped
 from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .errors import InvalidInputError, ModelError, UnknownFrameError
-from .schema import Positive, Table, explain, suggest
+from .schema import Positive, Table, explain, read_toml, suggest
 from .validation import as_positive, as_vector
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+#: largest number of velocity DOF a Robot accepts: Pinocchio's Data allocates O(nv^3) memory
+#: (second-order derivative tensors; measured with pin 4.1: 69 MB at nv = 100, 0.5 GB at 200,
+#: 1.7 GB at 300), so a 1000-joint chain would need ~64 GB
+MAX_VELOCITY_DOF = 200
 
 
 @dataclass
@@ -61,7 +60,9 @@ class Robot:
 
     def __post_init__(self) -> None:
         model = self.model
+        self._check_size()
         self._data = model.createData()
+        self._check_joints()
         self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
         self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
         self.velocity_limit = np.array(model.velocityLimit, dtype=np.float64)
@@ -79,6 +80,38 @@ class Robot:
         self._frame_ids: dict[str, int] = {}
         for index, frame in enumerate(model.frames):
             self._frame_ids.setdefault(frame.name, index)
+
+    def _check_size(self) -> None:
+        """A robot with no joint, or one too large for Pinocchio's Data (which allocates O(nv^3):
+        ~8 nv^3 doubles in pin 4.1, 0.5 GB at nv = 200, 4 GB at 400), is refused before it is built."""
+        where = self.source or self.name
+        if self.model.njoints <= 1 or self.model.nv == 0:
+            raise ModelError(f"{where}: the model has no movable joint; wbc controls joint velocities, so it "
+                             "needs at least one revolute, prismatic or continuous joint")
+        if self.model.nv > MAX_VELOCITY_DOF:
+            raise ModelError(f"{where}: {self.model.nv} velocity DOF; wbc handles at most {MAX_VELOCITY_DOF} "
+                             f"(Pinocchio's Data for {self.model.nv} would take "
+                             f"~{8 * 8 * self.model.nv ** 3 / 1e9:.0f} GB: it grows as nv^3)")
+
+    def _check_joints(self) -> None:
+        """Every joint moves something (a URDF ``<axis xyz="0 0 0">`` gives a zero Jacobian column)
+        and its position limits are ordered (lower <= upper)."""
+        model, where = self.model, self.source or self.name
+        for joint_id in range(1, model.njoints):
+            joint, name = model.joints[joint_id], model.names[joint_id]
+            lower = model.lowerPositionLimit[joint.idx_q:joint.idx_q + joint.nq]
+            upper = model.upperPositionLimit[joint.idx_q:joint.idx_q + joint.nq]
+            if np.any(lower > upper):
+                raise ModelError(f"{where}: joint {name!r} has lower limit {lower.tolist()} above its upper limit "
+                                 f"{upper.tolist()}; swap them in the URDF's <limit lower=... upper=...>")
+        columns = np.asarray(pin.computeJointJacobians(model, self._data, pin.neutral(model))).reshape(6, model.nv)
+        norms = np.linalg.norm(columns, axis=0)
+        for joint_id in range(1, model.njoints):
+            joint = model.joints[joint_id]
+            span = norms[joint.idx_v:joint.idx_v + joint.nv]
+            if not np.all(span > 0.0):  # zero or NaN: the joint's axis is degenerate
+                raise ModelError(f"{where}: joint {model.names[joint_id]!r} moves nothing (its motion axis is zero "
+                                 "or not a number); give it a unit <axis xyz=\"...\"/> in the URDF")
 
     def _check_velocity_limits(self) -> None:
         """A zero, negative or NaN speed limit would freeze (or break) a joint: refuse it.
@@ -304,17 +337,9 @@ class Sidecar(Table):
     geometry: dict[str, float] = {}
 
 
-def _read_toml(path: Path) -> dict:
-    try:
-        with open(path, "rb") as stream:
-            return tomllib.load(stream)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ModelError(f"cannot read {path}: {exc}") from exc
-
-
 def _read_sidecar(path: Path) -> tuple[Sidecar, dict]:
     """The validated sidecar and its raw table."""
-    params = _read_toml(path)
+    params = read_toml(path, ModelError)
     try:
         return Sidecar.model_validate(params), params
     except ValidationError as exc:
@@ -352,6 +377,7 @@ def _base_from_spec(model: pin.Model, spec: FixedBaseTable | MobileBaseTable) ->
         if joint.nq != 1 or joint.nv != 1:
             raise ModelError(f"[base] joints: {joint_name!r} must be a 1-DOF joint")
         indices.append(joint.idx_v)
+    _check_base_joints(model, spec.joints)
     return MobileBase(
         kind=BaseKind(spec.kind),
         indices=tuple(indices),
@@ -359,6 +385,51 @@ def _base_from_spec(model: pin.Model, spec: FixedBaseTable | MobileBaseTable) ->
         max_yaw_rate=_or_inf(spec.max_yaw_rate),
         wheels=_wheels(getattr(spec, "wheels", None)),
     )
+
+
+#: what each of the (x, y, heading) joints of a mobile base must be: its motion, its world axis
+_BASE_JOINTS = (("x", "prismatic", (1.0, 0.0, 0.0)), ("y", "prismatic", (0.0, 1.0, 0.0)),
+                ("heading", "revolute", (0.0, 0.0, 1.0)))
+
+
+def _joint_motion(joint: pin.JointModel) -> tuple[str, np.ndarray] | None:
+    """("prismatic" | "revolute", unit axis in the joint frame) of a 1-DOF joint; None otherwise."""
+    name = joint.shortname().removeprefix("JointModel")
+    if name in ("PrismaticUnaligned", "RevoluteUnaligned"):
+        axis = np.asarray(joint.axis, dtype=np.float64)
+        return ("prismatic" if name.startswith("P") else "revolute"), axis / np.linalg.norm(axis)
+    kinds = {"P": "prismatic", "R": "revolute", "RUB": "revolute"}
+    for prefix, kind in kinds.items():
+        if name[:-1] == prefix and name[-1] in "XYZ":
+            return kind, np.eye(3)["XYZ".index(name[-1])]
+    return None
+
+
+def _check_base_joints(model: pin.Model, names: list[str]) -> None:
+    """The ``[base] joints`` are the (x, y, heading) coordinates, in that order: three distinct
+    joints chained from the root (x on the root, y on x, heading on y), prismatic along world
+    x, prismatic along world y and revolute about world z. Anything else would be read as the
+    wrong coordinates (swapped joints gave a wrong base twist and wheel speeds, "optimal")."""
+    if len(set(names)) != 3:
+        raise ModelError(f"[base] joints = {names} names a joint twice; give the three joints of the base's "
+                         "(x, y, heading) coordinates, in that order")
+    ids = [model.getJointId(name) for name in names]
+    rotation = np.eye(3)
+    for k, ((coordinate, kind, axis), name, joint_id) in enumerate(zip(_BASE_JOINTS, names, ids, strict=True)):
+        expected_parent = 0 if k == 0 else ids[k - 1]
+        if model.parents[joint_id] != expected_parent:
+            parent = "the root" if expected_parent == 0 else repr(names[k - 1])
+            raise ModelError(f"[base] joints: {name!r} (the {coordinate} coordinate) must hang from {parent}, "
+                             f"but hangs from {model.names[model.parents[joint_id]]!r}; list the base joints "
+                             "(x, y, heading) in chain order from the root")
+        rotation = rotation @ model.jointPlacements[joint_id].rotation
+        motion = _joint_motion(model.joints[joint_id])
+        world_axis = None if motion is None else rotation @ motion[1]
+        if motion is None or motion[0] != kind or not np.allclose(world_axis, axis, atol=1e-9):
+            found = "not a revolute or prismatic joint" if motion is None else \
+                f"{motion[0]} along {np.round(world_axis, 6).tolist()}"
+            raise ModelError(f"[base] joints: {name!r} is the {coordinate} coordinate, so it must be {kind} "
+                             f"along world {list(axis)}; it is {found} (joints listed as (x, y, heading))")
 
 
 def _or_inf(value: float | None) -> float:

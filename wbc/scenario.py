@@ -35,7 +35,6 @@ from __future__ import annotations
 import functools
 import inspect
 import math
-import sys
 import types
 import typing
 from dataclasses import dataclass, field
@@ -52,14 +51,9 @@ from .controller import Controller
 from .errors import ScenarioError, WbcError
 from .references import Circle, ConstantPoint, ConstantPose, Line, rpy_matrix
 from .robot import Robot, load_robot
-from .schema import NonNegative, Positive, Table, Vector3, explain, suggest
+from .schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
 from .tasks import FrameTask, PositionTask, PostureTask
 from .trajectory.scenario_spec import plan_from_spec
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 TASK_TYPES = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
 CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in constraint_module.__all__
@@ -238,11 +232,7 @@ def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario file, given by path or by the name of a shipped scenario
     (:func:`scenario_file`); any mistake is a ScenarioError naming the file and key."""
     path = scenario_file(path)
-    try:
-        with open(path, "rb") as stream:
-            spec = tomllib.load(stream)
-    except (OSError, tomllib.TOMLDecodeError) as exc:
-        raise ScenarioError(f"cannot read scenario {path}: {exc}") from exc
+    spec = read_toml(path, ScenarioError, "scenario")
     try:
         return _build(ScenarioFile.model_validate(spec), spec, path)
     except ValidationError as exc:
@@ -266,6 +256,10 @@ def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
     )
     if checked.reference is not None:
         scenario.reference_task, scenario.reference = _reference(checked.reference, tasks, robot, q0)
+    try:  # what only the whole stack can tell (a base that needs a no-slip row, ...): before any run starts
+        scenario.make_controller("daqp")
+    except WbcError as exc:
+        raise ScenarioError(f"the controller cannot be built: {exc}") from exc
     return scenario
 
 
@@ -274,6 +268,9 @@ def _levels(entries: list[TaskEntry]) -> list[int]:
     levels = [entry.level for entry in entries]
     if not any(levels):
         return []
+    if max(levels) >= len(levels):  # a gap for sure: refused before counting the levels it skips
+        raise ScenarioError(f"[[tasks]] level = {max(levels)} with {len(levels)} task(s): levels must be 0, 1, 2, "
+                            "... without gaps (0 is the highest priority), so at most the number of tasks - 1")
     missing = sorted(set(range(max(levels))) - set(levels))
     if missing:
         raise ScenarioError(f"[[tasks]] level = {max(levels)} but no task has level = {missing[0]}; "
@@ -300,8 +297,8 @@ def _initial_configuration(table: RobotTable, robot: Robot) -> np.ndarray:
 
 
 def _instantiate(entry: Entry, registry: dict, label: str, robot: Robot, q0: np.ndarray):
-    """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry (its frame, if
-    it has one, checked against the robot here, so the error names this entry)."""
+    """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry, bound once to the
+    robot (its frames, joints and sizes checked here, so the error names this entry)."""
     if entry.type not in registry:
         raise ScenarioError(f"{label}: type {entry.type!r} unknown{suggest(entry.type, registry)} "
                             f"(known: {', '.join(sorted(registry))})")
@@ -312,8 +309,7 @@ def _instantiate(entry: Entry, registry: dict, label: str, robot: Robot, q0: np.
         arguments["target"] = q0
     try:
         item = cls(**arguments)
-        if "frame" in arguments:
-            robot.frame_id(arguments["frame"])
+        item.bind(robot)  # frames, joints and target sizes checked against the robot here, naming this entry
         return item
     except (WbcError, TypeError, ValueError) as exc:
         raise ScenarioError(f"{label}: {exc}") from exc

@@ -9,14 +9,37 @@ catches every misspelt key, and each error carries its location in the file, whi
 from __future__ import annotations
 
 import difflib
+import sys
 import types
+from pathlib import Path
 from typing import Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from .errors import WbcError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 Positive = Annotated[float, Field(gt=0.0)]
 NonNegative = Annotated[float, Field(ge=0.0)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+
+
+def read_toml(path: Path, error: type[WbcError], what: str = "") -> dict:
+    """The tables of the TOML file ``path``; an unreadable file, a syntax error or bytes that are
+    not UTF-8 raise ``error`` saying ``cannot read {what} {path}: ...`` and the fix."""
+    where = f"{what} {path}" if what else str(path)
+    try:
+        with open(path, "rb") as stream:
+            return tomllib.load(stream)
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        raise error(f"cannot read {where}: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise error(f"cannot read {where}: not UTF-8 text (byte {exc.object[exc.start]:#04x} at offset "
+                    f"{exc.start}); TOML files are UTF-8: save it as UTF-8") from None
 
 
 class Table(BaseModel):

@@ -12,7 +12,7 @@ from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..program import TickProgram
 from ..robot import Robot
-from ..validation import as_gain, as_weights
+from ..validation import as_gain, as_vector, as_weights
 from .task import Task, TaskData, _norm
 
 
@@ -114,7 +114,7 @@ class PostureTaskData(TaskData):
 
     def apply_target(self, q) -> None:
         """Validate ``q`` against this robot and write it in place (compiled programs hold the buffers)."""
-        self.target[:] = self.robot.check_configuration(q)
+        self.target[:] = as_vector(q, self.robot.nq, "target")  # a configuration of the robot
         if self._q_slice is not None:
             self._target_selected[:] = self.target[self._q_slice]
 
