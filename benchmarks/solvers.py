@@ -520,6 +520,10 @@ def main(argv: list[str] | None = None) -> int:
     args.command_line = "python -m benchmarks.solvers " + " ".join(argv if argv is not None else sys.argv[1:])
     if args.starts < 1:
         parser.error(f"--starts {args.starts}: give 1 (the scenarios' own initial configuration) or more")
+    try:
+        args.workers = sweep.checked_options(args.workers, args.scheduler, args.connect_timeout)
+    except sweep.SweepError as exc:
+        parser.error(str(exc))
 
     if args.regenerate:
         print(f"recording the dataset into {args.dataset} ...", file=sys.stderr)
@@ -530,7 +534,7 @@ def main(argv: list[str] | None = None) -> int:
                             not args.no_progress) as run:
             try:
                 test_set = WbcQpbenchmark(args.dataset, args.ticks, args.scenarios, args.settings, args.solvers,
-                                          args.time_limit, args.starts, args.start_seed, run)
+                                          args.time_limit, args.starts, args.start_seed, run, not args.no_progress)
             except ValueError as exc:
                 parser.error(str(exc))
             for sc in test_set.scenarios:

@@ -18,8 +18,10 @@ from __future__ import annotations
 import hashlib
 import importlib.resources
 import logging
+import math
 import os
 import platform
+import sys
 import tempfile
 import uuid
 import zipfile
@@ -144,6 +146,41 @@ def _ship_benchmarks(client) -> None:
         client.register_plugin(UploadFile(str(archive)), name="wbc-benchmarks")
 
 
+def checked_options(workers: int | None, scheduler: str | None, timeout: float) -> int | None:
+    """The options of :func:`executor`, checked before anything starts (a SweepError naming the option and
+    the fix); returns ``workers`` capped at the cores available (:func:`_capped`)."""
+    if workers is not None and workers < 1:
+        raise SweepError(f"--workers {workers}: give 1 or more")
+    if not (isinstance(timeout, (int, float)) and 0.0 < timeout < math.inf):
+        raise SweepError(f"--connect-timeout {timeout}: give a finite number of seconds > 0")
+    if scheduler is not None:
+        _check_address(scheduler)
+    return None if workers is None else _capped(workers)
+
+
+def _check_address(address: str) -> None:
+    """A scheduler address Dask can connect to (``tcp://host:port``, ``host:port``, ``tls://...``): a
+    malformed one is refused here, before a Client half-built on it hangs the exit for 2 x the timeout."""
+    try:
+        from distributed.comm.addressing import get_address_host_port
+    except ImportError:  # no Dask: executor says what to install
+        return
+    try:
+        get_address_host_port(address)
+    except ValueError as exc:
+        raise SweepError(f"--scheduler {address!r} is not a scheduler address ({exc}); give tcp://HOST:PORT, "
+                         "e.g. tcp://127.0.0.1:8786 (what `dask scheduler` prints)") from None
+
+
+def _capped(workers: int) -> int:
+    """``workers``, at most the cores this process may run on (more single-threaded workers only share
+    them, and each costs a process with its own imports); says so on stderr when it caps."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if workers > cores:
+        print(f"--workers {workers}: capped at {cores}, the cores available to this process", file=sys.stderr)
+    return min(workers, cores)
+
+
 def _connect(distributed, address: str, timeout: float):
     try:
         client = distributed.Client(address, timeout=timeout, set_as_default=False)
@@ -184,8 +221,7 @@ def executor(workers: int | None = None, scheduler: str | None = None, timeout: 
         return
     if workers is not None and scheduler is not None:
         raise SweepError("give either --workers N (a local cluster) or --scheduler ADDRESS (an existing one)")
-    if workers is not None and workers < 1:
-        raise SweepError(f"--workers {workers}: give 1 or more")
+    workers = checked_options(workers, scheduler, timeout)
     distributed = _engine()
     with ExitStack() as stack:
         logger = logging.getLogger("distributed")  # its INFO chatter reaches the root logger's handlers

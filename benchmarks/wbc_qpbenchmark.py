@@ -69,7 +69,7 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
     def __init__(self, dataset: Path | str | None = None, ticks: int = TICKS, scenarios: Sequence[str] | None = None,
                  settings: Sequence[str] = SETTINGS, solvers: Sequence[str] | None = None,
                  time_limit: float | None = None, starts: int = 1, start_seed: int = 0,
-                 record: sweep.Mapper | None = None) -> None:
+                 record: sweep.Mapper | None = None, show_progress: bool = True) -> None:
         """Load (or record) the dataset and select ``ticks`` per scenario and start (0: all).
 
         ``dataset``: default ``$WBC_QPBENCHMARK_DATASET``, else ``benchmarks/output/dataset``
@@ -78,11 +78,12 @@ class WbcQpbenchmark(qpbenchmark.TestSet):
         ``time_limit`` [s]: default the shortest control period of the scenarios. ``starts``: the
         nominal start and ``starts - 1`` perturbed ones per scenario (:mod:`benchmarks.starts`, seed
         ``start_seed``), recorded first where missing, through ``record`` (default: here, one by one).
+        ``show_progress``: progress bars while a missing dataset is recorded.
         """
         folder = Path(dataset or os.environ.get("WBC_QPBENCHMARK_DATASET") or OUTPUT / "dataset")
         if not (folder / f"v{ds.VERSION}" / "index.json").exists() and not (folder / "index.json").exists():
             print(f"wbc_qpbenchmark: recording the dataset into {folder} ...", file=sys.stderr)
-            ds.record_all(folder)
+            ds.record_all(folder, show_progress=show_progress)
         self.index, recorded = ds.load(folder)
         if scenarios is not None:
             unknown = set(scenarios) - {sc.name for sc in recorded}

@@ -42,3 +42,26 @@ def test_singularities_exits_1_on_disagreement(capsys, monkeypatch):
     monkeypatch.setattr(singularity, "verify", broken)
     assert main(["singularities", "puma560"]) == 1
     assert "DISAGREEMENT" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("options, option", [
+    (["--seed", "-1"], "--seed"), (["--samples", "-5"], "--samples"), (["--on-set", "-5"], "--on-set"),
+    (["--samples", "0"], "--samples"), (["--samples", "x"], "--samples"),
+])
+def test_counts_and_seeds_out_of_range_are_usage_errors(capsys, options, option):
+    """--seed -1 was a numpy traceback; --samples -5 --on-set -5 checked nothing and printed 'all agree',
+    exit 0 (issue 22 §6)."""
+    with pytest.raises(SystemExit) as exit_info:
+        main(["singularities", "youbot", *options])
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}: invalid integer >= " in err and "Traceback" not in err
+
+
+def test_a_check_that_ran_no_case_fails(capsys, monkeypatch):
+    """An empty agreement (0 / 0) confirms nothing: the command reports a disagreement, exit 1."""
+    from wbc import singularity
+
+    monkeypatch.setattr(singularity, "verify", lambda *args, **kwargs: [singularity.Agreement("no case")])
+    assert main(["singularities", "puma560"]) == 1
+    assert "0 / 0" in capsys.readouterr().out

@@ -219,3 +219,52 @@ def test_recorded_starts_begin_at_the_perturbed_start_and_follow_the_seed(sweep_
     assert st.ensure_starts(folder, index, nominal, 2, 1, here) == 2  # another seed: recorded again
     with pytest.raises(FileNotFoundError, match="perturbed start 2 of deluca_parking is not recorded"):
         st.load_starts(folder, nominal, 3)
+
+
+@pytest.mark.parametrize("options, expected", [
+    (["--connect-timeout", "nan", "--workers", "1"], "--connect-timeout nan: give a finite number of seconds > 0"),
+    (["--connect-timeout", "-5", "--workers", "1"], "--connect-timeout -5.0: give a finite number of seconds > 0"),
+    (["--scheduler", "notaurl"], "--scheduler 'notaurl' is not a scheduler address"),
+    (["--workers", "0"], "--workers 0: give 1 or more"),
+])
+def test_sweep_options_are_checked_before_anything_starts(options, expected, tmp_path):
+    """nan was a raw KeyError traceback, -5 a garbled message, a malformed address an error followed by a 20 s
+    hang and an 'Exception ignored ... TimeoutError' traceback (issue 22 §6): now exit 2, one line."""
+    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", code, "bench", "--checkout", str(ROOT), "solvers",
+                             "--out", str(tmp_path), *options], capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr
+    assert expected in result.stderr and "Traceback" not in result.stderr and "Exception ignored" not in result.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_workers_are_capped_at_the_cores_available(capsys):
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert sweep.checked_options(1000, None, 10.0) == cores
+    assert f"--workers 1000: capped at {cores}" in capsys.readouterr().err
+    assert sweep.checked_options(1, None, 10.0) == 1 and capsys.readouterr().err == ""
+
+
+def test_ctrl_c_in_wbc_bench_exits_130_without_a_traceback(tmp_path):
+    import signal
+
+    process = subprocess.Popen([sys.executable, "-m", "wbc", "bench", "--checkout", str(ROOT), "solvers",
+                                "--regenerate", "--dataset", str(tmp_path / "data"), "--out", str(tmp_path / "out"),
+                                "--no-progress", "--ticks", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+    try:
+        assert "recording the dataset" in process.stderr.readline()  # it runs: now interrupt it
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=300)
+    finally:
+        process.kill()
+    assert process.returncode == 130 and err.strip() == "wbc: interrupted", err
+
+
+def test_no_progress_draws_no_bar_while_the_missing_dataset_is_recorded(tmp_path):
+    result = subprocess.run([sys.executable, "-m", "wbc", "bench", "--checkout", str(ROOT), "solvers",
+                             "--dataset", str(tmp_path / "data"), "--out", str(tmp_path / "out"), "--no-progress",
+                             "--ticks", "2", "--scenarios", "youbot_reach", "--solvers", "daqp", "--settings",
+                             "default", "--qpbenchmark-only"], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr
+    assert "it/s" not in result.stderr and "%|" not in result.stderr, result.stderr

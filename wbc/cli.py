@@ -220,7 +220,7 @@ def _singularities(args: argparse.Namespace) -> int:
             print(f"  - {condition.name}  [rank {condition.rank}]\n      {condition.formula}")
         print("  numeric check (rank of the Pinocchio Jacobian vs the conditions):")
         for report in verify(robot, rng, samples=args.samples, on_set=args.on_set, subsystem=system.name):
-            all_agree &= report.agree == report.total
+            all_agree &= report.agree == report.total > 0  # a check that ran no case confirms nothing
             print(f"    {report.agree:6d} / {report.total:<6d} agree   {report.label}")
     print("all agree" if all_agree else "DISAGREEMENT: conditions not confirmed")
     return 0 if all_agree else 1
@@ -270,6 +270,18 @@ def _import_suite(root: Path, suite: str):
     return importlib.import_module(f"benchmarks.{suite}")
 
 
+def _count(least: int):
+    """An argparse type: an integer >= ``least`` (argparse turns the ValueError into a usage error)."""
+    def parse(text: str) -> int:
+        value = int(text)
+        if value < least:
+            raise ValueError(f"{value} < {least}")
+        return value
+
+    parse.__name__ = f"integer >= {least}"  # what argparse names in "invalid ... value"
+    return parse
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="wbc", description="QP whole-body velocity control")
     parser.add_argument("--version", action="version", version=f"wbc {__version__}")
@@ -309,9 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
     warmup_parser.set_defaults(handler=_warmup)
     sing_parser = sub.add_parser("singularities", help="print a model's certified singular conditions and check them")
     sing_parser.add_argument("model", help="shipped model name (e.g. youbot, scorbot_er4pc, puma560)")
-    sing_parser.add_argument("--samples", type=int, default=2000, help="random configurations per subsystem")
-    sing_parser.add_argument("--on-set", type=int, default=200, help="configurations on (and near) each set")
-    sing_parser.add_argument("--seed", type=int, default=0, help="random seed")
+    sing_parser.add_argument("--samples", type=_count(1), default=2000, help="random configurations per subsystem")
+    sing_parser.add_argument("--on-set", type=_count(1), default=200, help="configurations on (and near) each set")
+    sing_parser.add_argument("--seed", type=_count(0), default=0, help="random seed (an integer >= 0)")
     sing_parser.set_defaults(handler=_singularities)
     bench_parser = sub.add_parser("bench", help="run a benchmark suite of benchmarks/ (needs a source checkout)",
                                   description="Runs python -m benchmarks.SUITE; options after SUITE go to it "
@@ -336,6 +348,9 @@ def main(argv: list[str] | None = None) -> int:
     except WbcError as exc:
         print(f"wbc: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl-C in any command (wbc run handles its own, mid-run)
+        print("wbc: interrupted", file=sys.stderr)
+        return 130
     except BrokenPipeError:
         # Python's recipe: point stdout at devnull so the flush at exit does not fail again
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
