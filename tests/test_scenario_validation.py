@@ -294,3 +294,16 @@ def test_every_file_is_checked_before_the_first_run_starts(tmp_path):
     assert result.returncode == 2 and result.stdout == ""
     (line,) = result.stderr.splitlines()
     assert line.startswith(f"wbc: error: {bad}: [[tasks]] #2 (PostureTask)") and "unknown joint 'nope'" in line
+
+
+@pytest.mark.parametrize("duration, ticks", [("1e-9", "0 ticks"), ("1e9", "100000000000 ticks")])
+def test_a_duration_option_out_of_the_tick_range_is_refused_before_the_run(duration, ticks):
+    """--duration 1e-9 ran 0 ticks then died in numpy; 1e9 tried to allocate 5.8 TiB (the 10^7-tick
+    cap held for files only) (issue 22 §1)."""
+    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", code, "run", str(TASKS / "youbot_circle.toml"), "--duration",
+                             duration, "--no-progress"], cwd=NEUTRAL, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 2 and result.stdout == ""
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"wbc: error: --duration {float(duration):g} s is {ticks} of youbot_circle"), line
+    assert "at most 1e+07" in line

@@ -34,6 +34,8 @@ def _run(args: argparse.Namespace) -> int:
 
     _check_run_options(args)
     scenarios = [load_scenario(path) for path in args.scenario]
+    if args.duration is not None:
+        _check_duration(args.duration, scenarios)
     messages = sys.stderr if args.json else sys.stdout  # with --json, stdout holds the JSON alone
     with _live_view(args, scenarios, messages) as live:
         try:
@@ -113,6 +115,19 @@ def _check_run_options(args: argparse.Namespace) -> None:
         _require("viser", "--html" if args.html else "--view", "view")
     if args.html:
         _make_folder("--html", args.html)
+
+
+def _check_duration(duration: float, scenarios: list) -> None:
+    """``--duration`` gives every scenario 1 to MAX_TICKS ticks (the bound its own file is held to)."""
+    from .closed_loop import tick_count
+    from .scenario import MAX_TICKS
+
+    for scenario in scenarios:
+        ticks = tick_count(scenario, duration)
+        if not 1 <= ticks <= MAX_TICKS:
+            raise CommandLineError(f"--duration {duration:g} s is {ticks} ticks of {scenario.name} (dt = "
+                                   f"{scenario.dt:g} s); give at least one tick and at most {MAX_TICKS:.0e} "
+                                   f"(between {scenario.dt:g} and {MAX_TICKS * scenario.dt:g} s)")
 
 
 def _make_folder(option: str, path: str) -> None:
