@@ -74,8 +74,8 @@ def test_every_shipped_scenario_loads():
     ("start_axis = [0.0, 1.0, 0.0]", "start_axis = [0.0, 0.0, 2.0]", ["[reference] (circle)", "start_axis",
                                                                       "parallel to normal"]),
     ("normal = [0.0, 0.0, 1.0]", "normal = [0.0, 0.0, 0.0]", ["[reference] (circle)", "normal must be a nonzero"]),
-    ('type = "FrameTask"', 'type = "FrameTask"\nlevel = 1000000000', ["[[tasks]] level = 1000000000",
-                                                                      "without gaps"]),
+    ('type = "FrameTask"', 'type = "FrameTask"\nlevel = 1000000000', ["[[tasks]] level = 1000000000 but no task "
+                                                                      "has level = 1", "without gaps"]),
     ('target = "initial"', 'target = "initial"\njoints = ["nope"]', ["[[tasks]] #2 (PostureTask)",
                                                                     "unknown joint 'nope'"]),
     ('target = "initial"', "target = [0.0, 1.0]", ["[[tasks]] #2 (PostureTask)", "target must have shape (8,)"]),

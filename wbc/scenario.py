@@ -268,12 +268,12 @@ def _levels(entries: list[TaskEntry]) -> list[int]:
     levels = [entry.level for entry in entries]
     if not any(levels):
         return []
-    if max(levels) >= len(levels):  # a gap for sure: refused before counting the levels it skips
-        raise ScenarioError(f"[[tasks]] level = {max(levels)} with {len(levels)} task(s): levels must be 0, 1, 2, "
-                            "... without gaps (0 is the highest priority), so at most the number of tasks - 1")
-    missing = sorted(set(range(max(levels))) - set(levels))
-    if missing:
-        raise ScenarioError(f"[[tasks]] level = {max(levels)} but no task has level = {missing[0]}; "
+    present = set(levels)
+    # the first level without a task: one of 0..len(levels) is free, so this never counts past the tasks
+    # (a level = 10^9 once built a set of every level below it)
+    missing = next(level for level in range(len(levels) + 1) if level not in present)
+    if missing < max(levels):
+        raise ScenarioError(f"[[tasks]] level = {max(levels)} but no task has level = {missing}; "
                             "levels must be 0, 1, 2, ... without gaps (0 is the highest priority)")
     return levels
 
