@@ -340,6 +340,19 @@ def test_several_runs_are_overlaid_in_their_own_colours(circle_run):
     assert max(ends) == pytest.approx(0.5, abs=1.0 / view.FPS)  # the shorter run holds its last pose
 
 
+def test_write_html_refuses_a_path_before_building_the_page(circle_run, tmp_path, monkeypatch):
+    from wbc.outputs import OutputError
+
+    def no_page(*args, **kwargs):
+        raise AssertionError("the page was built")
+
+    monkeypatch.setattr(view, "replay_html", no_page)
+    for path, message in ((tmp_path, "is a folder"), (tmp_path / "run.txt", "give a name ending in .html")):
+        with pytest.raises(OutputError, match=message):
+            view.write_html([circle_run], path)
+    assert list(tmp_path.iterdir()) == []
+
+
 # ------------------------------------------------------------------------ the live view
 def test_live_view_plays_and_the_slider_pauses_it(circle_run):
     scenario, result = circle_run

@@ -11,7 +11,7 @@ import json
 import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TextIO
 
@@ -35,36 +35,51 @@ def _run(args: argparse.Namespace) -> int:
     _check_run_options(args)
     scenarios = [load_scenario(path) for path in args.scenario]
     messages = sys.stderr if args.json else sys.stdout  # with --json, stdout holds the JSON alone
-    with _live_view(args, scenarios, messages) as live:
-        try:
+    try:
+        with _live_view(args, scenarios, messages) as live:
             runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration,
                                    progress=not args.no_progress,
                                    simulation=_simulation(args, scenario),
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
-        except KeyboardInterrupt:
-            print("wbc: interrupted", file=sys.stderr)
-            return 130
-        trace = manipulability_traces(runs)
-        summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
-                     | ({} if trace is None else trace.summary(k))
-                     for k, (scenario, result) in enumerate(runs)]
-        if args.json:
-            print(json.dumps(summaries, indent=2))
-        else:
-            print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
-                            for summary in summaries))
-        if args.plot:
-            from .plotting import plot_runs
-
-            print(f"plot written to {plot_runs(runs, args.plot)}", file=messages)
-        if args.html:
-            from .view import write_html
-
-            print(f"3-D replay written to {write_html(runs, args.html)}", file=messages)
-        if live is not None:
-            _replay(live, messages)
+            trace = manipulability_traces(runs)
+            summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
+                         | ({} if trace is None else trace.summary(k))
+                         for k, (scenario, result) in enumerate(runs)]
+            if args.json:
+                print(json.dumps(summaries, indent=2))
+            else:
+                print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
+                                for summary in summaries))
+            _write_outputs(args, runs, messages)
+            if live is not None:
+                _replay(live, messages)
+    except KeyboardInterrupt:  # during a run or while a file is written (none is left half-written)
+        print("wbc: interrupted", file=sys.stderr)
+        return 130
     return 0
+
+
+def _write_outputs(args: argparse.Namespace, runs: list, messages: TextIO) -> None:
+    """Write the ``--plot`` and ``--html`` files (their paths were checked before the runs),
+    each atomically, and say where."""
+    from .outputs import OutputError
+
+    writers: list[tuple[str, str, Callable[[], Path]]] = []
+    if args.plot is not None:
+        from .plotting import plot_runs
+
+        writers.append(("--plot", "plot", lambda: plot_runs(runs, args.plot)))
+    if args.html is not None:
+        from .view import write_html
+
+        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html)))
+    for option, what, write in writers:
+        try:
+            path = write()
+        except (OSError, OutputError) as exc:  # e.g. the disk filled up, or the folder went away
+            raise CommandLineError(f"{option}: the {what} was not written: {exc}") from exc
+        print(f"{what} written to {path}", file=messages)
 
 
 @contextlib.contextmanager
@@ -104,24 +119,30 @@ def _check_run_options(args: argparse.Namespace) -> None:
         raise CommandLineError(f"--noise is a standard deviation [rad, m]: finite and >= 0, got {args.noise}")
     if args.sim == "mujoco":
         _require("mujoco", "--sim mujoco", "sim")
-    if args.plot:
+    if args.plot is not None:
         _require("matplotlib", "--plot", "plot")
-        _make_folder("--plot", args.plot)
+        from .plotting import PLOT_FORMATS
+
+        _check_output("--plot", args.plot, PLOT_FORMATS)
     if args.view is not None and not 0 < args.view < 65536:
         raise CommandLineError(f"--view PORT must be a TCP port, 1 to 65535, got {args.view}")
-    if args.html or args.view is not None:
-        _require("viser", "--html" if args.html else "--view", "view")
-    if args.html:
-        _make_folder("--html", args.html)
+    if args.html is not None or args.view is not None:
+        _require("viser", "--html" if args.html is not None else "--view", "view")
+    if args.html is not None:
+        from .outputs import HTML_FORMATS
+
+        _check_output("--html", args.html, HTML_FORMATS)
 
 
-def _make_folder(option: str, path: str) -> None:
-    """Create the folder of the file ``option`` will write, or say why not."""
-    folder = Path(path).parent
+def _check_output(option: str, path: str, formats: Mapping[str, str]) -> None:
+    """Refuse now, before any run, a file ``option`` could not write (nothing is created:
+    a missing folder is made when the file is written)."""
+    from .outputs import OutputError, check_output
+
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CommandLineError(f"{option}: cannot create the folder {folder}: {exc}") from exc
+        check_output(path, formats)
+    except OutputError as exc:
+        raise CommandLineError(f"{option}: {exc}") from None
 
 
 def _require(module: str, option: str, extra: str) -> None:

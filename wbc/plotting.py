@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .closed_loop import RunResult, manipulability_traces, posture_traces
+from .outputs import check_output, write_atomically
 from .robot import Robot
 from .scenario import Scenario
 
@@ -22,6 +23,10 @@ if TYPE_CHECKING:
 FLOOR_DECADES = 3  #: the error panels' log axes start this many decades below the median error
 WHEEL_NAMES = {4: ["FL", "FR", "RL", "RR"], 2: ["left", "right"]}  #: wheel order of wbc.base
 GRID_COLUMNS = 6  #: the figure's grid: 1, 2 or 3 panels per row
+#: what :func:`plot_runs` writes, by suffix: matplotlib's formats but those that need more
+#: than matplotlib and Pillow (.pgf needs LaTeX, .avif a Pillow built with AVIF)
+PLOT_FORMATS = {".png": "PNG", ".pdf": "PDF", ".svg": "SVG", ".svgz": "SVG (gzip)", ".eps": "EPS", ".ps": "PostScript",
+                ".jpg": "JPEG", ".jpeg": "JPEG", ".tif": "TIFF", ".tiff": "TIFF", ".webp": "WebP", ".gif": "GIF"}
 
 
 @dataclass
@@ -73,14 +78,19 @@ def plot_run(scenario: Scenario, result: RunResult, path: str | Path) -> Path:
 
 
 def plot_runs(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path) -> Path:
-    """Write the :func:`figure` of ``runs`` as a PNG and return its path
-    (needs matplotlib: ``pip install wbc[plot]``)."""
+    """Write the :func:`figure` of ``runs`` to ``path`` in the format its suffix names (one of
+    :data:`PLOT_FORMATS`: .png, .pdf, .svg, ...), atomically: a temporary file in the same
+    folder, renamed to ``path`` once complete; a missing folder is created. Returns the path
+    (needs matplotlib: ``pip install wbc[plot]``). A path that cannot be written raises
+    :class:`~wbc.outputs.OutputError` before the figure is drawn."""
     import matplotlib.pyplot as plt
 
+    path = check_output(str(path), PLOT_FORMATS)
     fig = figure(runs)
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        write_atomically(path, lambda stream: fig.savefig(stream, format=path.suffix[1:].lower(), dpi=110))
+    finally:
+        plt.close(fig)
     return path
 
 

@@ -28,13 +28,14 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import BinaryIO, Literal
 
 import numpy as np
 import pinocchio as pin
 import viser
 
 from .closed_loop import RunResult, TickObserver, orientation_tracked
+from .outputs import HTML_FORMATS, check_output, write_atomically
 from .robot import Robot
 from .scenario import Scenario
 
@@ -453,10 +454,18 @@ def replay_html(runs: Sequence[Run], obstacles: Sequence[Obstacle] = (),
 
 def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstacle] = (),
                fps: float = FPS) -> Path:
-    """Write :func:`replay_html` to ``path``; returns the path."""
-    path = Path(path)
-    path.write_text(replay_html(runs, obstacles, fps), encoding="utf-8")
-    return path
+    """Write :func:`replay_html` to ``path`` (a name ending in .html or .htm) atomically: a
+    temporary file in the same folder, renamed to ``path`` once complete (a missing folder is
+    created). Returns the path; a path that cannot be written raises
+    :class:`~wbc.outputs.OutputError` before the page is built."""
+    path = check_output(str(path), HTML_FORMATS)
+    page = replay_html(runs, obstacles, fps)
+
+    def write(stream: BinaryIO) -> None:
+        for start in range(0, len(page), 1 << 20):  # (not a second copy of the whole page)
+            stream.write(page[start:start + (1 << 20)].encode("utf-8"))
+
+    return write_atomically(path, write)
 
 
 class LiveView:
