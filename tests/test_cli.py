@@ -83,6 +83,19 @@ def test_text_summary_of_a_position_only_task(capsys):
     assert "orientation err            not tracked" in out and "mrad" not in out
 
 
+def test_the_summary_says_how_the_loop_was_closed(capsys):
+    pytest.importorskip("mujoco")
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress"]) == 0
+    assert capsys.readouterr().out.startswith("scenario youbot_circle  (solver daqp, kinematic loop)\n")
+    options = ["--duration", "0.1", "--no-progress", "--sim", "mujoco", "--noise", "1e-4", "--delay", "1"]
+    assert main(["run", CIRCLE, *options]) == 0
+    header = "scenario youbot_circle  (solver daqp, MuJoCo loop: velocity servos, noise 0.0001, delay 1 tick)\n"
+    assert capsys.readouterr().out.startswith(header)
+    assert main(["run", CIRCLE, *options, "--json"]) == 0
+    (summary,) = json.loads(capsys.readouterr().out)
+    assert summary["loop"] == "mujoco" and summary["loop_details"] == "velocity servos, noise 0.0001, delay 1 tick"
+
+
 def test_version(capsys):
     from importlib.metadata import version
 

@@ -43,7 +43,7 @@ def _run(args: argparse.Namespace) -> int:
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
             trace = manipulability_traces(runs)
-            summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
+            summaries = [{"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
                          | ({} if trace is None else trace.summary(k))
                          for k, (scenario, result) in enumerate(runs)]
             if args.json:
@@ -58,6 +58,11 @@ def _run(args: argparse.Namespace) -> int:
         print("wbc: interrupted", file=sys.stderr)
         return 130
     return 0
+
+
+def _loop(result) -> dict[str, str]:
+    """How a run closed its loop, for its summary: "kinematic", or "mujoco" and the servo settings."""
+    return {"loop": result.loop} | ({"loop_details": result.loop_details} if result.loop_details else {})
 
 
 def _write_outputs(args: argparse.Namespace, runs: list, messages: TextIO) -> None:
@@ -167,7 +172,7 @@ def format_summary(name: str, solver: str, s: dict) -> str:
     """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``)."""
     tracked = "orientation_error_rms_rad" in s
     lines = [
-        f"scenario {name}  (solver {solver})",
+        f"scenario {name}  (solver {solver}, {_loop_text(s)})",
         f"  ticks                      {s['ticks']}  ({s['fallback_ticks']} answered by a fallback)",
         f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / "
         f"{s['position_error_max_m'] * 1e3:.4f} mm",
@@ -191,6 +196,13 @@ def format_summary(name: str, solver: str, s: dict) -> str:
         lines.append(f"  manipulability   min       {s['manipulability_min']:.4g}  "
                      f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}")
     return "\n".join(lines)
+
+
+def _loop_text(s: dict) -> str:
+    """How the run closed its loop, from its summary ("kinematic loop" when not said)."""
+    if s.get("loop") == "mujoco":
+        return f"MuJoCo loop: {s['loop_details']}" if s.get("loop_details") else "MuJoCo loop"
+    return "kinematic loop"
 
 
 def _solvers(args: argparse.Namespace) -> int:
