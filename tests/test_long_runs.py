@@ -108,3 +108,32 @@ def test_a_run_needs_a_tick_and_a_row(circle):
     for rows in (0, -3, 2.5, True):
         with pytest.raises(InvalidInputError, match="max_rows must be an int"):
             run(circle, duration=0.1, max_rows=rows)
+
+
+def test_the_manipulability_of_a_decimated_run_says_it_is_sampled():
+    from wbc.cli import format_summary
+    from wbc.closed_loop import manipulability_traces
+    from wbc.manipulability import manipulability
+
+    scenario = load_scenario(TASKS / "youbot_stretch.toml")
+    full, kept = run(scenario, duration=0.5), run(scenario, duration=0.5, max_rows=10)  # 50 ticks, stride 5
+    exact, sampled = manipulability_traces([(scenario, full)]).summary(0), manipulability_traces([(scenario, kept)])
+    assert "manipulability_sampled_every_ticks" not in exact
+    summary = sampled.summary(0)
+    assert summary["manipulability_sampled_every_ticks"] == 5
+    every_fifth = [manipulability(scenario.robot, q, "ee", "all") for q in [*full.q[:-1:5], full.q[-1]]]
+    assert summary["manipulability_min"] == pytest.approx(min(every_fifth), rel=1e-12)
+    assert summary["manipulability_min"] >= exact["manipulability_min"]
+    text = format_summary("youbot_stretch", "daqp", kept.summary() | {"loop": "kinematic"} | summary)
+    assert text.splitlines()[-1].endswith("(sampled: one tick in 5)")
+
+
+def test_coarsening_a_record_is_recording_it_coarser(circle):
+    full, kept = run(circle, duration=0.5), run(circle, duration=0.5, max_rows=7)
+    coarse = full.coarsened(7)
+    assert coarse.stride == kept.stride == 8 and coarse.statistics is full.statistics
+    for name in ("time", "q", "v", "position_error", "orientation_error", "position_violation", "velocity_violation",
+                 "velocity_ratio", "base_path", "tool_path", "wheel_ratio"):
+        np.testing.assert_array_equal(getattr(coarse, name), getattr(kept, name), err_msg=name)
+    np.testing.assert_array_equal(coarse.tick_time, bucket_max(full.tick_time, 8))
+    assert full.coarsened(50) is full and kept.coarsened(3).stride == 24

@@ -370,6 +370,18 @@ def test_title_names_the_loop_and_what_a_long_run_kept(circle, panels):
             "the summary's numbers are over every tick") in title
 
 
+def test_a_long_record_is_drawn_coarsened_and_says_so(circle, panels, monkeypatch):
+    import wbc.plotting
+
+    scenario, result = circle  # 400 ticks
+    monkeypatch.setattr(wbc.plotting, "PLOT_ROWS", 100)
+    axes = panels([circle])
+    (line,) = data_lines(axes["position"])
+    np.testing.assert_allclose(line.get_ydata(), result.position_error.reshape(100, 4).max(axis=1) * 1e3)
+    assert ("youbot_circle: every 4th of 400 ticks drawn, each point the largest value of its 4 ticks"
+            in axes["position"].get_figure().get_suptitle())
+
+
 # -------------------------------------------------------------------------- paths
 def marker_points(ax, marker: str) -> np.ndarray:
     """(x, y) of every single-point line drawn with ``marker``."""

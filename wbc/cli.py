@@ -193,8 +193,10 @@ def format_summary(name: str, solver: str, s: dict) -> str:
         lines.append(f"  max lateral base slip      {s['max_lateral_slip_m_s']:.2e} m/s")
     if "manipulability_min" in s:
         floor = f"  (barrier floor m_min {s['manipulability_floor']:g})" if "manipulability_floor" in s else ""
+        sampled = (f"  (sampled: one tick in {s['manipulability_sampled_every_ticks']})"
+                   if "manipulability_sampled_every_ticks" in s else "")
         lines.append(f"  manipulability   min       {s['manipulability_min']:.4g}  "
-                     f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}")
+                     f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}{sampled}")
     return "\n".join(lines)
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -86,6 +86,30 @@ class RunResult:
     def ticks(self) -> int:
         """Ticks run (``stride`` times the rows, or fewer in the last row)."""
         return self.statistics.ticks
+
+    def coarsened(self, rows: int) -> RunResult:
+        """This run with at most ``rows`` rows: each ``k = ceil(R / rows)`` rows merged into one
+        as :func:`run` merges ticks (the first row's q, v and paths, the peak of every other
+        series; ``stride`` multiplied by k). ``self`` if it has no more than ``rows`` rows."""
+        count = self.time.size
+        k = -(-count // rows)
+        if k <= 1:
+            return self
+        starts = np.arange(0, count, k)
+        kept = np.append(starts, count)  # and the final configuration
+
+        def peaks(series: np.ndarray | None) -> np.ndarray | None:
+            return None if series is None else np.maximum.reduceat(series, starts, axis=0)
+
+        return replace(
+            self, time=self.time[starts], q=self.q[kept], v=self.v[starts],
+            position_error=peaks(self.position_error), orientation_error=peaks(self.orientation_error),
+            solve_time=peaks(self.solve_time), tick_time=peaks(self.tick_time),
+            position_violation=np.concatenate([self.position_violation[:1], peaks(self.position_violation[1:])]),
+            velocity_violation=peaks(self.velocity_violation), velocity_ratio=peaks(self.velocity_ratio),
+            base_path=None if self.base_path is None else self.base_path[kept],
+            tool_path=None if self.tool_path is None else self.tool_path[kept],
+            wheel_ratio=peaks(self.wheel_ratio), lateral_slip=peaks(self.lateral_slip), stride=self.stride * k)
 
     def summary(self) -> dict[str, float]:
         """The numbers ``wbc run`` prints (the orientation errors only if the orientation is
@@ -316,15 +340,21 @@ class ManipulabilityTrace:
     #: one (T+1,) array per run, m at each recorded configuration; None for a run of another robot
     series: list[np.ndarray | None]
     guarded: list[bool]  #: per run, whether its scenario has a barrier with that floor on this frame and rows
+    #: per run, the ticks per recorded row (RunResult.stride): m is evaluated at the rows' configurations
+    strides: list[int] = field(default_factory=list)
 
     def summary(self, run: int) -> dict[str, float | str]:
-        """The smallest m of run number ``run``, the frame and rows it refers to, and the floor
-        of the barrier if that run has it (empty for a run of another robot)."""
+        """The smallest m of run number ``run``, the frame and rows it refers to, the floor of
+        the barrier if that run has it, and for a long run whose record keeps one configuration
+        per ``stride`` ticks, that stride (m is then the smallest at those ticks); empty for a
+        run of another robot."""
         if self.series[run] is None:
             return {}
         floor = {"manipulability_floor": self.min_value} if self.guarded[run] else {}
+        stride = self.strides[run] if self.strides else 1
+        sampled = {"manipulability_sampled_every_ticks": stride} if stride > 1 else {}
         return {"manipulability_frame": self.frame, "manipulability_rows": self.rows,
-                "manipulability_min": float(self.series[run].min())} | floor
+                "manipulability_min": float(self.series[run].min())} | floor | sampled
 
 
 def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> ManipulabilityTrace | None:
@@ -344,7 +374,7 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
                                          and (item.frame, item.rows) == (first.frame, first.rows)
                                          for item in scenario.constraints)
                for scenario, _ in runs]
-    return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded)
+    return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded, [result.stride for _, result in runs])
 
 
 def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[np.ndarray | None] | None:

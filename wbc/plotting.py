@@ -37,6 +37,7 @@ NEGLIGIBLE = 0.01  #: a speed panel whose every ratio stays below this says "bar
 COINCIDE = 0.01  #: lines closer than this fraction of the panel's height everywhere are drawn once
 LEGEND_ROW = 0.065  #: height of a legend row, as a fraction of a panel's height
 LEGEND_COLUMN_CHARS = 32  #: a legend has two columns only if no label is longer than this
+PLOT_ROWS = 5000  #: points of a line at most: a longer run is drawn coarsened (RunResult.coarsened), as said
 LATENCY_TOP = 2.0  #: the latency axis ends at this multiple of the largest p99 (exact, every tick)
 RUN_LINE = "run"  #: gid of the lines that the figure's legend of several runs names by their colour
 LINE_STYLES = ("-", "--", "-.", ":")  #: cycled with the colours: lines that cross stay apart
@@ -181,6 +182,7 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
+    runs = [(scenario, result.coarsened(PLOT_ROWS)) for scenario, result in runs]
     results = [result for _, result in runs]
     groups = [speed_groups(scenario.robot, result, _tracked_frame(scenario)) for scenario, result in runs]
     trace = manipulability_traces(runs)
