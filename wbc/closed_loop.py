@@ -98,8 +98,8 @@ class RunResult:
         starts = np.arange(0, count, k)
         kept = np.append(starts, count)  # and the final configuration
 
-        def peaks(series: np.ndarray | None) -> np.ndarray | None:
-            return None if series is None else np.maximum.reduceat(series, starts, axis=0)
+        def peaks(series: np.ndarray) -> np.ndarray:
+            return np.maximum.reduceat(series, starts, axis=0)
 
         return replace(
             self, time=self.time[starts], q=self.q[kept], v=self.v[starts],
@@ -109,7 +109,8 @@ class RunResult:
             velocity_violation=peaks(self.velocity_violation), velocity_ratio=peaks(self.velocity_ratio),
             base_path=None if self.base_path is None else self.base_path[kept],
             tool_path=None if self.tool_path is None else self.tool_path[kept],
-            wheel_ratio=peaks(self.wheel_ratio), lateral_slip=peaks(self.lateral_slip), stride=self.stride * k)
+            wheel_ratio=None if self.wheel_ratio is None else peaks(self.wheel_ratio),
+            lateral_slip=None if self.lateral_slip is None else peaks(self.lateral_slip), stride=self.stride * k)
 
     def summary(self) -> dict[str, float]:
         """The numbers ``wbc run`` prints (the orientation errors only if the orientation is
@@ -236,7 +237,7 @@ class _Recorder:
         self._errors = np.empty((chunk, 2))
         self._q[0] = q0
         self.q[0], self.position_violation[0] = q0, position_violation(robot, q0[None])[0]
-        if self.tool_path is not None:
+        if self.tool_path is not None and frame is not None:
             self.tool_path[0] = robot.frame_pose(q0, frame)[:3, 3]
         self.done = self.buffered = self.fallbacks = 0  # ticks reduced to rows, ticks in the buffer
         self.squares = np.zeros(2)  # sums of the squared position and orientation errors
@@ -283,7 +284,7 @@ class _Recorder:
             self.wheel_ratio[rows] = peaks["wheel_ratio"]
         if self.lateral_slip is not None:
             self.lateral_slip[rows] = peaks["lateral_slip"]
-        if self.tool_path is not None:
+        if self.tool_path is not None and self.frame is not None:
             self.tool_path[rows] = [self.robot.frame_pose(q, self.frame)[:3, 3] for q in qs[starts]]
         self.done += n
         self._q[0] = qs[n]
@@ -295,7 +296,7 @@ class _Recorder:
         q_end = self._q[self.buffered].copy()
         self._reduce()
         self.q[-1] = q_end
-        if self.tool_path is not None:
+        if self.tool_path is not None and self.frame is not None:
             self.tool_path[-1] = self.robot.frame_pose(q_end, self.frame)[:3, 3]
         robot = self.robot
         rms = np.sqrt(self.squares / self.ticks)

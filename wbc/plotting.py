@@ -325,16 +325,17 @@ def _speed_panel(ax: Axes, in_panel: Sequence[tuple[RunResult, str, SpeedGroup]]
         ax.text(0.5, 0.5, _still(names, peak, peak_name), transform=ax.transAxes, ha="center", va="center",
                 fontsize=9, bbox={"facecolor": "white", "edgecolor": "0.6", "alpha": 0.9})
         return
-    order = [label for label, _, _, _ in lines] if several else in_panel[0][2].labels
-    merged = _merge_coinciding(lines, COINCIDE * 1.15 * max(1.0, peak), order)
+    label_order = [label for label, _, _, _ in lines] if several else in_panel[0][2].labels
+    merged = _merge_coinciding(lines, COINCIDE * 1.15 * max(1.0, peak), label_order)
     drawn = [ax.plot(time, ratio, lw=1.2, color=color, ls=LINE_STYLES[n % len(LINE_STYLES)],
                      label=f"{label}  (peak {_ratio(ratio.max())})")[0]
              for n, (label, time, ratio, color) in enumerate(merged)]
     drawn += [ax.plot(time, ratio, lw=0.8, color=color, label=f"{label}  (peak {_ratio(ratio.max())})", zorder=1)[0]
               for label, time, ratio, color in rest]
     drawn.append(ax.axhline(1.0, color="k", ls="--", lw=1, label="limit"))
-    columns = 2 if len(drawn) > 3 and max(len(line.get_label()) for line in drawn) <= LEGEND_COLUMN_CHARS else 1
-    texts = [textwrap.fill(line.get_label(), 2 * LEGEND_COLUMN_CHARS, break_on_hyphens=False) for line in drawn]
+    labels = [str(line.get_label()) for line in drawn]
+    columns = 2 if len(drawn) > 3 and max(map(len, labels)) <= LEGEND_COLUMN_CHARS else 1
+    texts = [textwrap.fill(label, 2 * LEGEND_COLUMN_CHARS, break_on_hyphens=False) for label in labels]
     rows = -(-sum(text.count("\n") + 1 for text in texts) // columns)
     # the legend gets a band of its own above the data: it covers no line
     ax.set_ylim(0.0, max(1.0, peak) * 1.04 / (1.0 - LEGEND_ROW * rows - 0.05))
@@ -398,6 +399,7 @@ def _latency_panel(ax: Axes, results: Sequence[RunResult], colors: Sequence[str]
     for result, color in zip(results, colors, strict=True):
         stats = result.statistics
         tick, solve = stats.tick_latency_median * 1e6, stats.solve_time_median * 1e6
+        labels: tuple[str, str | None]
         if several:
             labels = (f"{result.scenario}: {tick:.1f} / {solve:.1f} µs", None)
         else:
