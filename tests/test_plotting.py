@@ -53,7 +53,7 @@ def panels():
 
 def data_lines(ax):
     """Lines of ``ax`` that hold data (not the limit line, not legend proxies)."""
-    return [line for line in ax.get_lines() if line.get_label() != "limit" and len(line.get_xdata()) > 1]
+    return [line for line in ax.get_lines() if not line.get_label().startswith("limit") and len(line.get_xdata()) > 1]
 
 
 # ------------------------------------------------------------------ tracking error
@@ -188,6 +188,17 @@ def test_a_panel_whose_joints_barely_move_says_so(circle, panels):
     strongest = YOUBOT_ARM[int(np.argmax(arm.max(axis=0)))]
     assert "barely moves: 5 joints (arm_…)" in text and "below 1% of their speed limits" in text
     assert f"largest: {strongest}, {arm.max():.2%} of its limit" in text
+
+
+def test_a_small_motion_gets_an_axis_of_its_own(circle, panels):
+    scenario, result = circle
+    ratio = result.velocity_ratio.copy()
+    ratio[:, 3:] *= 0.05 / ratio[:, 3:].max()  # the arm at most at 5 % of its limits
+    ax = panels([(scenario, replace(result, velocity_ratio=ratio))])["chain"]
+    assert max(np.max(line.get_ydata()) for line in data_lines(ax)) == pytest.approx(0.05)
+    assert 0.05 < ax.get_ylim()[1] < 0.1, "the axis ends near the peak, not at the limit"
+    assert "limit 1.0: above the axis (below 10% of it throughout)" in legend_texts(ax)
+    assert "barely moves" not in panel_text(ax)
 
 
 def test_coinciding_lines_are_merged_only_when_they_coincide(panels):
@@ -353,6 +364,19 @@ def test_latency_without_spikes_has_no_mark(circle, panels):
     ax = panels([(scenario, calm)])["latency"]
     assert not [line for line in ax.get_lines() if line.get_marker() == "^"]
     assert not any(text.startswith("above the axis") for text in legend_texts(ax))
+
+
+def test_the_latency_of_a_long_record_shows_every_row_peak_and_the_exact_median(circle, panels):
+    scenario, _ = circle
+    kept = run(scenario, duration=0.5, max_rows=7)  # rows of 8 ticks
+    ax = panels([(scenario, kept)])["latency"]
+    assert ax.get_yscale() == "log"
+    (peaks,) = [line for line in ax.get_lines() if line.get_label() == "largest tick time of each 8"]
+    np.testing.assert_allclose(peaks.get_ydata(), kept.tick_time * 1e6)
+    low, high = ax.get_ylim()
+    assert low < kept.statistics.tick_latency_median * 1e6 and high > kept.tick_time.max() * 1e6, "nothing clipped"
+    (median,) = [line for line in ax.get_lines() if str(line.get_label()).startswith("median")]
+    assert median.get_ydata()[0] == pytest.approx(kept.statistics.tick_latency_median * 1e6)
 
 
 # ------------------------------------------------------------------------ the title

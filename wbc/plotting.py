@@ -11,6 +11,7 @@ edge with their true maximum written next to them."""
 
 from __future__ import annotations
 
+import math
 import re
 import textwrap
 from collections.abc import Sequence
@@ -31,9 +32,10 @@ if TYPE_CHECKING:
 
 FLOOR_DECADES = 3  #: the error panels' log axes start this many decades below the median error
 WHEEL_NAMES = {4: ["FL", "FR", "RL", "RR"], 2: ["left", "right"]}  #: wheel order of wbc.base
-GRID_COLUMNS = 12  #: the figure's grid: 1 to 4 panels per row
+GRID_COLUMNS = 6  #: the figure's grid: 1, 2 or 3 panels per row (four speed panels: two rows)
 MAX_LINES = 6  #: joints drawn by name in a speed panel (the closest to their limits)
 NEGLIGIBLE = 0.01  #: a speed panel whose every ratio stays below this says "barely moves"
+ZOOM_BELOW = 0.1  #: a speed panel whose ratios stay below this gets an axis up to its peak, not to the limit
 COINCIDE = 0.01  #: lines closer than this fraction of the panel's height everywhere are drawn once
 LEGEND_ROW = 0.065  #: height of a legend row, as a fraction of a panel's height
 LEGEND_COLUMN_CHARS = 32  #: a legend has two columns only if no label is longer than this
@@ -182,6 +184,7 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
+    recorded = runs  # the paths are drawn from every recorded row: coarser, a periodic path would alias
     runs = [(scenario, result.coarsened(PLOT_ROWS)) for scenario, result in runs]
     results = [result for _, result in runs]
     groups = [speed_groups(scenario.robot, result, _tracked_frame(scenario)) for scenario, result in runs]
@@ -211,8 +214,11 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
                     for group in run_groups if group.key == key]
         _speed_panel(axes[key], in_panel, several)
 
-    _latency_panel(axes["latency"], results, colors)
-    _paths_panel(axes["paths"], results, colors)
+    if any(result.stride > 1 for result in results):
+        _long_latency_panel(axes["latency"], results, colors)
+    else:
+        _latency_panel(axes["latency"], results, colors)
+    _paths_panel(axes["paths"], [result for _, result in recorded], colors)
 
     if trace is not None:
         ax = axes["m"]
@@ -272,9 +278,13 @@ def _suptitle(results: Sequence[RunResult]) -> str:
     names = f"{results[0].scenario} — " if len(results) == 1 else ""
     lines = [f"{names}{common([r.solver for r in results])}, dt = {common([f'{r.dt * 1e3:g} ms' for r in results])}, "
              f"{loops}"]
-    lines += [f"{r.scenario}: every {_ordinal(r.stride)} of {r.ticks:,} ticks drawn, each point the largest "
-              f"value of its {r.stride} ticks; the summary's numbers are over every tick"
-              for r in results if r.stride > 1]
+    kept: dict[tuple[int, int], list[str]] = {}
+    for r in results:
+        if r.stride > 1:
+            kept.setdefault((r.stride, r.ticks), []).append(r.scenario)
+    lines += [f"{', '.join(names)}: every {_ordinal(stride)} of {ticks:,} ticks drawn, each point the largest "
+              f"value of its {stride} ticks; the summary's numbers are over every tick"
+              for (stride, ticks), names in kept.items()]
     return "\n".join(lines)
 
 
@@ -322,23 +332,27 @@ def _speed_panel(ax: Axes, in_panel: Sequence[tuple[RunResult, str, SpeedGroup]]
     if peak < NEGLIGIBLE:
         ax.axhline(1.0, color="k", ls="--", lw=1, label="limit")
         ax.set_ylim(0.0, 1.15)
-        ax.text(0.5, 0.5, _still(names, peak, peak_name), transform=ax.transAxes, ha="center", va="center",
+        runs = f"{', '.join(r.scenario for r, _, _ in in_panel)}:\n" if several else ""
+        ax.text(0.5, 0.5, runs + _still(names, peak, peak_name), transform=ax.transAxes, ha="center", va="center",
                 fontsize=9, bbox={"facecolor": "white", "edgecolor": "0.6", "alpha": 0.9})
         return
+    # small motions get an axis of their own, the limit above it (said in the legend)
+    scale = peak if peak < ZOOM_BELOW else max(1.0, peak)
     label_order = [label for label, _, _, _ in lines] if several else in_panel[0][2].labels
-    merged = _merge_coinciding(lines, COINCIDE * 1.15 * max(1.0, peak), label_order)
+    merged = _merge_coinciding(lines, COINCIDE * 1.15 * scale, label_order)
     drawn = [ax.plot(time, ratio, lw=1.2, color=color, ls=LINE_STYLES[n % len(LINE_STYLES)],
                      label=f"{label}  (peak {_ratio(ratio.max())})")[0]
              for n, (label, time, ratio, color) in enumerate(merged)]
     drawn += [ax.plot(time, ratio, lw=0.8, color=color, label=f"{label}  (peak {_ratio(ratio.max())})", zorder=1)[0]
               for label, time, ratio, color in rest]
-    drawn.append(ax.axhline(1.0, color="k", ls="--", lw=1, label="limit"))
+    drawn.append(ax.axhline(1.0, color="k", ls="--", lw=1, label="limit" if scale >= 1.0 else
+                            f"limit 1.0: above the axis (below {ZOOM_BELOW:.0%} of it throughout)"))
     labels = [str(line.get_label()) for line in drawn]
     columns = 2 if len(drawn) > 3 and max(map(len, labels)) <= LEGEND_COLUMN_CHARS else 1
     texts = [textwrap.fill(label, 2 * LEGEND_COLUMN_CHARS, break_on_hyphens=False) for label in labels]
     rows = -(-sum(text.count("\n") + 1 for text in texts) // columns)
     # the legend gets a band of its own above the data: it covers no line
-    ax.set_ylim(0.0, max(1.0, peak) * 1.04 / (1.0 - LEGEND_ROW * rows - 0.05))
+    ax.set_ylim(0.0, scale * 1.04 / (1.0 - LEGEND_ROW * rows - 0.05))
     ax.legend(drawn, texts, fontsize=7, ncol=columns, loc="upper right", framealpha=0.9)
 
 
@@ -426,6 +440,26 @@ def _latency_panel(ax: Axes, results: Sequence[RunResult], colors: Sequence[str]
     ax.grid(True, alpha=0.3)
 
 
+def _long_latency_panel(ax: Axes, results: Sequence[RunResult], colors: Sequence[str]) -> None:
+    """The latency of runs recorded one row per several ticks: the largest tick time of each
+    row, on a log axis that holds them all, and the median and p99 over every tick as lines."""
+    several = len(results) > 1
+    low, high = math.inf, 0.0
+    for result, color in zip(results, colors, strict=True):
+        stats, prefix = result.statistics, f"{result.scenario}: " if several else ""
+        (line,) = ax.plot(result.time, result.tick_time * 1e6, lw=0.6, color=color if several else None,
+                          label=f"{prefix}largest tick time of each {result.stride}")
+        median, p99 = stats.tick_latency_median * 1e6, stats.tick_latency_p99 * 1e6
+        ax.axhline(median, color=line.get_color(), ls="--", lw=1,
+                   label=f"{prefix}median {median:.1f} µs (solve {stats.solve_time_median * 1e6:.1f} µs)")
+        ax.axhline(p99, color=line.get_color(), ls=":", lw=1, label=f"{prefix}p99 {p99:.1f} µs")
+        low, high = min(low, median), max(high, float(result.tick_time.max()) * 1e6)
+    ax.set(title="Latency (every tick: median and p99; log scale)", xlabel="time [s]", ylabel="time per tick [µs]",
+           yscale="log", ylim=(low / 2, high * 3))
+    ax.legend(fontsize=7, loc="upper left", framealpha=0.9, ncol=2 if several else 1)
+    ax.grid(True, which="both", alpha=0.3)
+
+
 def _row(keys: list[str]) -> list[str]:
     """One row of the mosaic: ``keys`` side by side, equally wide."""
     return [key for key in keys for _ in range(GRID_COLUMNS // len(keys))]
@@ -443,7 +477,8 @@ def _error_panel(ax: Axes, title: str, ylabel: str, lines: list[tuple[np.ndarray
         return
     for time, error, color, name in lines:
         ax.plot(time, np.maximum(error, floor), color=color, label=name, gid=RUN_LINE)
-    ax.set_ylim(bottom=floor)
+    top = max(float(np.max(error)) for _, error, _, _ in lines)
+    ax.set_ylim(floor, top * (top / floor) ** 0.05 if top > floor else 10 * floor)  # a line at its top stays seen
     if any(np.min(error) < floor for _, error, _, _ in lines):
         ax.text(0.01, 0.02, f"errors below {floor:.0e} {unit} drawn at the axis", transform=ax.transAxes,
                 fontsize=7, color="0.35", bbox={"facecolor": "white", "edgecolor": "none", "alpha": 0.8})
