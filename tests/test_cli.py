@@ -1,6 +1,7 @@
 """The command line: ``wbc run`` prints a summary and writes a plot; errors exit with status 2."""
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
@@ -80,6 +81,19 @@ def test_text_summary_of_a_position_only_task(capsys):
     assert main(["run", str(TASKS / "deluca_parking.toml"), "--duration", "0.2", "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "orientation err            not tracked" in out and "mrad" not in out
+
+
+def test_the_summary_says_how_the_loop_was_closed(capsys):
+    pytest.importorskip("mujoco")
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress"]) == 0
+    assert capsys.readouterr().out.startswith("scenario youbot_circle  (solver daqp, kinematic loop)\n")
+    options = ["--duration", "0.1", "--no-progress", "--sim", "mujoco", "--noise", "1e-4", "--delay", "1"]
+    assert main(["run", CIRCLE, *options]) == 0
+    header = "scenario youbot_circle  (solver daqp, MuJoCo loop: velocity servos, noise 0.0001, delay 1 tick)\n"
+    assert capsys.readouterr().out.startswith(header)
+    assert main(["run", CIRCLE, *options, "--json"]) == 0
+    (summary,) = json.loads(capsys.readouterr().out)
+    assert summary["loop"] == "mujoco" and summary["loop_details"] == "velocity servos, noise 0.0001, delay 1 tick"
 
 
 def test_version(capsys):
@@ -162,6 +176,117 @@ def test_plot_folder_that_cannot_be_made_fails_before_the_run(tmp_path, capsys):
     (tmp_path / "file").write_text("")
     assert main(["run", CIRCLE, "--no-progress", "--plot", str(tmp_path / "file" / "x.png")]) == 2
     assert "cannot create the folder" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- output files
+#: ``python -c`` code running ``wbc ARGS`` in which a run that starts exits with status 99
+NO_RUN = ("import sys, wbc.closed_loop as loop\n"
+          "def started(*args, **kwargs):\n    print('the run started', file=sys.stderr); sys.exit(99)\n"
+          "loop.run = started\n"
+          "from wbc.cli import main; sys.exit(main(sys.argv[1:]))")
+
+
+def files_under(folder: Path) -> list[str]:
+    return sorted(str(path.relative_to(folder)) for path in folder.rglob("*"))
+
+
+@pytest.mark.parametrize("option, value, message", [
+    ("--plot", "out.xyz", "--plot: out.xyz has suffix '.xyz'; give a name ending in .png (or .pdf, .svg, .svgz, "
+                          ".eps, ...)"),
+    ("--plot", "out", "--plot: out has no suffix; give a name ending in .png"),
+    ("--plot", "", "--plot: needs a file name"),
+    ("--plot", "some_dir", "--plot: some_dir is a folder; give a file name in it, e.g. some_dir/run.png"),
+    ("--plot", "some_dir/", "--plot: some_dir/ is a folder"),
+    ("--plot", "/proc/out.png", "--plot: cannot write in /proc: "),
+    ("--plot", "a_file/new/out.png", "--plot: cannot create the folder a_file/new: a_file is not a folder"),
+    ("--plot", "new/deeper/out.svgx", "--plot: new/deeper/out.svgx has suffix '.svgx'"),
+    ("--html", "some_dir", "--html: some_dir is a folder; give a file name in it, e.g. some_dir/run.html"),
+    ("--html", "/proc/x.html", "--html: cannot write in /proc: "),
+    ("--html", "replay.png", "--html: replay.png has suffix '.png'; give a name ending in .html (or .htm)"),
+    ("--html", "", "--html: needs a file name"),
+])
+def test_an_output_that_cannot_be_written_is_refused_before_the_run(tmp_path, option, value, message):
+    if value.startswith("/proc") and not Path("/proc/self").exists():
+        pytest.skip("needs Linux's /proc (a folder no one can create files in)")
+    (tmp_path / "some_dir").mkdir()
+    (tmp_path / "a_file").write_text("")
+    before = files_under(tmp_path)
+    result = subprocess.run([sys.executable, "-c", NO_RUN, "run", CIRCLE, "--no-progress", option, value],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith(f"wbc: error: {message}") and result.stderr.count("\n") == 1, result.stderr
+    assert "Traceback" not in result.stderr and result.stdout == ""
+    assert files_under(tmp_path) == before, "nothing written, no folder made"
+
+
+def test_plot_format_follows_the_suffix(tmp_path):
+    plot = tmp_path / "circle.PDF"
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress", "--plot", str(plot)]) == 0
+    assert plot.read_bytes().startswith(b"%PDF")
+    assert files_under(tmp_path) == ["circle.PDF"], "no temporary file left"
+
+
+#: ``python -c`` code running ``wbc ARGS`` in which the file ``--plot`` / ``--html`` writes is
+#: interrupted by a real SIGINT (Ctrl-C) once part of it is written
+INTERRUPTED_WRITE = (
+    "import os, signal, sys\n"
+    "import matplotlib.figure, wbc.outputs\n"
+    "def savefig(self, stream, **kwargs):\n"
+    "    stream.write(b'half a plot'); stream.flush(); os.kill(os.getpid(), signal.SIGINT)\n"
+    "matplotlib.figure.Figure.savefig = savefig\n"
+    "replace = wbc.outputs.os.replace\n"
+    "def interrupted_replace(source, target):\n"
+    "    if str(target).endswith('.html'): os.kill(os.getpid(), signal.SIGINT)\n"
+    "    replace(source, target)\n"
+    "wbc.outputs.os.replace = interrupted_replace\n"
+    "from wbc.cli import main; sys.exit(main(sys.argv[1:]))")
+
+
+@pytest.mark.parametrize("option, name", [("--plot", "out.png"), ("--html", "out.html")])
+def test_ctrl_c_while_an_output_is_written_leaves_no_file(tmp_path, option, name):
+    if option == "--html":
+        pytest.importorskip("viser")
+    target = tmp_path / "new" / name
+    result = subprocess.run([sys.executable, "-c", INTERRUPTED_WRITE, "run", CIRCLE, "--duration", "0.1",
+                             "--no-progress", "--json", option, str(target)],
+                            cwd=NEUTRAL, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 130, result.stderr
+    assert result.stderr == "wbc: interrupted\n"
+    assert json.loads(result.stdout)[0]["ticks"] == 10, "the summaries came before the files"
+    assert files_under(tmp_path) == ["new"], "no partial file, no temporary file"
+
+
+def test_an_existing_output_is_replaced_whole_or_kept(tmp_path):
+    from wbc.outputs import write_atomically
+
+    target = tmp_path / "plot.png"
+    target.write_bytes(b"the previous plot")
+
+    def failing(stream):
+        stream.write(b"half")
+        raise OSError(28, "No space left on device")
+
+    with pytest.raises(OSError, match="No space left"):
+        write_atomically(target, failing)
+    assert target.read_bytes() == b"the previous plot" and files_under(tmp_path) == ["plot.png"]
+    write_atomically(target, lambda stream: stream.write(b"the new plot"))
+    assert target.read_bytes() == b"the new plot" and files_under(tmp_path) == ["plot.png"]
+    umask = os.umask(0)
+    os.umask(umask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~umask, "the permissions of a file opened for writing"
+
+
+def test_a_failed_write_after_the_run_is_one_line(tmp_path, capsys, monkeypatch):
+    import wbc.outputs
+
+    def full_disk(*args):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(wbc.outputs.os, "replace", full_disk)
+    assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress", "--plot", str(tmp_path / "x.png")]) == 2
+    err = capsys.readouterr().err
+    assert err == "wbc: error: --plot: the plot was not written: [Errno 28] No space left on device\n"
+    assert files_under(tmp_path) == []
 
 
 @pytest.mark.parametrize("args", [["run", CIRCLE, "--duration", "0.2", "--no-progress", "--json"], ["solvers"]])

@@ -340,6 +340,56 @@ def test_several_runs_are_overlaid_in_their_own_colours(circle_run):
     assert max(ends) == pytest.approx(0.5, abs=1.0 / view.FPS)  # the shorter run holds its last pose
 
 
+def test_a_long_replay_is_played_faster_within_its_frame_budget_and_says_so(circle_run, monkeypatch):
+    scenario, result = circle_run  # 1 s: 30 frames at FPS
+    monkeypatch.setattr(view, "MAX_POSES", 10 * (scenario.robot.model.njoints + 1))  # 10 frames
+    recording = embedded_recording(view.replay_html([circle_run]))
+    wrist = f"/run0/j{joint_id(scenario.robot, 'arm_joint_5')}"
+    moves = messages(recording, "SetPositionMessage", wrist)
+    assert len(moves) <= 11, "at most 10 frames after the first"
+    (note,) = [m for _, m in messages(recording, "LabelMessage", "/note")]
+    assert note["props"]["text"] == "replayed at 3× speed"
+    # frame n shows the run at 3 n / FPS s, and the page plays it in n / FPS s
+    data = scenario.robot.model.createData()
+    for t, message in moves:
+        tick = min(round(3 * t / result.dt), result.time.size)
+        pin.forwardKinematics(scenario.robot.model, data, result.q[tick])
+        np.testing.assert_allclose(message["position"], data.oMi[joint_id(scenario.robot, "arm_joint_5")].translation,
+                                   atol=1e-6)
+    assert recording["durationSeconds"] == pytest.approx(11 / view.FPS + 1.0)
+
+
+def test_a_decimated_run_is_replayed_at_its_own_pace_and_the_page_says_what_was_kept(circle_run):
+    scenario, full = circle_run
+    kept = run(scenario, duration=1.0, max_rows=20)  # 100 ticks, one row per 5
+    assert kept.stride == 5
+    recording = embedded_recording(view.replay_html([(scenario, kept)]))
+    (note,) = [m for _, m in messages(recording, "LabelMessage", "/note")]
+    assert note["props"]["text"] == "youbot_circle: one configuration per 5 ticks kept"
+    wrist = f"/run0/j{joint_id(scenario.robot, 'arm_joint_5')}"
+    moves = messages(recording, "SetPositionMessage", wrist)
+    assert moves[-1][0] == pytest.approx(1.0, abs=1.5 / view.FPS), "1 s of run in 1 s of replay"
+    data = scenario.robot.model.createData()
+    for t, message in moves:  # the configuration of the row at t: tick 5 k, as the full run has it
+        row = min(round(t / (5 * scenario.dt)), kept.time.size)
+        pin.forwardKinematics(scenario.robot.model, data, full.q[5 * row] if row < kept.time.size else full.q[-1])
+        np.testing.assert_allclose(message["position"], data.oMi[joint_id(scenario.robot, "arm_joint_5")].translation,
+                                   atol=1e-6)
+
+
+def test_write_html_refuses_a_path_before_building_the_page(circle_run, tmp_path, monkeypatch):
+    from wbc.outputs import OutputError
+
+    def no_page(*args, **kwargs):
+        raise AssertionError("the page was built")
+
+    monkeypatch.setattr(view, "replay_html", no_page)
+    for path, message in ((tmp_path, "is a folder"), (tmp_path / "run.txt", "give a name ending in .html")):
+        with pytest.raises(OutputError, match=message):
+            view.write_html([circle_run], path)
+    assert list(tmp_path.iterdir()) == []
+
+
 # ------------------------------------------------------------------------ the live view
 def test_live_view_plays_and_the_slider_pauses_it(circle_run):
     scenario, result = circle_run

@@ -11,7 +11,7 @@ import json
 import math
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import TextIO
 
@@ -37,36 +37,56 @@ def _run(args: argparse.Namespace) -> int:
     if args.duration is not None:
         _check_duration(args.duration, scenarios)
     messages = sys.stderr if args.json else sys.stdout  # with --json, stdout holds the JSON alone
-    with _live_view(args, scenarios, messages) as live:
-        try:
+    try:
+        with _live_view(args, scenarios, messages) as live:
             runs = [(scenario, run(scenario, solver=args.solver, duration=args.duration,
                                    progress=not args.no_progress,
                                    simulation=_simulation(args, scenario),
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
-        except KeyboardInterrupt:
-            print("wbc: interrupted", file=sys.stderr)
-            return 130
-        trace = manipulability_traces(runs)
-        summaries = [{"scenario": scenario.name, "solver": result.solver} | result.summary()
-                     | ({} if trace is None else trace.summary(k))
-                     for k, (scenario, result) in enumerate(runs)]
-        if args.json:
-            print(json.dumps(summaries, indent=2))
-        else:
-            print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
-                            for summary in summaries))
-        if args.plot:
-            from .plotting import plot_runs
-
-            print(f"plot written to {plot_runs(runs, args.plot)}", file=messages)
-        if args.html:
-            from .view import write_html
-
-            print(f"3-D replay written to {write_html(runs, args.html)}", file=messages)
-        if live is not None:
-            _replay(live, messages)
+            trace = manipulability_traces(runs)
+            summaries = [{"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
+                         | ({} if trace is None else trace.summary(k))
+                         for k, (scenario, result) in enumerate(runs)]
+            if args.json:
+                print(json.dumps(summaries, indent=2))
+            else:
+                print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
+                                for summary in summaries))
+            _write_outputs(args, runs, messages)
+            if live is not None:
+                _replay(live, messages)
+    except KeyboardInterrupt:  # during a run or while a file is written (none is left half-written)
+        print("wbc: interrupted", file=sys.stderr)
+        return 130
     return 0
+
+
+def _loop(result) -> dict[str, str]:
+    """How a run closed its loop, for its summary: "kinematic", or "mujoco" and the servo settings."""
+    return {"loop": result.loop} | ({"loop_details": result.loop_details} if result.loop_details else {})
+
+
+def _write_outputs(args: argparse.Namespace, runs: list, messages: TextIO) -> None:
+    """Write the ``--plot`` and ``--html`` files (their paths were checked before the runs),
+    each atomically, and say where."""
+    from .outputs import OutputError
+
+    writers: list[tuple[str, str, Callable[[], Path]]] = []
+    if args.plot is not None:
+        from .plotting import plot_runs
+
+        writers.append(("--plot", "plot", lambda: plot_runs(runs, args.plot)))
+    if args.html is not None:
+        from .view import write_html
+
+        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html)))
+    for option, what, write in writers:
+        try:
+            path = write()
+        except (OSError, OutputError) as exc:  # e.g. the disk filled up, or the folder went away
+            raise CommandLineError(f"{option}: the {what} was not written: {exc}") from exc
+        print(f"{what} written to {path}", file=messages)
 
 
 @contextlib.contextmanager
@@ -106,15 +126,19 @@ def _check_run_options(args: argparse.Namespace) -> None:
         raise CommandLineError(f"--noise is a standard deviation [rad, m]: finite and >= 0, got {args.noise}")
     if args.sim == "mujoco":
         _require("mujoco", "--sim mujoco", "sim")
-    if args.plot:
+    if args.plot is not None:
         _require("matplotlib", "--plot", "plot")
-        _make_folder("--plot", args.plot)
+        from .plotting import PLOT_FORMATS
+
+        _check_output("--plot", args.plot, PLOT_FORMATS)
     if args.view is not None and not 0 < args.view < 65536:
         raise CommandLineError(f"--view PORT must be a TCP port, 1 to 65535, got {args.view}")
-    if args.html or args.view is not None:
-        _require("viser", "--html" if args.html else "--view", "view")
-    if args.html:
-        _make_folder("--html", args.html)
+    if args.html is not None or args.view is not None:
+        _require("viser", "--html" if args.html is not None else "--view", "view")
+    if args.html is not None:
+        from .outputs import HTML_FORMATS
+
+        _check_output("--html", args.html, HTML_FORMATS)
 
 
 def _check_duration(duration: float, scenarios: list) -> None:
@@ -130,13 +154,15 @@ def _check_duration(duration: float, scenarios: list) -> None:
                                    f"(between {scenario.dt:g} and {MAX_TICKS * scenario.dt:g} s)")
 
 
-def _make_folder(option: str, path: str) -> None:
-    """Create the folder of the file ``option`` will write, or say why not."""
-    folder = Path(path).parent
+def _check_output(option: str, path: str, formats: Mapping[str, str]) -> None:
+    """Refuse now, before any run, a file ``option`` could not write (nothing is created:
+    a missing folder is made when the file is written)."""
+    from .outputs import OutputError, check_output
+
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise CommandLineError(f"{option}: cannot create the folder {folder}: {exc}") from exc
+        check_output(path, formats)
+    except OutputError as exc:
+        raise CommandLineError(f"{option}: {exc}") from None
 
 
 def _require(module: str, option: str, extra: str) -> None:
@@ -161,7 +187,7 @@ def format_summary(name: str, solver: str, s: dict) -> str:
     """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``)."""
     tracked = "orientation_error_rms_rad" in s
     lines = [
-        f"scenario {name}  (solver {solver})",
+        f"scenario {name}  (solver {solver}, {_loop_text(s)})",
         f"  ticks                      {s['ticks']}  ({s['fallback_ticks']} answered by a fallback)",
         f"  position error   rms / max {s['position_error_rms_m'] * 1e3:.4f} / "
         f"{s['position_error_max_m'] * 1e3:.4f} mm",
@@ -182,9 +208,18 @@ def format_summary(name: str, solver: str, s: dict) -> str:
         lines.append(f"  max lateral base slip      {s['max_lateral_slip_m_s']:.2e} m/s")
     if "manipulability_min" in s:
         floor = f"  (barrier floor m_min {s['manipulability_floor']:g})" if "manipulability_floor" in s else ""
+        sampled = (f"  (sampled: one tick in {s['manipulability_sampled_every_ticks']})"
+                   if "manipulability_sampled_every_ticks" in s else "")
         lines.append(f"  manipulability   min       {s['manipulability_min']:.4g}  "
-                     f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}")
+                     f"of '{s['manipulability_frame']}', {s['manipulability_rows']} rows{floor}{sampled}")
     return "\n".join(lines)
+
+
+def _loop_text(s: dict) -> str:
+    """How the run closed its loop, from its summary ("kinematic loop" when not said)."""
+    if s.get("loop") == "mujoco":
+        return f"MuJoCo loop: {s['loop_details']}" if s.get("loop_details") else "MuJoCo loop"
+    return "kinematic loop"
 
 
 def _solvers(args: argparse.Namespace) -> int:

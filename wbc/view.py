@@ -28,13 +28,14 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import BinaryIO, Literal
 
 import numpy as np
 import pinocchio as pin
 import viser
 
 from .closed_loop import RunResult, TickObserver, orientation_tracked
+from .outputs import HTML_FORMATS, check_output, write_atomically
 from .robot import Robot
 from .scenario import Scenario
 
@@ -54,6 +55,10 @@ VISUAL_COLOUR: Colour = (80, 80, 90)  #: URDF visual geometry without a material
 TARGET_COLOUR: Colour = (30, 170, 70)
 OBSTACLE_COLOUR: Colour = (220, 40, 40)
 FPS = 30.0  #: frames per second of the replay (and of the live view's updates)
+#: joint poses a replay page records at most (~26 kB of memory each while the page is built):
+#: a run longer than this allows at FPS is replayed faster, which the page says. The youBot
+#: (9 joints) gets 10 000 frames, 5.5 minutes at FPS; a 48-joint robot 2 000 frames.
+MAX_POSES = 100_000
 
 
 @dataclass(frozen=True)
@@ -265,8 +270,11 @@ class _RunTrack:
     live view) or from a finished run (:meth:`from_result`); it shows what has been recorded."""
 
     def __init__(self, server: viser.ViserServer, index: int, scenario: Scenario, ticks: int,
-                 orientation_tracked: bool, stride: int):
-        self.server, self.scenario, self.stride, self.dt = server, scenario, stride, scenario.dt
+                 orientation_tracked: bool, stride: int, dt: float | None = None):
+        # ``ticks`` rows of ``dt`` seconds (default: the scenario's period; a long run's
+        # RunResult keeps one row per RunResult.stride ticks)
+        self.server, self.scenario, self.stride = server, scenario, stride
+        self.dt = scenario.dt if dt is None else dt
         robot, self.root = scenario.robot, f"/run{index}"
         robot_colour, self.path_colour = RUN_COLOURS[index % len(RUN_COLOURS)]
         self.model, self.data = robot.model, robot.model.createData()
@@ -302,8 +310,9 @@ class _RunTrack:
     @classmethod
     def from_result(cls, server: viser.ViserServer, index: int, scenario: Scenario, result: RunResult,
                     stride: int) -> _RunTrack:
-        """The track of a finished run (every configuration recorded)."""
-        track = cls(server, index, scenario, result.time.size, result.orientation_tracked, stride)
+        """The track of a finished run (every configuration recorded), ``stride`` rows per segment."""
+        track = cls(server, index, scenario, result.time.size, result.orientation_tracked, stride,
+                    dt=result.stride * scenario.dt)
         track.q[:] = result.q
         if track.tool_path is not None:
             track.tool_path[:] = result.tool_path
@@ -376,10 +385,12 @@ class Scene:
     """Runs (and obstacles) in a viser scene, on one timeline: :meth:`show` poses everything at a time."""
 
     def __init__(self, server: viser.ViserServer, runs: Sequence[Run | PlannedRun],
-                 obstacles: Sequence[Obstacle] = (), fps: float = FPS):
+                 obstacles: Sequence[Obstacle] = (), fps: float = FPS, max_frames: int | None = None):
         self.server, self.fps = server, fps
+        self.duration = max([_duration(scenario, what) for scenario, what in runs] + [0.0])
+        #: run time per frame time: 1, or what keeps a replay within ``max_frames``
+        self.speed = 1 if max_frames is None else max(1, math.ceil(self.duration * fps / max_frames - 1e-9))
         self.tracks = [self._track(i, scenario, what) for i, (scenario, what) in enumerate(runs)]
-        self.duration = max([track.ticks * track.dt for track in self.tracks] + [0.0])
         for n, obstacle in enumerate(obstacles):
             _add_shape(server.scene, f"/obstacles/{n}", obstacle.kind, obstacle.size, OBSTACLE_COLOUR,
                        obstacle.pose, opacity=0.5)
@@ -387,9 +398,10 @@ class Scene:
         self.show(0.0)
 
     def _track(self, index: int, scenario: Scenario, what: RunResult | int) -> _RunTrack:
-        stride = max(1, int(round(1.0 / (self.fps * scenario.dt))))
         if isinstance(what, RunResult):
-            return _RunTrack.from_result(self.server, index, scenario, what, stride)
+            rows_per_frame = self.speed / (self.fps * what.stride * scenario.dt)
+            return _RunTrack.from_result(self.server, index, scenario, what, max(1, int(round(rows_per_frame))))
+        stride = max(1, int(round(1.0 / (self.fps * scenario.dt))))
         return _RunTrack(self.server, index, scenario, what, orientation_tracked(scenario.reference_task), stride)
 
     def _frame_the_view(self, obstacles: Sequence[Obstacle]) -> None:
@@ -399,6 +411,7 @@ class Scene:
         points = np.vstack(points) if points else np.zeros((1, 3))
         low, high = points.min(axis=0), points.max(axis=0)
         centre, radius = (low + high) / 2, max(float(np.linalg.norm(high - low)) / 2, 0.3)
+        self.top = np.array([centre[0], centre[1], high[2] + 0.1 * radius])  #: above it all: the note's place
         side = 2 * math.ceil(radius + 0.5)
         scene = self.server.scene
         scene.set_up_direction("+z")
@@ -417,9 +430,26 @@ class Scene:
                 track.show(t)
 
     def frame_times(self) -> Iterator[float]:
-        """The replay's frame times, ``fps`` per second from 0 to the end of the longest run."""
-        count = int(math.ceil(self.duration * self.fps - 1e-9))
-        return (min(n / self.fps, self.duration) for n in range(count + 1))
+        """The replay's frame times [s of the runs], ``fps / speed`` per second from 0 to the
+        end of the longest run."""
+        step = self.speed / self.fps
+        count = int(math.ceil(self.duration / step - 1e-9))
+        return (min(n * step, self.duration) for n in range(count + 1))
+
+    def note(self) -> str:
+        """What the replay changes or leaves out: "", or e.g. "replayed at 3× speed;
+        youbot_circle: one configuration per 5 ticks kept"."""
+        parts = [f"replayed at {self.speed}× speed"] if self.speed > 1 else []
+        parts += [f"{track.scenario.name}: one configuration per {track.dt / track.scenario.dt:.0f} ticks kept"
+                  for track in self.tracks if track.dt > track.scenario.dt * (1 + 1e-9)]
+        return "; ".join(parts)
+
+
+def _duration(scenario: Scenario, what: RunResult | int) -> float:
+    """How long a run lasts on the timeline [s]: its rows (of ``stride`` ticks) or its ticks to come."""
+    if isinstance(what, RunResult):
+        return what.time.size * what.stride * scenario.dt
+    return what * scenario.dt
 
 
 def _start_server(host: str, port: int) -> viser.ViserServer:
@@ -440,7 +470,10 @@ def replay_html(runs: Sequence[Run], obstacles: Sequence[Obstacle] = (),
     embedded; no server, no network): play/pause, time slider and speed at the bottom."""
     server = _start_server("127.0.0.1", 0)
     try:
-        scene = Scene(server, runs, obstacles, fps)
+        poses_per_frame = sum(scenario.robot.model.njoints + 1 for scenario, _ in runs)  # joints and target
+        scene = Scene(server, runs, obstacles, fps, max_frames=max(1, MAX_POSES // max(1, poses_per_frame)))
+        if scene.note():
+            server.scene.add_label("/note", scene.note(), position=scene.top, anchor="bottom-center")
         recording = server.get_scene_serializer()
         for t in scene.frame_times():
             scene.show(t)
@@ -453,10 +486,18 @@ def replay_html(runs: Sequence[Run], obstacles: Sequence[Obstacle] = (),
 
 def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstacle] = (),
                fps: float = FPS) -> Path:
-    """Write :func:`replay_html` to ``path``; returns the path."""
-    path = Path(path)
-    path.write_text(replay_html(runs, obstacles, fps), encoding="utf-8")
-    return path
+    """Write :func:`replay_html` to ``path`` (a name ending in .html or .htm) atomically: a
+    temporary file in the same folder, renamed to ``path`` once complete (a missing folder is
+    created). Returns the path; a path that cannot be written raises
+    :class:`~wbc.outputs.OutputError` before the page is built."""
+    path = check_output(str(path), HTML_FORMATS)
+    page = replay_html(runs, obstacles, fps)
+
+    def write(stream: BinaryIO) -> None:
+        for start in range(0, len(page), 1 << 20):  # (not a second copy of the whole page)
+            stream.write(page[start:start + (1 << 20)].encode("utf-8"))
+
+    return write_atomically(path, write)
 
 
 class LiveView:
