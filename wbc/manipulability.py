@@ -33,8 +33,10 @@ Note: ``wbc.manipulability`` is the function; import the module's other names wi
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgesvd, dposv
 
 from . import kernels
@@ -44,6 +46,9 @@ from .robot import Robot
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
+
+Rows = Literal["all", "position", "orientation"]
+"""The names of :data:`ROWS`: the ``rows`` argument of the functions and classes here."""
 
 
 def row_selection(rows: str) -> slice:
@@ -67,7 +72,7 @@ class Manipulability:
     Hessian (:meth:`wbc.kinematics.Kinematics.frame_hessian`).
     """
 
-    def __init__(self, robot: Robot, frame: str, rows: str = "all") -> None:
+    def __init__(self, robot: Robot, frame: str, rows: Rows = "all") -> None:
         self.frame = frame
         self.rows = rows
         self._rows = row_selection(rows)
@@ -96,7 +101,7 @@ class Manipulability:
         """True when :meth:`compute` is one compiled call (all joints up to the frame have 1 DOF)."""
         return self._compiled
 
-    def operands(self, kin: Kinematics) -> dict[str, np.ndarray]:
+    def operands(self, kin: Kinematics) -> dict[str, NDArray[np.float64]]:
         """Operands of the MANIPULABILITY_BARRIER op up to the gradient, by name (compiled only)."""
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         return dict(joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T, translation=translation,
@@ -146,13 +151,13 @@ class Manipulability:
         return f"Manipulability(frame={self.frame!r}, rows={self.rows!r})"
 
 
-def manipulability(robot: Robot, q, frame: str, rows: str = "all") -> float:
+def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> float:
     """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows)."""
     jacobian = robot.frame_jacobian(q, frame)[row_selection(rows)]
     return float(np.prod(np.linalg.svd(jacobian, compute_uv=False)))
 
 
-def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> np.ndarray:
+def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> NDArray[np.float64]:
     """``grad m(q)`` (size nv): ``dm/dt = grad m . v`` along any joint velocity ``v``."""
     evaluator = Manipulability(robot, frame, rows)
     kin = Kinematics(robot)
@@ -161,7 +166,7 @@ def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> n
     return evaluator.gradient
 
 
-def _products_of_the_others(s: list[float]) -> np.ndarray:
+def _products_of_the_others(s: list[float]) -> NDArray[np.float64]:
     """``c_l = prod_{p != l} s_p`` without dividing (exact when some ``s_p`` are zero)."""
     return np.array([math.prod(s[:l]) * math.prod(s[l + 1:]) for l in range(len(s))])
 

@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, ValidationError
 
 from . import shipped
@@ -55,7 +57,7 @@ class Robot:
     model: pin.Model
     base: MobileBase = FIXED_BASE
     end_effector: str | None = None
-    parameters: dict = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
 
     def __post_init__(self) -> None:
@@ -147,24 +149,24 @@ class Robot:
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise UnknownFrameError(f"robot '{self.name}' has no frame {frame!r}{hint}") from None
 
-    def check_configuration(self, q) -> np.ndarray:
+    def check_configuration(self, q: ArrayLike) -> NDArray[np.float64]:
         """Validate ``q`` (shape, finiteness) and return it as a float64 array."""
         return as_vector(q, self.nq, "q")
 
-    def check_velocity(self, v) -> np.ndarray:
+    def check_velocity(self, v: ArrayLike) -> NDArray[np.float64]:
         return as_vector(v, self.nv, "v")
 
-    def neutral(self) -> np.ndarray:
+    def neutral(self) -> NDArray[np.float64]:
         """Pinocchio's neutral configuration (zeros for the youBot: the arm straight up)."""
         return pin.neutral(self.model)
 
-    def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> np.ndarray:
+    def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> NDArray[np.float64]:
         """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``."""
         low = np.where(np.isfinite(self.lower), self.lower, -base_range)
         high = np.where(np.isfinite(self.upper), self.upper, base_range)
         return rng.uniform(low, high)
 
-    def within_limits(self, q, tol: float = 0.0) -> bool:
+    def within_limits(self, q: ArrayLike, tol: float = 0.0) -> bool:
         q = self.check_configuration(q)
         return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
 
@@ -174,7 +176,7 @@ class Robot:
         """Number of real inputs: nv, or nv - 1 for a nonholonomic base (no lateral input)."""
         return self._input_map.shape[1]
 
-    def _allocate_input_map(self) -> np.ndarray:
+    def _allocate_input_map(self) -> NDArray[np.float64]:
         if not self.base.is_nonholonomic:
             return np.eye(self.nv)
         x, y, heading = self.base.indices
@@ -184,7 +186,8 @@ class Robot:
         S[others, np.arange(2, self.nv - 1)] = 1.0
         return S
 
-    def input_map(self, q, out: np.ndarray | None = None) -> np.ndarray:
+    def input_map(self, q: NDArray[np.float64] | Sequence[float],
+                  out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """``S(q)`` (nv x nu) with ``v = S(q) u`` over the real inputs ``u``.
 
         Identity for fixed and holonomic bases. For a nonholonomic base
@@ -201,13 +204,13 @@ class Robot:
             out[...] = self._input_map
         return S.copy() if out is None else S
 
-    def base_twist(self, q, v) -> np.ndarray:
+    def base_twist(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
         """Base-frame twist ``(v_x, v_y, omega)`` of the velocity ``v`` at ``q``."""
         if not self.base.is_mobile:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
         return self.base.twist(self.check_configuration(q), self.check_velocity(v))
 
-    def wheel_speeds(self, q, v) -> np.ndarray:
+    def wheel_speeds(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
         """Wheel angular rates [rad/s] realising ``v`` (mecanum: 4, differential drive: 2).
 
         Order and sign conventions: :class:`~wbc.base.MecanumWheels`,
@@ -218,20 +221,20 @@ class Robot:
         return self.base.wheels.inverse_matrix() @ self.base_twist(q, v)
 
     # ------------------------------------------------------------ kinematics
-    def frame_pose(self, q, frame: str) -> np.ndarray:
+    def frame_pose(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
         """World pose of ``frame`` at ``q``, as a 4x4 homogeneous transform."""
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         pin.forwardKinematics(self.model, self._data, q)
         return pin.updateFramePlacement(self.model, self._data, frame_id).homogeneous
 
-    def frame_jacobian(self, q, frame: str) -> np.ndarray:
+    def frame_jacobian(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
         """6 x nv Jacobian of ``frame``: world-aligned axes at the frame origin, rows (linear; angular)."""
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         return pin.computeFrameJacobian(self.model, self._data, q, frame_id, _REFERENCE_FRAME)
 
-    def integrate(self, q, v, dt: float) -> np.ndarray:
+    def integrate(self, q: ArrayLike, v: ArrayLike, dt: float) -> NDArray[np.float64]:
         """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s]."""
         q = self.check_configuration(q)
         v = self.check_velocity(v)
@@ -337,7 +340,7 @@ class Sidecar(Table):
     geometry: dict[str, float] = {}
 
 
-def _read_sidecar(path: Path) -> tuple[Sidecar, dict]:
+def _read_sidecar(path: Path) -> tuple[Sidecar, dict[str, Any]]:
     """The validated sidecar and its raw table."""
     params = read_toml(path, ModelError)
     try:
@@ -365,7 +368,8 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
                  parameters=params, source=urdf)
 
 
-def _base_from_spec(model: pin.Model, spec: FixedBaseTable | MobileBaseTable) -> MobileBase:
+def _base_from_spec(model: pin.Model,
+                    spec: FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable) -> MobileBase:
     if isinstance(spec, FixedBaseTable):
         return FIXED_BASE
     indices = []
