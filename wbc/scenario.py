@@ -35,13 +35,16 @@ from __future__ import annotations
 import functools
 import inspect
 import math
+import operator
 import types
 import typing
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from . import constraints as constraint_module
@@ -328,7 +331,9 @@ def _check_arguments(cls: type, arguments: dict, label: str) -> None:
         raise ScenarioError(f"{label}: required key {missing[0]!r} missing; add `{missing[0]} = ...`")
     hints = typing.get_type_hints(cls.__init__)
     for key, value in arguments.items():
-        hint = hints.get(key, Literal["initial"] | _Numbers if cls is PostureTask and key == "target" else _Numbers)
+        hint = _toml_hint(hints[key]) if key in hints else _Numbers
+        if cls is PostureTask and key == "target":
+            hint = Literal["initial"] | hint
         try:
             _adapter(hint).validate_python(value)
         except ValidationError:
@@ -336,7 +341,21 @@ def _check_arguments(cls: type, arguments: dict, label: str) -> None:
                                 f"{' (numbers without quotes)' if isinstance(value, str) else ''}") from None
 
 
-_Numbers = float | list[float]  # unannotated constructor arguments: costs, targets
+_Numbers = float | list[float]  # unannotated or array-like constructor arguments: costs, targets
+_ARRAY_LIKE = frozenset(typing.get_args(ArrayLike))  # the members of numpy's ArrayLike union
+
+
+def _toml_hint(hint: Any) -> Any:
+    """A constructor's type hint as TOML values meet it: numpy's ``ArrayLike`` is a number or
+    an array of numbers (:data:`_Numbers`), a ``Sequence[X]`` an array (``list[X]``)."""
+    if typing.get_origin(hint) in (Union, types.UnionType):
+        options = typing.get_args(hint)
+        if _ARRAY_LIKE <= set(options):
+            options = (_Numbers, *(option for option in options if option not in _ARRAY_LIKE))
+        return functools.reduce(operator.or_, [_toml_hint(option) for option in options])
+    if typing.get_origin(hint) is Sequence:
+        return list[typing.get_args(hint)[0]]  # type: ignore[misc]
+    return hint
 
 
 @functools.cache
