@@ -21,6 +21,12 @@ class StaleDiagnosticsError(WbcError):
     """A lazily computed diagnostics field was read after the controller stepped again."""
 
 
+class NoTickYetError(WbcError, AttributeError):
+    """:attr:`Controller.last <wbc.Controller.last>` was read before the first
+    :meth:`~wbc.Controller.step`. An ``AttributeError`` too, so ``hasattr(controller, "last")``
+    and ``getattr(controller, "last", None)`` tell whether the controller has ticked."""
+
+
 class TickDiagnostics:
     """What happened in the last call of :meth:`Controller.step`.
 
