@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import WbcError
 from .hierarchy import level_errors, level_optima
@@ -61,7 +62,8 @@ class TickDiagnostics:
                  "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 
     def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
-                 tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
+                 tick_time: float, v: NDArray[np.float64] | None = None, u: NDArray[np.float64] | None = None
+                 ) -> None:
         self._controller = controller
         self.tick, self.solver, self.outcome, self.status = tick, controller._solver.name, outcome, status
         self.success = outcome is _OPTIMAL
