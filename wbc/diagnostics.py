@@ -58,6 +58,15 @@ class TickDiagnostics:
       k: zero up to the band (:data:`wbc.hierarchy.BAND`) and the backend's tolerance.
     """
 
+    tick: int
+    solver: str
+    outcome: Outcome
+    status: str
+    success: bool
+    solve_time: float
+    tick_time: float
+    v: NDArray[np.float64] | None
+    u: NDArray[np.float64] | None
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
                  "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 

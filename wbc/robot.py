@@ -65,9 +65,9 @@ class Robot:
         self._check_size()
         self._data = model.createData()
         self._check_joints()
-        self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
-        self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
-        self.velocity_limit = np.array(model.velocityLimit, dtype=np.float64)
+        self.lower: NDArray[np.float64] = np.array(model.lowerPositionLimit, dtype=np.float64)
+        self.upper: NDArray[np.float64] = np.array(model.upperPositionLimit, dtype=np.float64)
+        self.velocity_limit: NDArray[np.float64] = np.array(model.velocityLimit, dtype=np.float64)
         if self.base.is_mobile:
             x, y, yaw = self.base.indices
             self.lower[[x, y, yaw]] = -np.inf
