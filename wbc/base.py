@@ -59,7 +59,7 @@ class MecanumWheels:
     radius: float  #: wheel radius r
     half_length: float  #: l, wheel axle to base centre along the base x axis
     half_width: float  #: w, wheel contact to base centre along the base y axis
-    max_speed: float = np.inf  #: |u_i| limit [rad/s]
+    max_speed: float = np.inf  #: ``|u_i|`` limit [rad/s]
 
     def inverse_matrix(self) -> NDArray[np.float64]:
         """``H0`` (4x3): base-frame twist -> wheel speeds."""
@@ -82,7 +82,7 @@ class DifferentialWheels:
 
     radius: float  #: wheel radius r
     half_track: float  #: b, half the distance between the wheels
-    max_speed: float = np.inf  #: |u_i| limit [rad/s]
+    max_speed: float = np.inf  #: ``|u_i|`` limit [rad/s]
 
     def inverse_matrix(self) -> NDArray[np.float64]:
         """(2x3) base-frame twist (v_x, v_y, omega) -> wheel speeds (v_y must be 0)."""

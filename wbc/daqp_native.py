@@ -14,7 +14,7 @@ of the initial states (equality rows active), so each tick starts cold.
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
 that runs the op keeps alive); DAQP's own allocations are freed when the object is
-collected (``weakref.finalize``) and re-made by :meth:`reset`.
+collected (``weakref.finalize``) and re-made by :meth:`NativeWorkspace.reset`.
 """
 
 from __future__ import annotations

@@ -58,15 +58,15 @@ class TickDiagnostics:
       k: zero up to the band (:data:`wbc.hierarchy.BAND`) and the backend's tolerance.
     """
 
-    tick: int
-    solver: str
-    outcome: Outcome
-    status: str
-    success: bool
-    solve_time: float
-    tick_time: float
-    v: NDArray[np.float64] | None
-    u: NDArray[np.float64] | None
+    tick: int  #: the tick counter (1 at the first step)
+    solver: str  #: the backend's name
+    outcome: Outcome  #: which link of the fallback chain answered
+    status: str  #: ``"optimal"``, or what went wrong and which fallback answered, in words
+    success: bool  #: the command is the checked solution of the full QP (``outcome is Outcome.OPTIMAL``)
+    solve_time: float  #: time inside the QP backend(s) [s]
+    tick_time: float  #: the whole step [s]
+    v: NDArray[np.float64] | None  #: the command (set by every step)
+    u: NDArray[np.float64] | None  #: the command over the real inputs, ``v = S(q) u`` (``u is v`` for holonomic bases)
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
                  "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 

@@ -77,8 +77,8 @@ class Manipulability:
         self.rows = rows
         self._rows = row_selection(rows)
         self.frame_id = robot.frame_id(frame)
-        self.value = 0.0
-        self.gradient = np.zeros(robot.nv)
+        self.value = 0.0  #: m at the last :meth:`compute`
+        self.gradient = np.zeros(robot.nv)  #: grad m (size nv) at the last :meth:`compute`, overwritten in place
         # G^T (nv x 6): G on the selected rows, zero elsewhere, stored transposed because
         # that is the memory order Kinematics.contract_frame_hessian contracts without a copy
         self._weights_t = np.zeros((robot.nv, 6))
@@ -158,7 +158,7 @@ def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -
 
 
 def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> NDArray[np.float64]:
-    """``grad m(q)`` (size nv): ``dm/dt = grad m . v`` along any joint velocity ``v``."""
+    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v``."""
     evaluator = Manipulability(robot, frame, rows)
     kin = Kinematics(robot)
     kin.update(robot.check_configuration(q))

@@ -42,7 +42,7 @@ class SingularCondition:
     project: Projection
 
     def residual(self, q: NDArray[np.float64]) -> float:
-        """max |residual_i(q)| (dimensionless)."""
+        """``max_i |residual_i(q)|`` (dimensionless)."""
         return float(np.max(np.abs(self.residuals(q))))
 
 

@@ -50,7 +50,7 @@ def analytic_conditions(robot: Robot, subsystem: str | None = None) -> tuple[Sin
 
 
 def is_singular(robot: Robot, q: ArrayLike, tol: float = RESIDUAL_TOLERANCE, subsystem: str | None = None) -> bool:
-    """True where some condition holds: max_i |residual_i(q)| <= tol (residuals are dimensionless)."""
+    """True where some condition holds: ``max_i |residual_i(q)| <= tol`` (residuals are dimensionless)."""
     q = robot.check_configuration(q)
     tol = as_positive(tol, "tol")
     return any(c.residual(q) <= tol for c in analytic_conditions(robot, subsystem))

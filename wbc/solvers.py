@@ -99,7 +99,13 @@ class QPSolver(ABC):
     settings: dict[str, Any]
 
     @abstractmethod
-    def solve(self, qp: QP) -> QPSolution: ...
+    def solve(self, qp: QP) -> QPSolution:
+        """Solve ``qp`` now.
+
+        Returns:
+            The answer (``x`` None unless ``success``), the backend's status and time. A backend
+            never raises for a failed solve: the failure is in the solution.
+        """
 
     def reset(self) -> None:  # noqa: B027 -- optional hook: a backend without warm-start state keeps this no-op
         """Forget any warm start (the next solve starts cold)."""

@@ -75,7 +75,7 @@ class ConstraintData:
 
 
 class Constraint(Item, ConstraintData):
-    """Base class of all constraints: a specification that :meth:`bind` turns into
+    """Base class of all constraints: a specification that :meth:`Constraint.bind` turns into
     per-controller :class:`ConstraintData` (see :class:`~wbc.item.Item`). A simple custom
     constraint is its own data: set its row counts, implement :meth:`compute`."""
 

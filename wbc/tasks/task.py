@@ -84,7 +84,7 @@ class TaskData:
 
 
 class Task(Item, TaskData):
-    """Base class of all tasks: a specification (settings) that :meth:`bind` turns into
+    """Base class of all tasks: a specification (settings) that :meth:`Task.bind` turns into
     per-controller :class:`TaskData` (see :class:`~wbc.item.Item`).
 
     A simple custom task is its own data: set ``dim``, implement :meth:`compute` and

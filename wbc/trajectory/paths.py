@@ -2,7 +2,7 @@
 
 Positions follow a straight line (Lu et al., eq. 1) or a circular arc (eqs. 2-3); the
 orientation follows the geodesic of SO(3) between the end rotations (the paper's
-``R1 Rot(f, theta_i)``, eq. 4, with f the fixed axis of R1^T R2):
+``R1 Rot(f, theta_i)``, eq. 4, with f the fixed axis of R1^T R2)::
 
     R(s) = R0 exp(s [phi]),   phi = log(R0^T R1)   (|phi| < pi),
 
@@ -27,7 +27,7 @@ from ..errors import InvalidInputError
 from ..validation import as_pose, as_positive, as_vector
 from .quintic import Quintic
 
-RADIUS_TOLERANCE = 1e-6  #: relative mismatch of |O P1| and |O P2| accepted for an arc
+RADIUS_TOLERANCE = 1e-6  #: relative mismatch of ``|O P1|`` and ``|O P2|`` accepted for an arc
 
 
 class Path(Protocol):
@@ -83,7 +83,7 @@ class ArcPath(_Geodesic):
     """Circular arc about ``centre`` from the start to the end position (eqs. 2-3).
 
     With u0 = p_start - O, u1 = p_end - O (equal lengths r), theta = angle(u0, u1) in
-    (0, pi) and n = u0 x u1 / |u0 x u1|:
+    (0, pi) and ``n = u0 x u1 / |u0 x u1|``::
 
         p(s) = O + Rot(n, s theta) u0 = O + [sin((1 - s) theta) u0 + sin(s theta) u1] / sin theta,
 

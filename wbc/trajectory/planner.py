@@ -19,12 +19,12 @@
    The joint quintic moves every joint monotonically between its end values. For the
    PUMA wrist both ends have theta5 of one sign and well off zero, so theta5 stays there
    while theta4 and theta6 turn: the paper's arc "about Z with joint 5 held" (sec. 4).
-   Its duration T = 15/8 max_i |dq_i| / (speed_fraction v_max,i) keeps every joint below
+   Its duration ``T = 15/8 max_i |dq_i| / (speed_fraction v_max,i)`` keeps every joint below
    ``speed_fraction`` of its velocity limit. Along it m is checked again; if m reaches the
    threshold the margin is doubled (wider cuts) and the plan rebuilt.
 
 Limits: across a cut the tool leaves the Cartesian path (for the PUMA its orientation
-wanders by about twice the |theta5| at the cut points). The detour stays on the IK branch
+wanders by about twice the ``|theta5|`` at the cut points). The detour stays on the IK branch
 of the start: when the continuation itself crosses the singular set (an exact crossing,
 reported as an IK jump), or the joint-space segment between the cut points meets the
 region whatever the margin, PlanningError says so. Joint-space segments need nq == nv.

@@ -44,11 +44,11 @@ class JointTrajectory:
         return float(self.measure.min())
 
     def speed_ratio(self, robot: Robot) -> np.ndarray:
-        """(K, nv) |qdot_i| / velocity_limit_i."""
+        """``(K, nv)`` array of ``|qdot_i| / velocity_limit_i``."""
         return np.abs(self.qdot) / robot.velocity_limit
 
     def max_speed_ratio(self, robot: Robot) -> float:
-        """Largest |qdot_i| / velocity_limit_i over the whole trajectory."""
+        """Largest ``|qdot_i| / velocity_limit_i`` over the whole trajectory."""
         return float(self.speed_ratio(robot).max())
 
 
