@@ -60,7 +60,7 @@ class Controller:
         robot: the robot model.
         tasks: cost terms (at least one), weighted in one QP; or a list of lists, a priority
             order of levels, highest first (strict priorities, :mod:`wbc.hierarchy`).
-        constraints: hard limits. A nonholonomic base needs :class:`NonholonomicBase`
+        constraints: hard limits. A nonholonomic base needs :class:`~wbc.constraints.NonholonomicBase`
             unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
         dt: control period [s]; per-tick gains and dampers refer to it.
@@ -70,8 +70,16 @@ class Controller:
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have
             ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
-        strict: raise :class:`SolverError` when the QP cannot be solved, instead of the
-            fallback below.
+        strict: raise :class:`~wbc.errors.SolverError` when the QP cannot be solved, instead
+            of the fallback below.
+
+    Raises:
+        InvalidInputError: a bad argument (not a robot, no task, a task in two levels, a
+            negative damping, ``dt <= 0``, a non-bool flag, a nonholonomic base without
+            ``NonholonomicBase()`` or ``reduced=True``, ...), or a task or constraint that does
+            not fit the robot (an unknown frame or joint, a base it needs and the robot lacks).
+        UnknownSolverError: ``solver`` is not installed.
+        InvalidSolverOptionError: a misspelt or invalid key of ``solver_options``.
 
     Failure handling (never a NaN, never an exception in the loop unless ``strict``):
 
@@ -308,13 +316,22 @@ class Controller:
 
     # --------------------------------------------------------------- hot path
     def step(self, q: ArrayLike) -> NDArray[np.float64]:
-        """Compute the joint velocity command ``v`` (shape (nv,)) for configuration ``q``.
+        """Compute the joint velocity command for configuration ``q``.
 
-        Raises InvalidInputError for a malformed ``q`` (a non-finite one is caught by the
-        program's screen, so the previous tick's lazy diagnostics are stale afterwards).
-        When the QP cannot be solved the command comes from the fallback chain of the class
-        docstring (``last.status`` says which), or SolverError is raised in strict mode. The
-        command is never NaN.
+        Args:
+            q: the configuration, size ``robot.nq`` (Pinocchio's; for the youBot
+                ``(X_C, Y_C, theta, theta1..theta5)``).
+
+        Returns:
+            The command ``v``, size ``robot.nv``, never NaN and within every hard limit;
+            :attr:`last` describes the tick. When the QP cannot be solved it comes from the
+            fallback chain of the class docstring (``last.status`` says which link answered).
+
+        Raises:
+            InvalidInputError: ``q`` is malformed (wrong shape, not numbers, NaN or inf). A
+                non-finite ``q`` is caught by the program's screen, so the previous tick's lazy
+                diagnostics are stale afterwards.
+            SolverError: with ``strict=True``, when the QP cannot be solved.
         """
         start = time.perf_counter()
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape

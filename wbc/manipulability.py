@@ -152,13 +152,23 @@ class Manipulability:
 
 
 def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> float:
-    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows)."""
+    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows).
+
+    Raises:
+        UnknownFrameError: no frame of that name.
+        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+    """
     jacobian = robot.frame_jacobian(q, frame)[row_selection(rows)]
     return float(np.prod(np.linalg.svd(jacobian, compute_uv=False)))
 
 
 def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> NDArray[np.float64]:
-    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v``."""
+    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v``.
+
+    Raises:
+        UnknownFrameError: no frame of that name.
+        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+    """
     evaluator = Manipulability(robot, frame, rows)
     kin = Kinematics(robot)
     kin.update(robot.check_configuration(q))

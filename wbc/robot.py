@@ -129,19 +129,26 @@ class Robot:
     # ------------------------------------------------------------------ sizes
     @property
     def nq(self) -> int:
+        """Size of the configuration ``q``."""
         return self.model.nq
 
     @property
     def nv(self) -> int:
+        """Size of the velocity ``v`` (and of every command)."""
         return self.model.nv
 
     @property
     def frame_names(self) -> list[str]:
+        """Names of the model's frames (the ``frame`` arguments it accepts)."""
         return list(self._frame_ids)
 
     # --------------------------------------------------------------- helpers
     def frame_id(self, frame: str) -> int:
-        """Pinocchio index of ``frame``; raises UnknownFrameError with suggestions."""
+        """Pinocchio index of ``frame``.
+
+        Raises:
+            UnknownFrameError: the model has no frame of that name (the message suggests close names).
+        """
         try:
             return self._frame_ids[frame]
         except (KeyError, TypeError):
@@ -150,10 +157,19 @@ class Robot:
             raise UnknownFrameError(f"robot '{self.name}' has no frame {frame!r}{hint}") from None
 
     def check_configuration(self, q: ArrayLike) -> NDArray[np.float64]:
-        """Validate ``q`` (shape, finiteness) and return it as a float64 array."""
+        """``q`` checked and converted: a finite float64 vector of size :attr:`nq`.
+
+        Raises:
+            InvalidInputError: wrong shape, not numbers (bool, str, None, complex), NaN or inf.
+        """
         return as_vector(q, self.nq, "q")
 
     def check_velocity(self, v: ArrayLike) -> NDArray[np.float64]:
+        """``v`` checked and converted: a finite float64 vector of size :attr:`nv`.
+
+        Raises:
+            InvalidInputError: wrong shape, not numbers (bool, str, None, complex), NaN or inf.
+        """
         return as_vector(v, self.nv, "v")
 
     def neutral(self) -> NDArray[np.float64]:
@@ -205,7 +221,11 @@ class Robot:
         return S.copy() if out is None else S
 
     def base_twist(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
-        """Base-frame twist ``(v_x, v_y, omega)`` of the velocity ``v`` at ``q``."""
+        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``.
+
+        Raises:
+            InvalidInputError: a fixed base, or a malformed ``q`` or ``v``.
+        """
         if not self.base.is_mobile:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
         return self.base.twist(self.check_configuration(q), self.check_velocity(v))
@@ -215,6 +235,9 @@ class Robot:
 
         Order and sign conventions: :class:`~wbc.base.MecanumWheels`,
         :class:`~wbc.base.DifferentialWheels`.
+
+        Raises:
+            InvalidInputError: the model declares no wheel geometry, or a malformed ``q`` or ``v``.
         """
         if self.base.wheels is None:
             raise InvalidInputError(f"robot '{self.name}' declares no wheel geometry")
@@ -222,20 +245,44 @@ class Robot:
 
     # ------------------------------------------------------------ kinematics
     def frame_pose(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
-        """World pose of ``frame`` at ``q``, as a 4x4 homogeneous transform."""
+        """World pose of ``frame`` at configuration ``q``.
+
+        Returns:
+            The 4x4 homogeneous transform of the frame in the world (a new array).
+
+        Raises:
+            UnknownFrameError: no frame of that name.
+            InvalidInputError: a malformed ``q``.
+        """
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         pin.forwardKinematics(self.model, self._data, q)
         return pin.updateFramePlacement(self.model, self._data, frame_id).homogeneous
 
     def frame_jacobian(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
-        """6 x nv Jacobian of ``frame``: world-aligned axes at the frame origin, rows (linear; angular)."""
+        """Jacobian of ``frame`` at configuration ``q``.
+
+        Returns:
+            The 6 x nv matrix mapping ``v`` to the frame's twist, world-aligned axes at the frame
+            origin (Pinocchio's ``LOCAL_WORLD_ALIGNED``), rows (linear [m/s]; angular [rad/s]).
+
+        Raises:
+            UnknownFrameError: no frame of that name.
+            InvalidInputError: a malformed ``q``.
+        """
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         return pin.computeFrameJacobian(self.model, self._data, q, frame_id, _REFERENCE_FRAME)
 
     def integrate(self, q: ArrayLike, v: ArrayLike, dt: float) -> NDArray[np.float64]:
-        """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s]."""
+        """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s].
+
+        Returns:
+            ``pinocchio.integrate(model, q, v * dt)``, a new array of size :attr:`nq`.
+
+        Raises:
+            InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
+        """
         q = self.check_configuration(q)
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
@@ -254,7 +301,11 @@ def shipped_models() -> list[str]:
 
 
 def model_path(name: str, kind: str = "urdf") -> Path:
-    """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``."""
+    """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``.
+
+    Raises:
+        ModelError: no shipped model of that name, or it has no file of that kind.
+    """
     if name not in shipped_models():
         raise ModelError(f"no shipped model {name!r}; available: {shipped_models()}")
     folder = shipped.folder("models") / name
@@ -272,6 +323,14 @@ def load_robot(name_or_path: str | Path) -> Robot:
     that declares the base. Without one, a chain of root joints prismatic-x,
     prismatic-y, revolute-z is recognised as a holonomic planar base; anything else
     is a fixed-base robot.
+
+    Returns:
+        The robot: its Pinocchio model, base, limits (see :class:`Robot`).
+
+    Raises:
+        ModelError: neither a shipped model nor a file; an unreadable URDF or sidecar; a sidecar
+            key that is unknown, misspelt or invalid (named with the file); a joint with a
+            velocity limit of 0 or NaN.
     """
     if isinstance(name_or_path, str) and name_or_path in shipped_models():
         sidecar = model_path(name_or_path, "toml")

@@ -236,7 +236,15 @@ def scenario_file(name_or_path: str | Path) -> Path:
 
 def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario file, given by path or by the name of a shipped scenario
-    (:func:`scenario_file`); any mistake is a ScenarioError naming the file and key."""
+    (:func:`scenario_file`).
+
+    Returns:
+        The scenario: robot, initial configuration, tasks, constraints, reference, controller settings.
+
+    Raises:
+        ScenarioError: any mistake (unreadable file, unknown or misspelt key, wrong type,
+            out-of-range value, an item that does not fit the robot), naming the file and key.
+    """
     path = scenario_file(path)
     spec = read_toml(path, ScenarioError, "scenario")
     try:

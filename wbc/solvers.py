@@ -151,8 +151,11 @@ def make_solver(name: str, options: dict[str, Any] | None = None) -> QPSolver:
     """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise.
 
     ``options`` are checked by the backend's constructor
-    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises
-    :class:`~wbc.solver_options.InvalidSolverOptionError`.
+    (:func:`wbc.solver_options.validate_options`).
+
+    Raises:
+        UnknownSolverError: ``name`` is not a solver qpsolvers finds installed.
+        InvalidSolverOptionError: an unknown key or a bad value in ``options``.
     """
     if not isinstance(name, str) or name not in qpsolvers.available_solvers:
         raise UnknownSolverError(

@@ -38,7 +38,11 @@ class BaseVelocityTask(Task):
         return self._twist.copy()
 
     def set_target(self, twist: ArrayLike) -> None:
-        """Command a base-frame twist ``(v_x, v_y, omega)``."""
+        """Command a base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s].
+
+        Raises:
+            InvalidInputError: ``twist`` is not 3 finite numbers.
+        """
         self._twist[...] = as_vector(twist, 3, "base twist")
 
     def bind(self, robot: Robot) -> BaseVelocityTaskData:

@@ -72,7 +72,19 @@ class FrameTask(Task):
         return f"FrameTask({self.frame})"
 
     def set_target(self, pose: ArrayLike, twist: ArrayLike | None = None) -> None:
-        """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
+        """Set the target of the next ticks.
+
+        Args:
+            pose: the 4x4 world pose of the frame (a float64 array takes the control loop's
+                fast path: one compiled check and copy).
+            twist: optional feed-forward twist of a moving target (6, world-aligned at the frame
+                origin, (linear [m/s]; angular [rad/s])); None for a fixed target.
+
+        Raises:
+            InvalidInputError: ``pose`` is not a 4x4 homogeneous transform (NaN or inf, last row
+                not ``[0, 0, 0, 1]``, a block that is not a rotation), or ``twist`` is not 6
+                finite numbers. The previous target is then kept.
+        """
         twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
         if not (type(pose) is np.ndarray and pose.dtype is _FLOAT64 and pose.shape == (4, 4)
                 and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == _POSE_OK):

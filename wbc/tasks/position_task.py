@@ -54,7 +54,11 @@ class PositionTask(Task):
         return f"PositionTask({self.frame})"
 
     def set_target(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
-        """Target point [m] (world) and optional feed-forward velocity [m/s]."""
+        """Set the target point [m] (world) and optionally its feed-forward velocity [m/s].
+
+        Raises:
+            InvalidInputError: ``position`` or ``velocity`` is not 3 finite numbers.
+        """
         self._target[...] = as_vector(position, 3, "target position")
         self._feedforward[...] = 0.0 if velocity is None else as_vector(velocity, 3, "target velocity")
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)

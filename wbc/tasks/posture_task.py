@@ -62,7 +62,11 @@ class PostureTask(Task):
         return self._target_spec
 
     def set_target(self, q: ArrayLike) -> None:
-        """New reference configuration (size nq of every robot the task is used with)."""
+        """New reference configuration (size nq of every robot the task is used with).
+
+        Raises:
+            InvalidInputError: ``q`` does not fit one of those robots (then no robot's reference changes).
+        """
         for data in self._data:
             data.robot.check_configuration(q)  # all or nothing
         self._target_spec = q
