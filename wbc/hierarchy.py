@@ -205,6 +205,9 @@ class Hierarchy:
     inequality rows. ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
     """
 
+    count: int  #: number of levels
+    rows: LevelRows  #: the rows of each level in the task stack
+
     def __init__(self, controller: Controller, sizes: Sequence[int]) -> None:
         self._controller = controller
         nv = controller.robot.nv

@@ -169,7 +169,16 @@ def signature_as_written(app: Sphinx, what: str, name: str, obj: object, options
     return written(signature), written(return_annotation)
 
 
+def skip_pydantic_machinery(app: Sphinx, what: str, name: str, obj: object, skip: bool, options: Any) -> bool | None:
+    """The TOML schemas are pydantic models: their ``model_*`` class attributes (configuration,
+    computed fields; which of them autodoc finds depends on the pydantic release) are pydantic's."""
+    if what == "class" and name.startswith("model_"):
+        return True
+    return None
+
+
 def setup(app: Sphinx) -> None:
+    app.connect("autodoc-skip-member", skip_pydantic_machinery)
     app.connect("missing-reference", resolve_reexported)
     app.connect("autodoc-process-signature", signature_as_written)
     # napoleon's own handler, replaced by the one above
