@@ -487,7 +487,7 @@ def _check_base_joints(model: pin.Model, names: list[str]) -> None:
                              "(x, y, heading) in chain order from the root")
         rotation = rotation @ model.jointPlacements[joint_id].rotation
         motion = _joint_motion(model.joints[joint_id])
-        world_axis = None if motion is None else rotation @ motion[1]
+        world_axis = np.zeros(3) if motion is None else rotation @ motion[1]  # (unread without motion)
         if motion is None or motion[0] != kind or not np.allclose(world_axis, axis, atol=1e-9):
             found = "not a revolute or prismatic joint" if motion is None else \
                 f"{motion[0]} along {np.round(world_axis, 6).tolist()}"

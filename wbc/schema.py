@@ -32,7 +32,7 @@ NonNegative = Annotated[float, Field(ge=0.0)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
-def read_toml(path: Path, error: type[WbcError], what: str = "") -> dict:
+def read_toml(path: Path, error: type[WbcError], what: str = "") -> dict[str, Any]:
     """The tables of the TOML file ``path``; an unreadable file, a syntax error or bytes that are
     not UTF-8 raise ``error`` saying ``cannot read {what} {path}: ...`` and the fix."""
     where = f"{what} {path}" if what else str(path)

@@ -37,7 +37,8 @@ import wbc  # noqa: E402 -- after the path
 # Every module imported before autodoc reads any: documenting a pydantic model (wbc.schema.Table)
 # rewrites its __annotations__, after which the models that subclass it could not be built.
 for _module in pkgutil.walk_packages(wbc.__path__, "wbc."):
-    importlib.import_module(_module.name)
+    if not _module.name.endswith("__main__"):  # (python -m wbc: running it is the command)
+        importlib.import_module(_module.name)
 # The compiled kernels are numba dispatchers, which autodoc does not read as functions: the
 # documentation sees their Python functions (this process never runs a kernel).
 wbc.kernels.load()
