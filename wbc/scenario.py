@@ -359,14 +359,17 @@ _ARRAY_LIKE = frozenset(typing.get_args(ArrayLike))  # the members of numpy's Ar
 
 def _toml_hint(hint: Any) -> Any:
     """A constructor's type hint as TOML values meet it: numpy's ``ArrayLike`` is a number or
-    an array of numbers (:data:`_Numbers`), a ``Sequence[X]`` an array (``list[X]``)."""
+    an array of numbers (:data:`_Numbers`), a ``Sequence[X]`` an array (``list[X]``), a
+    ``Literal`` of names a string."""
     if typing.get_origin(hint) in (Union, types.UnionType):
         options = typing.get_args(hint)
         if _ARRAY_LIKE <= set(options):
             options = (_Numbers, *(option for option in options if option not in _ARRAY_LIKE))
         return functools.reduce(operator.or_, [_toml_hint(option) for option in options])
     if typing.get_origin(hint) is Sequence:
-        return list[typing.get_args(hint)[0]]  # type: ignore[misc]
+        return types.GenericAlias(list, typing.get_args(hint))
+    if typing.get_origin(hint) is Literal and all(isinstance(option, str) for option in typing.get_args(hint)):
+        return str  # a choice of names: the constructor checks it and lists the valid ones
     return hint
 
 
