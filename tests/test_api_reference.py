@@ -16,7 +16,8 @@ import wbc
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs" / "api"
 #: TEMPORARY: rewritten on another branch; added to the reference (and to mypy) after that merge
-NOT_YET_DOCUMENTED = {"wbc.closed_loop", "wbc.cli", "wbc.plotting", "wbc.view"}
+#: (wbc.outputs with them: it links to wbc.view)
+NOT_YET_DOCUMENTED = {"wbc.closed_loop", "wbc.cli", "wbc.plotting", "wbc.view", "wbc.outputs"}
 
 
 def _directives(name: str) -> list[str]:
