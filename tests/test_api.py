@@ -50,6 +50,29 @@ def test_step_returns_nv_vector_and_diagnostics(youbot):
     assert isinstance(last.active_constraints, list)
 
 
+def test_last_before_the_first_step_is_a_clear_error(youbot):
+    """``controller.last`` is typed TickDiagnostics (never None): before the first step it raises a
+    wbc error saying what to do, which is also an AttributeError (hasattr / getattr probes)."""
+    controller, q = make_controller(youbot)
+    with pytest.raises(wbc.WbcError, match=r"no tick yet; call controller\.step\(q\) first"):
+        controller.last  # noqa: B018 -- the read is the test
+    assert not hasattr(controller, "last") and getattr(controller, "last", None) is None
+    controller.step(q)
+    assert controller.last.tick == 1 and hasattr(controller, "last")
+
+
+def test_a_refused_target_keeps_the_previous_one():
+    """FrameTask.set_target's docstring: a bad pose or twist raises and leaves the target as it was."""
+    task = wbc.FrameTask("ee")
+    pose = np.eye(4)
+    pose[:3, 3] = (1.0, 2.0, 3.0)
+    task.set_target(pose)
+    for bad_pose, twist in ((np.diag([2.0, 1.0, 1.0, 1.0]), None), (np.full((4, 4), np.nan), None), (pose, [1.0, 2.0])):
+        with pytest.raises(wbc.InvalidInputError):
+            task.set_target(bad_pose, twist)
+        np.testing.assert_array_equal(task.target, pose)
+
+
 def test_active_constraints_name_the_saturated_limits(youbot):
     controller, q = make_controller(youbot)
     target = youbot.frame_pose(q, "ee")

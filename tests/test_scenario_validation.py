@@ -90,6 +90,22 @@ def test_mistakes_are_scenario_errors_naming_file_key_and_fix(tmp_path, old, new
         assert text in message, message
 
 
+def test_constructor_arguments_typed_for_users_keep_their_scenario_messages(tmp_path):
+    """Array-like costs take numbers or arrays (not strings); a misspelt choice of names (rows, a
+    Literal for type checkers) gets the constructor's message listing the valid names, and a
+    joints list (a Sequence) must be an array, as before they were annotated."""
+    manipulability = '\n[[tasks]]\ntype = "ManipulabilityTask"\nframe = "ee"\ncost = 0.1\ntarget = 0.01\n'
+    cases = [(CIRCLE + manipulability + 'rows = "positon"\n',
+              "rows must be one of ['all', 'orientation', 'position'], got 'positon'"),
+             (edited("cost = 1e-3", 'cost = "1e-3"'), "cost = '1e-3': expected a finite number or an array of numbers"),
+             (edited("cost = 1e-3", 'cost = 1e-3\njoints = "arm_joint_1"'),
+              "joints = 'arm_joint_1': expected an array of strings")]
+    for text, message in cases:
+        with pytest.raises(ScenarioError) as info:
+            load_scenario(write(tmp_path, text))
+        assert message in str(info.value), str(info.value)
+
+
 def test_required_keys_are_required(tmp_path):
     with pytest.raises(ScenarioError, match=r"\[robot\] is missing"):
         load_scenario(write(tmp_path, edited('[robot]\nname = "youbot"', '[robot_]\nname = "youbot"')))

@@ -22,6 +22,7 @@ import enum
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 
 class BaseKind(enum.Enum):
@@ -58,14 +59,14 @@ class MecanumWheels:
     radius: float  #: wheel radius r
     half_length: float  #: l, wheel axle to base centre along the base x axis
     half_width: float  #: w, wheel contact to base centre along the base y axis
-    max_speed: float = np.inf  #: |u_i| limit [rad/s]
+    max_speed: float = np.inf  #: ``|u_i|`` limit [rad/s]
 
-    def inverse_matrix(self) -> np.ndarray:
+    def inverse_matrix(self) -> NDArray[np.float64]:
         """``H0`` (4x3): base-frame twist -> wheel speeds."""
         k = self.half_length + self.half_width
         return np.array([[1.0, -1.0, -k], [1.0, 1.0, k], [1.0, 1.0, -k], [1.0, -1.0, k]]) / self.radius
 
-    def forward_matrix(self) -> np.ndarray:
+    def forward_matrix(self) -> NDArray[np.float64]:
         """``F`` (3x4) with ``F H0 = I``: wheel speeds -> base-frame twist (least squares)."""
         k = self.half_length + self.half_width
         return self.radius / 4.0 * np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, -1.0],
@@ -81,9 +82,9 @@ class DifferentialWheels:
 
     radius: float  #: wheel radius r
     half_track: float  #: b, half the distance between the wheels
-    max_speed: float = np.inf  #: |u_i| limit [rad/s]
+    max_speed: float = np.inf  #: ``|u_i|`` limit [rad/s]
 
-    def inverse_matrix(self) -> np.ndarray:
+    def inverse_matrix(self) -> NDArray[np.float64]:
         """(2x3) base-frame twist (v_x, v_y, omega) -> wheel speeds (v_y must be 0)."""
         b = self.half_track
         return np.array([[1.0, 0.0, -b], [1.0, 0.0, b]]) / self.radius
@@ -113,7 +114,7 @@ class MobileBase:
     def is_nonholonomic(self) -> bool:
         return self.kind.is_nonholonomic
 
-    def twist(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    def twist(self, q: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
         """Base-frame twist ``(v_x, v_y, omega)`` of ``v`` at ``q``; rows of ``(T, n)`` arrays
         give a ``(T, 3)`` array. Inputs are not validated (see :meth:`Robot.base_twist`)."""
         x, y, heading = self.indices

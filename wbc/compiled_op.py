@@ -27,6 +27,7 @@ the op is created (at import of the module that defines it), never in a tick.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from numba import carray, cfunc, types
@@ -70,7 +71,8 @@ class CompiledOp:
         checks: conditions on the int operands, checked when the op is added.
     """
 
-    def __init__(self, name: str, kernel: Any, operands: tuple, checks: tuple[str, ...] = ()) -> None:
+    def __init__(self, name: str, kernel: Any, operands: tuple[tuple[Any, ...], ...],
+                 checks: tuple[str, ...] = ()) -> None:
         declared, self.dtypes = [], {}
         ints = {entry[0] for entry in operands if entry[1] is None}
         for entry in operands:
@@ -96,7 +98,7 @@ class CompiledOp:
         self._callback = cfunc(SIGNATURE, nopython=True)(self._unpacker())
         self.address: int = self._callback.address  #: the C callback the program calls
 
-    def _unpacker(self):
+    def _unpacker(self) -> Callable[..., None]:
         """``(addresses, row, dt) -> kernel(operands..., dt)``, generated from the declaration."""
         lines = ["def unpack(addresses, row, dt):"]
         arguments = []

@@ -24,12 +24,14 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
+from typing import Any, overload
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from . import kernels
 from .constraints.constraint import Constraint, ConstraintData
-from .diagnostics import ACTIVE_TOLERANCE, TickDiagnostics
+from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
@@ -42,7 +44,7 @@ from .qp import QP
 from .reduction import InputReduction
 from .robot import Robot
 from .settings import Setting
-from .solvers import QPSolution, QPSolver, make_solver
+from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
 from .validation import as_flag, as_items, as_nonnegative, as_positive
 
@@ -58,7 +60,7 @@ class Controller:
         robot: the robot model.
         tasks: cost terms (at least one), weighted in one QP; or a list of lists, a priority
             order of levels, highest first (strict priorities, :mod:`wbc.hierarchy`).
-        constraints: hard limits. A nonholonomic base needs :class:`NonholonomicBase`
+        constraints: hard limits. A nonholonomic base needs :class:`~wbc.constraints.NonholonomicBase`
             unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
         dt: control period [s]; per-tick gains and dampers refer to it.
@@ -68,8 +70,16 @@ class Controller:
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have
             ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
-        strict: raise :class:`SolverError` when the QP cannot be solved, instead of the
-            fallback below.
+        strict: raise :class:`~wbc.errors.SolverError` when the QP cannot be solved, instead
+            of the fallback below.
+
+    Raises:
+        InvalidInputError: a bad argument (not a robot, no task, a task in two levels, a
+            negative damping, ``dt <= 0``, a non-bool flag, a nonholonomic base without
+            ``NonholonomicBase()`` or ``reduced=True``, ...), or a task or constraint that does
+            not fit the robot (an unknown frame or joint, a base it needs and the robot lacks).
+        UnknownSolverError: ``solver`` is not installed.
+        InvalidSolverOptionError: a misspelt or invalid key of ``solver_options``.
 
     Failure handling (never a NaN, never an exception in the loop unless ``strict``):
 
@@ -87,7 +97,7 @@ class Controller:
 
     def __init__(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
                  constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
-                 solver_options: dict | None = None, reduced: bool = False, strict: bool = False) -> None:
+                 solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
@@ -113,11 +123,25 @@ class Controller:
         self.kinematics = Kinematics(robot)
         self._tick = 0
         self._q_shape = (robot.nq,)
-        self.last: TickDiagnostics | None = None
+        self._last: TickDiagnostics | None = None  # (read through the property last)
         self._allocate()
 
     # --------------------------------------------------------------- settings
     dt = Setting(as_positive)  #: control period [s] (> 0); may be changed between ticks
+    _dt: float  # where dt lives
+    _collector: Hierarchy | QPSolver  # what reads the outcome of a solve run in the program
+
+    @property
+    def last(self) -> TickDiagnostics:
+        """The diagnostics record of the latest :meth:`step`.
+
+        Raises:
+            NoTickYetError: before the first :meth:`step` (a :class:`~wbc.errors.WbcError` and an
+                ``AttributeError``: ``getattr(controller, "last", None)`` is None until then).
+        """
+        if self._last is None:
+            raise NoTickYetError("controller.last: no tick yet; call controller.step(q) first")
+        return self._last
 
     @property
     def damping(self) -> float:
@@ -125,7 +149,7 @@ class Controller:
         return float(self._cost_scaling[0])
 
     @damping.setter
-    def damping(self, value) -> None:
+    def damping(self, value: float) -> None:
         self._cost_scaling[0] = as_nonnegative(value, "damping")
         np.fill_diagonal(self._damping_rows, np.sqrt(self._cost_scaling[0]))
 
@@ -190,6 +214,10 @@ class Controller:
             self._fallback = self._hierarchy.fallback
         self._build_program()
 
+    @overload
+    def _bind(self, item: Task) -> TaskData: ...
+    @overload
+    def _bind(self, item: Constraint) -> ConstraintData: ...
     def _bind(self, item: Task | Constraint) -> TaskData | ConstraintData:
         """``item``'s data for this controller (:meth:`wbc.item.Item.bind`); from now on only
         the item's settings may change."""
@@ -199,11 +227,23 @@ class Controller:
         item._in_use = True
         return data
 
+    @overload
+    def data(self, item: Task) -> TaskData: ...
+    @overload
+    def data(self, item: Constraint) -> ConstraintData: ...
     def data(self, item: Task | Constraint) -> TaskData | ConstraintData:
-        """This controller's data of ``item`` (e.g. ``controller.data(task).error``)."""
-        for spec, data in zip(self.tasks + self.constraints, self._task_data + self._constraint_data, strict=True):
-            if spec is item:
-                return data
+        """This controller's data of ``item`` (e.g. ``controller.data(task).error``): what
+        ``item.bind(robot)`` returned when the controller was built.
+
+        Raises:
+            InvalidInputError: ``item`` is not one of this controller's tasks or constraints.
+        """
+        for task, task_data in zip(self.tasks, self._task_data, strict=True):
+            if task is item:
+                return task_data
+        for constraint, constraint_data in zip(self.constraints, self._constraint_data, strict=True):
+            if constraint is item:
+                return constraint_data
         raise InvalidInputError(f"{item!r} is not used by this controller")
 
     def _build_program(self) -> None:
@@ -260,6 +300,7 @@ class Controller:
         # Python step (the input reduction) stands between the QP and the solver
         self._solve_in_program = not self.reduced and self.solver.bind_program(rest, self.qp)
         if self._lifted is not None:  # lifting needs native DAQP, so the solve is in the program
+            assert isinstance(self._solver, DaqpBackend) and self._solver.bound is not None
             self._lifted.add_check_op(rest, self._solver.bound)
         self._collector = self._solver  # reads the outcome of the solve in the program (collect_optimal)
         self._finish_program(program, rest)
@@ -274,14 +315,23 @@ class Controller:
         self._deferred_kinematics = self._q_screened and self.kinematics.native
 
     # --------------------------------------------------------------- hot path
-    def step(self, q) -> np.ndarray:
-        """Compute the joint velocity command ``v`` (shape (nv,)) for configuration ``q``.
+    def step(self, q: ArrayLike) -> NDArray[np.float64]:
+        """Compute the joint velocity command for configuration ``q``.
 
-        Raises InvalidInputError for a malformed ``q`` (a non-finite one is caught by the
-        program's screen, so the previous tick's lazy diagnostics are stale afterwards).
-        When the QP cannot be solved the command comes from the fallback chain of the class
-        docstring (``last.status`` says which), or SolverError is raised in strict mode. The
-        command is never NaN.
+        Args:
+            q: the configuration, size ``robot.nq`` (Pinocchio's; for the youBot
+                ``(X_C, Y_C, theta, theta1..theta5)``).
+
+        Returns:
+            The command ``v``, size ``robot.nv``, never NaN and within every hard limit;
+            :attr:`last` describes the tick. When the QP cannot be solved it comes from the
+            fallback chain of the class docstring (``last.status`` says which link answered).
+
+        Raises:
+            InvalidInputError: ``q`` is malformed (wrong shape, not numbers, NaN or inf). A
+                non-finite ``q`` is caught by the program's screen, so the previous tick's lazy
+                diagnostics are stale afterwards.
+            SolverError: with ``strict=True``, when the QP cannot be solved.
         """
         start = time.perf_counter()
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
@@ -330,10 +380,10 @@ class Controller:
             u = S.T @ v
         else:
             v = u = x
-        self.last = TickDiagnostics(self, self._tick, outcome, status, solve_time, time.perf_counter() - start, v, u)
+        self._last = TickDiagnostics(self, self._tick, outcome, status, solve_time, time.perf_counter() - start, v, u)
         return v
 
-    def _answer(self, has_nan: bool, qp_failure: str) -> tuple[np.ndarray, float, Outcome, str]:
+    def _answer(self, has_nan: bool, qp_failure: str) -> tuple[NDArray[np.float64], float, Outcome, str]:
         """(x, solve time [s], outcome, status) of this tick off the fast path: the backend's
         answer checked against the QP's bounds and rows, or the fallback chain's."""
         qp = self.qp
@@ -350,8 +400,10 @@ class Controller:
                 solution = self._checked(self._solver.solve(qp), qp)
                 solution = solution._replace(solve_time=spent + solution.solve_time)
         if solution.success:
+            assert solution.x is not None  # a successful solve has an answer
             return solution.x, solution.solve_time, _OPTIMAL, "optimal"
         solution, outcome, status = self._fallback.answer(qp, solution, self._solver.name, self._tick, has_nan)
+        assert solution.x is not None  # the fallback chain always answers (v = 0 at worst)
         return solution.x, solution.solve_time, outcome, status
 
     def _checked(self, solution: QPSolution, qp: QP) -> QPSolution:
@@ -376,7 +428,7 @@ class Controller:
         self._unready = []
 
     # ------------------------------------------------------------ diagnostics
-    def constraint_violation(self, v: np.ndarray) -> float:
+    def constraint_violation(self, v: NDArray[np.float64]) -> float:
         """Largest violation of this tick's bounds and rows by ``v`` (0 when feasible)."""
         qp = self._qp_v
         worst = max(float(np.max(v - qp.ub)), float(np.max(qp.lb - v)), 0.0)
@@ -386,7 +438,7 @@ class Controller:
                         float(np.max(np.abs(rows[qp.n_ineq:]), initial=0.0)))
         return worst
 
-    def active_constraints(self, v: np.ndarray) -> list[str]:
+    def active_constraints(self, v: NDArray[np.float64]) -> list[str]:
         """Labels of this tick's bounds and rows that ``v`` meets with equality."""
         at_upper = np.abs(v - self._upper) <= ACTIVE_TOLERANCE
         at_lower = np.abs(v - self._lower) <= ACTIVE_TOLERANCE

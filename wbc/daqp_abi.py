@@ -24,9 +24,15 @@ import functools
 import importlib.metadata
 import math
 import time
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from _ctypes import CFuncPtr
+
+_Structure = TypeVar("_Structure", bound=ctypes.Structure)
 
 #: DAQP releases whose C layout is the one written here (checked by :func:`probe` too)
 SUPPORTED_VERSIONS = ("0.11.",)
@@ -91,9 +97,10 @@ def words(structure: type[ctypes.Structure]) -> int:
     return -(-ctypes.sizeof(structure) // 8)
 
 
-def struct_in(buffer: np.ndarray, structure: type[ctypes.Structure]) -> ctypes.Structure:
+def struct_in(buffer: NDArray[np.float64], structure: type[_Structure]) -> _Structure:
     """``structure`` laid over the float64 array ``buffer`` (which the result keeps alive)."""
-    return structure.from_buffer(buffer)
+    # numpy's stubs give ndarray the buffer protocol (__buffer__) on Python >= 3.12 only
+    return structure.from_buffer(buffer)  # type: ignore[arg-type]
 
 
 class Entry(NamedTuple):
@@ -112,8 +119,10 @@ class Library(NamedTuple):
     entry: Entry
 
 
-def _address(function: ctypes._CFuncPtr) -> int:
-    return ctypes.cast(function, ctypes.c_void_p).value
+def _address(function: CFuncPtr) -> int:
+    address = ctypes.cast(function, ctypes.c_void_p).value
+    assert address is not None, f"{function} is NULL"  # ctypes resolves exported symbols only
+    return address
 
 
 @functools.cache

@@ -14,13 +14,14 @@ of the initial states (equality rows active), so each tick starts cold.
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
 that runs the op keeps alive); DAQP's own allocations are freed when the object is
-collected (``weakref.finalize``) and re-made by :meth:`reset`.
+collected (``weakref.finalize``) and re-made by :meth:`NativeWorkspace.reset`.
 """
 
 from __future__ import annotations
 
 import ctypes
 import weakref
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +47,7 @@ class NativeWorkspace:
         warm_start: keep the working set from one tick to the next.
     """
 
-    def __init__(self, library: Library, qp: QP, settings: dict, warm_start: bool) -> None:
+    def __init__(self, library: Library, qp: QP, settings: dict[str, Any], warm_start: bool) -> None:
         self.qp, self.warm_start = qp, warm_start
         self._library = library
         n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
@@ -107,7 +108,7 @@ class NativeWorkspace:
                                                                 lower.ctypes.data)
         problem.A = A.ctypes.data if A.size else None
 
-    def operands(self) -> dict:
+    def operands(self) -> dict[str, Any]:
         """The operands of the compiled solve (:data:`wbc.kernels.ops.OP_SPECS`, DAQP_SOLVE)."""
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,

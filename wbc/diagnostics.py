@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import WbcError
 from .hierarchy import level_errors, level_optima
@@ -19,6 +20,12 @@ _OPTIMAL = Outcome.OPTIMAL
 
 class StaleDiagnosticsError(WbcError):
     """A lazily computed diagnostics field was read after the controller stepped again."""
+
+
+class NoTickYetError(WbcError, AttributeError):
+    """:attr:`Controller.last <wbc.Controller.last>` was read before the first
+    :meth:`~wbc.Controller.step`. An ``AttributeError`` too, so ``hasattr(controller, "last")``
+    and ``getattr(controller, "last", None)`` tell whether the controller has ticked."""
 
 
 class TickDiagnostics:
@@ -51,11 +58,21 @@ class TickDiagnostics:
       k: zero up to the band (:data:`wbc.hierarchy.BAND`) and the backend's tolerance.
     """
 
+    tick: int  #: the tick counter (1 at the first step)
+    solver: str  #: the backend's name
+    outcome: Outcome  #: which link of the fallback chain answered
+    status: str  #: ``"optimal"``, or what went wrong and which fallback answered, in words
+    success: bool  #: the command is the checked solution of the full QP (``outcome is Outcome.OPTIMAL``)
+    solve_time: float  #: time inside the QP backend(s) [s]
+    tick_time: float  #: the whole step [s]
+    v: NDArray[np.float64] | None  #: the command (set by every step)
+    u: NDArray[np.float64] | None  #: the command over the real inputs, ``v = S(q) u`` (``u is v`` for holonomic bases)
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
                  "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 
     def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
-                 tick_time: float, v: np.ndarray | None = None, u: np.ndarray | None = None) -> None:
+                 tick_time: float, v: NDArray[np.float64] | None = None, u: NDArray[np.float64] | None = None
+                 ) -> None:
         self._controller = controller
         self.tick, self.solver, self.outcome, self.status = tick, controller._solver.name, outcome, status
         self.success = outcome is _OPTIMAL

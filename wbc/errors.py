@@ -24,7 +24,7 @@ class ModelError(WbcError):
 
 
 class ScenarioError(WbcError, ValueError):
-    """A scenario file (tasks/*.toml) is malformed."""
+    """A scenario file (``tasks/*.toml``) is malformed."""
 
 
 class SolverError(WbcError, RuntimeError):

@@ -15,6 +15,7 @@ With ``strict=True`` a failure raises :class:`~wbc.errors.SolverError` instead.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -44,7 +45,7 @@ class Fallback:
         strict: raise :class:`SolverError` instead of answering.
     """
 
-    def __init__(self, soft_rows: np.ndarray, budget: dict, strict: bool) -> None:
+    def __init__(self, soft_rows: np.ndarray, budget: dict[str, Any], strict: bool) -> None:
         self.soft_rows, self.budget, self.strict = soft_rows, budget, strict
 
     def answer(self, qp: QP, failed: QPSolution, solver: str, tick: int,

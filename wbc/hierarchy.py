@@ -76,18 +76,19 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from . import kernels
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
-from .layout import TaskStack
+from .layout import TaskBlock, TaskStack
 from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
 from .solvers import DaqpBackend, QPSolution, QPSolver
-from .tasks.task import Task
+from .tasks.task import Task, TaskData
 from .validation import as_items
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -104,7 +105,7 @@ SEMIDEFINITE_SOLVERS = frozenset({"clarabel", "highs", "osqp", "piqp", "proxqp"}
 _REDUCTION_FAILURE = "reduced form: a constraint bounded the coupled base rates x, y"
 
 
-def task_levels(tasks) -> tuple[list[Task], list[int] | None]:
+def task_levels(tasks: Sequence[Task] | Sequence[Sequence[Task]]) -> tuple[list[Task], list[int] | None]:
     """The ``tasks`` argument of a controller as (its tasks in level order, the size of each
     level); sizes are None for a flat list or a single level (today's weighted QP).
 
@@ -141,7 +142,7 @@ class LevelRows:
     """
 
     def __init__(self, stack: TaskStack, level_of: Callable[[object], int], count: int, nv: int) -> None:
-        def span(blocks: list) -> list[tuple[int, int]]:
+        def span(blocks: list[TaskBlock]) -> list[tuple[int, int]]:
             spans = []
             for k in range(count):
                 mine = [(start, start + task.dim) for task, _, _, start in blocks if level_of(task) == k]
@@ -179,13 +180,13 @@ def level_rows(controller: Controller) -> LevelRows:
     return LevelRows(controller._task_stack, lambda task: 0, 1, controller.robot.nv)
 
 
-def level_errors(controller: Controller, v: np.ndarray) -> list[float]:
+def level_errors(controller: Controller, v: NDArray[np.float64] | None) -> list[float]:
     """``|A_k v - b_k|`` of each level at the command ``v`` (weighted task residuals, as in the cost)."""
     rows = level_rows(controller)
     return [rows.residuals(controller._stack, v, k) for k in range(rows.count)]
 
 
-def level_optima(controller: Controller, v: np.ndarray, answered: bool) -> list[float]:
+def level_optima(controller: Controller, v: NDArray[np.float64] | None, answered: bool) -> list[float]:
     """``|A_k v_k - b_k|`` of each level at its own answer ``v_k`` (a flat controller's is the command);
     NaN for a level that was not solved, and for every level when no solve ``answered`` the tick
     (the zero command)."""
@@ -204,10 +205,13 @@ class Hierarchy:
     inequality rows. ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
     """
 
+    count: int  #: number of levels
+    rows: LevelRows  #: the rows of each level in the task stack
+
     def __init__(self, controller: Controller, sizes: Sequence[int]) -> None:
         self._controller = controller
         nv = controller.robot.nv
-        level = {}
+        level: dict[int, int] = {}
         start = 0
         for k, size in enumerate(sizes):
             level.update((id(data), k) for data in controller._task_data[start:start + size])
@@ -220,7 +224,7 @@ class Hierarchy:
         self.qps = [first] + [QP(nv, self.band_start[k], first.n_eq) for k in range(1, count)]
         self._reductions: list[InputReduction] | None = None
         self.solver_qps = self.qps  #: what the backend solves, level by level
-        if controller.reduced:
+        if controller._reduction is not None:  # reduced=True (the controller's level-0 reduction)
             self._reductions = [controller._reduction] + [InputReduction(controller._S, qp.n_ineq, qp.n_eq)
                                                          for qp in self.qps[1:]]
             self.solver_qps = [reduction.qp for reduction in self._reductions]
@@ -231,9 +235,9 @@ class Hierarchy:
         self._workspaces: list[NativeWorkspace] | None = None
         self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
         #: each level's answer (over v) in the latest tick; None for a level not solved
-        self.answers: list[np.ndarray | None] = [None] * count
+        self.answers: list[NDArray[np.float64] | None] = [None] * count
         #: the same in the solver's variables (u with ``reduced``), for :meth:`CascadeFallback.last_resort`
-        self.solutions: list[np.ndarray | None] = [None] * count
+        self.solutions: list[NDArray[np.float64] | None] = [None] * count
         self.failed = 0  #: the level whose solve failed in the latest failed tick
         self.fallback = CascadeFallback(self, controller._fallback)
 
@@ -243,7 +247,8 @@ class Hierarchy:
         """The regularisation floor of the levels above the last (0: a semidefinite backend's)."""
         return float(self._upper_scaling[1])
 
-    def add_ops(self, program: TickProgram) -> tuple[list, TickProgram, QP, bool]:
+    def add_ops(self, program: TickProgram) -> tuple[list[tuple[TaskData, NDArray[np.float64], NDArray[np.float64]]],
+                                                      TickProgram, QP, bool]:
         """Append every level's assembly -- and with native DAQP the cascade itself -- to the
         controller's tick program, after its items' ops. Returns what the controller keeps:
         (Python preview tasks, the program part after them, the QP the backend sees last,
@@ -278,18 +283,19 @@ class Hierarchy:
             rest.add(kernels.OP_HAS_NAN, data=screened, size=screened.size, infinite=0)
         solver = self.solver = c.solver.for_levels() if isinstance(c.solver, DaqpBackend) else c.solver
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
-        self._workspaces = None
-        if isinstance(solver, DaqpBackend) and solver.native:
-            self._workspaces = [solver.workspace(qp) for qp in self.solver_qps]
-        self.in_program = self._workspaces is not None and not c.reduced
-        if self.in_program:
-            for k, workspace in enumerate(self._workspaces):
+        self._workspaces = workspaces = None
+        if isinstance(solver, DaqpBackend) and solver.native:  # (then every workspace is one)
+            self._workspaces = workspaces = [w for w in map(solver.workspace, self.solver_qps) if w is not None]
+        self.in_program = workspaces is not None and not c.reduced
+        if workspaces is not None and self.in_program:
+            for k, workspace in enumerate(workspaces):
                 workspace.add_op(rest)
                 for j in range(k + 1, self.count):
                     self._add_band_op(rest, k, workspace, self.qps[j])
-            self._native_answers = [workspace.x for workspace in self._workspaces]
-            self._last_control = self._workspaces[-1].control
-            self._upper_controls = [workspace.control for workspace in self._workspaces[:-1]]
+            self._native_answers: list[NDArray[np.float64] | None] = [workspace.x for workspace in workspaces]
+            self._last_answer = workspaces[-1].x
+            self._last_control = workspaces[-1].control
+            self._upper_controls = [workspace.control for workspace in workspaces[:-1]]
         return python_preview, rest, self.solver_qps[-1], self.in_program
 
     def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
@@ -302,7 +308,7 @@ class Hierarchy:
                     rows=stack.shape[1], size=target.data.size, row=self.band_start[k],
                     target_rows=target.n_ineq + target.n_eq)
 
-    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
+    def collect_optimal(self, tolerance: float) -> tuple[NDArray[np.float64], float] | None:
         """The control loop's fast path with the cascade in the program: ``(x, solve time [s])``
         when the last level solved and its answer's defect is at most ``tolerance`` -- which the
         program's BAND ops allow only after every level above did the same, with
@@ -313,7 +319,7 @@ class Hierarchy:
             for control in self._upper_controls:
                 elapsed += control.item(DAQP_CONTROL_TIME)
             self.answers = self.solutions = self._native_answers
-            return self._native_answers[-1].copy(), elapsed
+            return self._last_answer.copy(), elapsed
         return None
 
     # -------------------------------------------------------------------- tick
@@ -321,14 +327,14 @@ class Hierarchy:
         """This tick's command from the cascade (read from the program's solves, or solved now):
         the last level's answer, checked; or a failure naming the level (:attr:`failed`), for the
         controller's fallback chain (:class:`CascadeFallback`)."""
-        if not self.in_program:
+        if not self.in_program or self._workspaces is None:  # (in_program implies workspaces)
             return self.cascade(0, self._solve_level)
         elapsed = 0.0
         for k, workspace in enumerate(self._workspaces):
             exitflag, defect, spent = workspace.outcome()
             elapsed += spent
             if exitflag < 1 or not defect <= ANSWER_TOLERANCE:
-                self.answers = [x.copy() for x in self._native_answers[:k]] + [None] * (self.count - k)
+                self.answers = [w.x.copy() for w in self._workspaces[:k]] + [None] * (self.count - k)
                 self.solutions = list(self.answers)
                 return self._failure(k, QPSolution(None, False, _native_status(exitflag, defect), elapsed))
         self.answers = self.solutions = self._native_answers
@@ -349,14 +355,16 @@ class Hierarchy:
             elapsed += solution.solve_time
             if not solution.success:
                 return self._failure(k, solution._replace(solve_time=elapsed))
-            defect = solution.defect
-            if defect is None and check:
-                defect = kernels.qp_defect(self.solver_qps[k].data, solution.x)
-            if check and defect > ANSWER_TOLERANCE:
-                status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
-                return self._failure(k, QPSolution(None, False, status, elapsed))
-            v = solution.x if self._reductions is None else c._S @ solution.x
-            self.answers[k], self.solutions[k] = v, solution.x
+            x, defect = solution.x, solution.defect
+            assert x is not None  # a successful solve has an answer
+            if check:
+                if defect is None:
+                    defect = kernels.qp_defect(self.solver_qps[k].data, x)
+                if defect > ANSWER_TOLERANCE:
+                    status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
+                    return self._failure(k, QPSolution(None, False, status, elapsed))
+            v = x if self._reductions is None else c._S @ x
+            self.answers[k], self.solutions[k] = v, x
             for j in range(k + 1, self.count):
                 self._write_band(k, v, self.qps[j])
         return QPSolution(solution.x, True, "optimal", elapsed, defect)
@@ -415,11 +423,11 @@ class CascadeFallback(Fallback):
         for its level and those above, within every bound and row of the QP (its QP has them all,
         and it was checked) -- e.g. a level below that DAQP calls infeasible because the bands of
         a fully determined level above are thinner than its tolerance. ``v = 0`` when none was."""
-        solved = [k for k, x in enumerate(self._hierarchy.solutions) if x is not None]
+        solved = [(k, x) for k, x in enumerate(self._hierarchy.solutions) if x is not None]
         if has_nan or not solved:
             return super().last_resort(qp, reason, elapsed, has_nan)
-        k = solved[-1]
-        return (QPSolution(self._hierarchy.solutions[k].copy(), False, "", elapsed), Outcome.LEVEL_ABOVE,
+        k, x = solved[-1]
+        return (QPSolution(x.copy(), False, "", elapsed), Outcome.LEVEL_ABOVE,
                 f"fallback: level {k}'s answer after {reason}")
 
     def elastic_solve(self, qp: QP) -> QPSolution:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
@@ -10,6 +11,9 @@ import pinocchio as pin
 from . import kernels
 from .errors import ModelError
 from .robot import Robot
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .program import TickProgram
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -92,7 +96,7 @@ class Kinematics:
         if not deferred:
             kernels.forward_kinematics(self.q, self.chain, self.placements, self._jacobians_t)
 
-    def add_op(self, program) -> bool:
+    def add_op(self, program: TickProgram) -> bool:
         """Append the compiled forward kinematics to a tick program (native mode; False otherwise)."""
         if self.chain is None:
             return False

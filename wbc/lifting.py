@@ -4,7 +4,7 @@ The normal equations ``H = sum_r a_r a_r^T`` of the task stack are dense: formin
 ``k nv^2`` for k dense rows (FrameTask: 6), and DAQP then factorises H from scratch every
 tick (``nv^3 / 3``) -- at 64 DOF that is most of the tick. Yet H is *diagonal plus low rank*:
 the posture and damping rows each touch one coordinate. Introducing ``w = U v`` for the k
-dense rows ``U`` (targets ``t``) gives the same minimiser over v from
+dense rows ``U`` (targets ``t``) gives the same minimiser over v from::
 
     min 1/2 v^T D v + d^T v + 1/2 |w|^2 - t^T w   s.t.  U v - w = 0,  the controller's limits,
 

@@ -33,8 +33,10 @@ Note: ``wbc.manipulability`` is the function; import the module's other names wi
 from __future__ import annotations
 
 import math
+from typing import Literal
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgesvd, dposv
 
 from . import kernels
@@ -44,6 +46,9 @@ from .robot import Robot
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
+
+Rows = Literal["all", "position", "orientation"]
+"""The names of :data:`ROWS`: the ``rows`` argument of the functions and classes here."""
 
 
 def row_selection(rows: str) -> slice:
@@ -67,13 +72,13 @@ class Manipulability:
     Hessian (:meth:`wbc.kinematics.Kinematics.frame_hessian`).
     """
 
-    def __init__(self, robot: Robot, frame: str, rows: str = "all") -> None:
+    def __init__(self, robot: Robot, frame: str, rows: Rows = "all") -> None:
         self.frame = frame
         self.rows = rows
         self._rows = row_selection(rows)
         self.frame_id = robot.frame_id(frame)
-        self.value = 0.0
-        self.gradient = np.zeros(robot.nv)
+        self.value = 0.0  #: m at the last :meth:`compute`
+        self.gradient = np.zeros(robot.nv)  #: grad m (size nv) at the last :meth:`compute`, overwritten in place
         # G^T (nv x 6): G on the selected rows, zero elsewhere, stored transposed because
         # that is the memory order Kinematics.contract_frame_hessian contracts without a copy
         self._weights_t = np.zeros((robot.nv, 6))
@@ -96,7 +101,7 @@ class Manipulability:
         """True when :meth:`compute` is one compiled call (all joints up to the frame have 1 DOF)."""
         return self._compiled
 
-    def operands(self, kin: Kinematics) -> dict[str, np.ndarray]:
+    def operands(self, kin: Kinematics) -> dict[str, NDArray[np.float64]]:
         """Operands of the MANIPULABILITY_BARRIER op up to the gradient, by name (compiled only)."""
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         return dict(joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T, translation=translation,
@@ -146,14 +151,24 @@ class Manipulability:
         return f"Manipulability(frame={self.frame!r}, rows={self.rows!r})"
 
 
-def manipulability(robot: Robot, q, frame: str, rows: str = "all") -> float:
-    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows)."""
+def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> float:
+    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows).
+
+    Raises:
+        UnknownFrameError: no frame of that name.
+        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+    """
     jacobian = robot.frame_jacobian(q, frame)[row_selection(rows)]
     return float(np.prod(np.linalg.svd(jacobian, compute_uv=False)))
 
 
-def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> np.ndarray:
-    """``grad m(q)`` (size nv): ``dm/dt = grad m . v`` along any joint velocity ``v``."""
+def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> NDArray[np.float64]:
+    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v``.
+
+    Raises:
+        UnknownFrameError: no frame of that name.
+        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+    """
     evaluator = Manipulability(robot, frame, rows)
     kin = Kinematics(robot)
     kin.update(robot.check_configuration(q))
@@ -161,7 +176,7 @@ def manipulability_gradient(robot: Robot, q, frame: str, rows: str = "all") -> n
     return evaluator.gradient
 
 
-def _products_of_the_others(s: list[float]) -> np.ndarray:
+def _products_of_the_others(s: list[float]) -> NDArray[np.float64]:
     """``c_l = prod_{p != l} s_p`` without dividing (exact when some ``s_p`` are zero)."""
     return np.array([math.prod(s[:l]) * math.prod(s[l + 1:]) for l in range(len(s))])
 

@@ -68,9 +68,11 @@ class TickProgram:
         float64 (or the declared dtype) of the declared shape, or int operands that break the
         op's conditions.
         """
-        external = not isinstance(opcode, int)
-        spec = opcode.spec if external else OP_SPECS[opcode]
-        dtypes = opcode.dtypes if external else {}
+        row: list[int]
+        if isinstance(opcode, int):
+            spec, dtypes, row = OP_SPECS[opcode], {}, [opcode]
+        else:  # a CompiledOp: its callback's address in the row
+            spec, dtypes, row = opcode.spec, opcode.dtypes, [kernels.OP_EXTERNAL, opcode.address]
         names = [name for name, _ in spec.operands]
         if set(operands) != set(names):
             missing, unknown = sorted(set(names) - set(operands)), sorted(set(operands) - set(names))
@@ -79,7 +81,6 @@ class TickProgram:
         for check in spec.checks:
             if not eval(_compiled(check), {"__builtins__": {}}, sizes):  # noqa: S307 -- the package's own specs
                 raise TypeError(f"{spec.name} op: {check} does not hold for {sizes}")
-        row = [kernels.OP_EXTERNAL, opcode.address] if external else [opcode]
         arrays = []
         for name, shape in spec.operands:
             if shape is None:
@@ -98,7 +99,7 @@ class TickProgram:
             row.append(-1)
         for position, array, dtype in arrays:  # registered only once the whole op checks
             row[position] = self.array(array, dtype)
-        if external:
+        if not isinstance(opcode, int):
             self.keep_alive(opcode)  # its callback's address is in the row
         self._rows.append(row)
         self._pack()

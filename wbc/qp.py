@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import NDArray
 
 from . import kernels
 
@@ -24,11 +25,11 @@ class QP:
     n: int
     n_ineq: int = 0
     n_eq: int = 0
-    H: np.ndarray = field(init=False)
-    c: np.ndarray = field(init=False)
-    C: np.ndarray = field(init=False)
-    upper: np.ndarray = field(init=False)
-    lower: np.ndarray = field(init=False)
+    H: NDArray[np.float64] = field(init=False)
+    c: NDArray[np.float64] = field(init=False)
+    C: NDArray[np.float64] = field(init=False)
+    upper: NDArray[np.float64] = field(init=False)
+    lower: NDArray[np.float64] = field(init=False)
 
     def __post_init__(self) -> None:
         n, p, e = self.n, self.n_ineq, self.n_eq

@@ -34,7 +34,7 @@ def _flush_c_streams() -> None:
             _LIBC.fflush.argtypes = [ctypes.c_void_p]
         except (OSError, AttributeError, TypeError):  # TypeError: no CDLL(None) (Windows)
             _LIBC = None
-    if _LIBC is not None:
+    if isinstance(_LIBC, ctypes.CDLL):
         _LIBC.fflush(None)
 
 

@@ -8,15 +8,25 @@ matching :meth:`wbc.Robot.frame_jacobian`.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from .errors import InvalidInputError
 from .validation import as_pose, as_positive, as_vector
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+class ReferenceMotion(Protocol):
+    """What :class:`wbc.scenario.Scenario` and ``wbc.closed_loop.run`` call: ``reference(t)``
+    at time ``t`` [s] gives the target and its feed-forward rate, the arguments of the task's
+    ``set_target`` (every class of this module, and :class:`wbc.trajectory.planner.PlannedReference`)."""
+
+    def __call__(self, t: float, /) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
     """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF convention)."""
     cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
     return np.array([
@@ -30,13 +40,13 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
 class ConstantPose:
     """A fixed target pose (zero feed-forward twist)."""
 
-    pose: np.ndarray
+    pose: NDArray[np.float64]
 
     def __post_init__(self) -> None:
         self.pose = as_pose(self.pose, "target pose")
         self._twist = np.zeros(6)
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return self.pose, self._twist
 
 
@@ -44,13 +54,13 @@ class ConstantPose:
 class ConstantPoint:
     """A fixed target point [m] for a PositionTask (zero feed-forward velocity)."""
 
-    position: np.ndarray
+    position: NDArray[np.float64]
 
     def __post_init__(self) -> None:
         self.position = as_vector(self.position, 3, "target position")
         self._velocity = np.zeros(3)
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         return self.position, self._velocity
 
 
@@ -65,11 +75,11 @@ class Circle:
     velocity is continuous (no step at t = 0).
     """
 
-    start: np.ndarray  #: 4x4 start pose (its rotation is held)
+    start: NDArray[np.float64]  #: 4x4 start pose (its rotation is held)
     radius: float  #: [m]
     period: float  #: [s] per revolution after the ramp
-    normal: np.ndarray  #: unit normal of the circle plane (direction of rotation by right hand)
-    start_axis: np.ndarray  #: unit vector from the centre toward the start point
+    normal: NDArray[np.float64]  #: unit normal of the circle plane (direction of rotation by right hand)
+    start_axis: NDArray[np.float64]  #: unit vector from the centre toward the start point
     ramp_time: float = 1.0  #: [s]
 
     def __post_init__(self) -> None:
@@ -102,7 +112,7 @@ class Circle:
             return 0.5 * rate * t * t / ramp, rate * t / ramp
         return rate * (t - 0.5 * ramp), rate
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         phi, rate = self.phase(t)
         a, b = self.start_axis, self._b
         self._pose[:3, 3] = self.centre + self.radius * (np.cos(phi) * a + np.sin(phi) * b)
@@ -122,8 +132,8 @@ class Line:
     ``end`` rather than braking into it, the hardest case when ``end`` is singular.
     """
 
-    start: np.ndarray  #: 4x4 start pose
-    end: np.ndarray  #: 4x4 end pose
+    start: NDArray[np.float64]  #: 4x4 start pose
+    end: NDArray[np.float64]  #: 4x4 end pose
     speed: float  #: [m/s] along the line after the ramp
     ramp_time: float = 0.5  #: [s]
 
@@ -151,7 +161,7 @@ class Line:
             return self.length, 0.0
         return distance, rate
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+    def __call__(self, t: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         distance, rate = self.distance(t)
         s, s_rate = distance / self.length, rate / self.length
         start_rotation = self.start[:3, :3]

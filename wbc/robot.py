@@ -16,12 +16,14 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, ValidationError
 
 from . import shipped
@@ -55,7 +57,7 @@ class Robot:
     model: pin.Model
     base: MobileBase = FIXED_BASE
     end_effector: str | None = None
-    parameters: dict = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
 
     def __post_init__(self) -> None:
@@ -63,9 +65,9 @@ class Robot:
         self._check_size()
         self._data = model.createData()
         self._check_joints()
-        self.lower = np.array(model.lowerPositionLimit, dtype=np.float64)
-        self.upper = np.array(model.upperPositionLimit, dtype=np.float64)
-        self.velocity_limit = np.array(model.velocityLimit, dtype=np.float64)
+        self.lower: NDArray[np.float64] = np.array(model.lowerPositionLimit, dtype=np.float64)
+        self.upper: NDArray[np.float64] = np.array(model.upperPositionLimit, dtype=np.float64)
+        self.velocity_limit: NDArray[np.float64] = np.array(model.velocityLimit, dtype=np.float64)
         if self.base.is_mobile:
             x, y, yaw = self.base.indices
             self.lower[[x, y, yaw]] = -np.inf
@@ -127,19 +129,26 @@ class Robot:
     # ------------------------------------------------------------------ sizes
     @property
     def nq(self) -> int:
+        """Size of the configuration ``q``."""
         return self.model.nq
 
     @property
     def nv(self) -> int:
+        """Size of the velocity ``v`` (and of every command)."""
         return self.model.nv
 
     @property
     def frame_names(self) -> list[str]:
+        """Names of the model's frames (the ``frame`` arguments it accepts)."""
         return list(self._frame_ids)
 
     # --------------------------------------------------------------- helpers
     def frame_id(self, frame: str) -> int:
-        """Pinocchio index of ``frame``; raises UnknownFrameError with suggestions."""
+        """Pinocchio index of ``frame``.
+
+        Raises:
+            UnknownFrameError: the model has no frame of that name (the message suggests close names).
+        """
         try:
             return self._frame_ids[frame]
         except (KeyError, TypeError):
@@ -147,24 +156,33 @@ class Robot:
             hint = f"; did you mean {', '.join(close)}?" if close else ""
             raise UnknownFrameError(f"robot '{self.name}' has no frame {frame!r}{hint}") from None
 
-    def check_configuration(self, q) -> np.ndarray:
-        """Validate ``q`` (shape, finiteness) and return it as a float64 array."""
+    def check_configuration(self, q: ArrayLike) -> NDArray[np.float64]:
+        """``q`` checked and converted: a finite float64 vector of size :attr:`nq`.
+
+        Raises:
+            InvalidInputError: wrong shape, not numbers (bool, str, None, complex), NaN or inf.
+        """
         return as_vector(q, self.nq, "q")
 
-    def check_velocity(self, v) -> np.ndarray:
+    def check_velocity(self, v: ArrayLike) -> NDArray[np.float64]:
+        """``v`` checked and converted: a finite float64 vector of size :attr:`nv`.
+
+        Raises:
+            InvalidInputError: wrong shape, not numbers (bool, str, None, complex), NaN or inf.
+        """
         return as_vector(v, self.nv, "v")
 
-    def neutral(self) -> np.ndarray:
+    def neutral(self) -> NDArray[np.float64]:
         """Pinocchio's neutral configuration (zeros for the youBot: the arm straight up)."""
         return pin.neutral(self.model)
 
-    def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> np.ndarray:
+    def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> NDArray[np.float64]:
         """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``."""
         low = np.where(np.isfinite(self.lower), self.lower, -base_range)
         high = np.where(np.isfinite(self.upper), self.upper, base_range)
         return rng.uniform(low, high)
 
-    def within_limits(self, q, tol: float = 0.0) -> bool:
+    def within_limits(self, q: ArrayLike, tol: float = 0.0) -> bool:
         q = self.check_configuration(q)
         return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
 
@@ -174,7 +192,7 @@ class Robot:
         """Number of real inputs: nv, or nv - 1 for a nonholonomic base (no lateral input)."""
         return self._input_map.shape[1]
 
-    def _allocate_input_map(self) -> np.ndarray:
+    def _allocate_input_map(self) -> NDArray[np.float64]:
         if not self.base.is_nonholonomic:
             return np.eye(self.nv)
         x, y, heading = self.base.indices
@@ -184,7 +202,8 @@ class Robot:
         S[others, np.arange(2, self.nv - 1)] = 1.0
         return S
 
-    def input_map(self, q, out: np.ndarray | None = None) -> np.ndarray:
+    def input_map(self, q: NDArray[np.float64] | Sequence[float],
+                  out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """``S(q)`` (nv x nu) with ``v = S(q) u`` over the real inputs ``u``.
 
         Identity for fixed and holonomic bases. For a nonholonomic base
@@ -201,38 +220,69 @@ class Robot:
             out[...] = self._input_map
         return S.copy() if out is None else S
 
-    def base_twist(self, q, v) -> np.ndarray:
-        """Base-frame twist ``(v_x, v_y, omega)`` of the velocity ``v`` at ``q``."""
+    def base_twist(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
+        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``.
+
+        Raises:
+            InvalidInputError: a fixed base, or a malformed ``q`` or ``v``.
+        """
         if not self.base.is_mobile:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
         return self.base.twist(self.check_configuration(q), self.check_velocity(v))
 
-    def wheel_speeds(self, q, v) -> np.ndarray:
+    def wheel_speeds(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
         """Wheel angular rates [rad/s] realising ``v`` (mecanum: 4, differential drive: 2).
 
         Order and sign conventions: :class:`~wbc.base.MecanumWheels`,
         :class:`~wbc.base.DifferentialWheels`.
+
+        Raises:
+            InvalidInputError: the model declares no wheel geometry, or a malformed ``q`` or ``v``.
         """
         if self.base.wheels is None:
             raise InvalidInputError(f"robot '{self.name}' declares no wheel geometry")
         return self.base.wheels.inverse_matrix() @ self.base_twist(q, v)
 
     # ------------------------------------------------------------ kinematics
-    def frame_pose(self, q, frame: str) -> np.ndarray:
-        """World pose of ``frame`` at ``q``, as a 4x4 homogeneous transform."""
+    def frame_pose(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
+        """World pose of ``frame`` at configuration ``q``.
+
+        Returns:
+            The 4x4 homogeneous transform of the frame in the world (a new array).
+
+        Raises:
+            UnknownFrameError: no frame of that name.
+            InvalidInputError: a malformed ``q``.
+        """
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         pin.forwardKinematics(self.model, self._data, q)
         return pin.updateFramePlacement(self.model, self._data, frame_id).homogeneous
 
-    def frame_jacobian(self, q, frame: str) -> np.ndarray:
-        """6 x nv Jacobian of ``frame``: world-aligned axes at the frame origin, rows (linear; angular)."""
+    def frame_jacobian(self, q: ArrayLike, frame: str) -> NDArray[np.float64]:
+        """Jacobian of ``frame`` at configuration ``q``.
+
+        Returns:
+            The 6 x nv matrix mapping ``v`` to the frame's twist, world-aligned axes at the frame
+            origin (Pinocchio's ``LOCAL_WORLD_ALIGNED``), rows (linear [m/s]; angular [rad/s]).
+
+        Raises:
+            UnknownFrameError: no frame of that name.
+            InvalidInputError: a malformed ``q``.
+        """
         frame_id = self.frame_id(frame)
         q = self.check_configuration(q)
         return pin.computeFrameJacobian(self.model, self._data, q, frame_id, _REFERENCE_FRAME)
 
-    def integrate(self, q, v, dt: float) -> np.ndarray:
-        """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s]."""
+    def integrate(self, q: ArrayLike, v: ArrayLike, dt: float) -> NDArray[np.float64]:
+        """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s].
+
+        Returns:
+            ``pinocchio.integrate(model, q, v * dt)``, a new array of size :attr:`nq`.
+
+        Raises:
+            InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
+        """
         q = self.check_configuration(q)
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
@@ -251,7 +301,11 @@ def shipped_models() -> list[str]:
 
 
 def model_path(name: str, kind: str = "urdf") -> Path:
-    """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``."""
+    """Path of a shipped model file: ``kind`` is ``"urdf"``, ``"mjcf"`` or ``"toml"``.
+
+    Raises:
+        ModelError: no shipped model of that name, or it has no file of that kind.
+    """
     if name not in shipped_models():
         raise ModelError(f"no shipped model {name!r}; available: {shipped_models()}")
     folder = shipped.folder("models") / name
@@ -269,6 +323,14 @@ def load_robot(name_or_path: str | Path) -> Robot:
     that declares the base. Without one, a chain of root joints prismatic-x,
     prismatic-y, revolute-z is recognised as a holonomic planar base; anything else
     is a fixed-base robot.
+
+    Returns:
+        The robot: its Pinocchio model, base, limits (see :class:`Robot`).
+
+    Raises:
+        ModelError: neither a shipped model nor a file; an unreadable URDF or sidecar; a sidecar
+            key that is unknown, misspelt or invalid (named with the file); a joint with a
+            velocity limit of 0 or NaN.
     """
     if isinstance(name_or_path, str) and name_or_path in shipped_models():
         sidecar = model_path(name_or_path, "toml")
@@ -337,7 +399,7 @@ class Sidecar(Table):
     geometry: dict[str, float] = {}
 
 
-def _read_sidecar(path: Path) -> tuple[Sidecar, dict]:
+def _read_sidecar(path: Path) -> tuple[Sidecar, dict[str, Any]]:
     """The validated sidecar and its raw table."""
     params = read_toml(path, ModelError)
     try:
@@ -365,7 +427,8 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
                  parameters=params, source=urdf)
 
 
-def _base_from_spec(model: pin.Model, spec: FixedBaseTable | MobileBaseTable) -> MobileBase:
+def _base_from_spec(model: pin.Model,
+                    spec: FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable) -> MobileBase:
     if isinstance(spec, FixedBaseTable):
         return FIXED_BASE
     indices = []
@@ -424,7 +487,7 @@ def _check_base_joints(model: pin.Model, names: list[str]) -> None:
                              "(x, y, heading) in chain order from the root")
         rotation = rotation @ model.jointPlacements[joint_id].rotation
         motion = _joint_motion(model.joints[joint_id])
-        world_axis = None if motion is None else rotation @ motion[1]
+        world_axis = np.zeros(3) if motion is None else rotation @ motion[1]  # (unread without motion)
         if motion is None or motion[0] != kind or not np.allclose(world_axis, axis, atol=1e-9):
             found = "not a revolute or prismatic joint" if motion is None else \
                 f"{motion[0]} along {np.round(world_axis, 6).tolist()}"

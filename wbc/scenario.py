@@ -35,30 +35,36 @@ from __future__ import annotations
 import functools
 import inspect
 import math
+import operator
 import types
 import typing
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, TypeVar, Union
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from . import constraints as constraint_module
 from . import shipped
 from . import tasks as task_module
+from .constraints import Constraint
 from .controller import Controller
 from .errors import ScenarioError, WbcError
-from .references import Circle, ConstantPoint, ConstantPose, Line, rpy_matrix
+from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
 from .robot import Robot, load_robot
 from .schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
-from .tasks import FrameTask, PositionTask, PostureTask
+from .tasks import FrameTask, PositionTask, PostureTask, Task
 from .trajectory.scenario_spec import plan_from_spec
 
-TASK_TYPES = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
-CONSTRAINT_TYPES = {name: getattr(constraint_module, name) for name in constraint_module.__all__
-                    if name not in ("Constraint", "ConstraintRows")}
+TASK_TYPES: dict[str, type[Task]] = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
+CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module, name)
+                                                 for name in constraint_module.__all__
+                                                 if name not in ("Constraint", "ConstraintRows")}
 MAX_TICKS = 10**7  #: longest run a scenario may ask for (duration / dt)
+_Item = TypeVar("_Item", Task, Constraint)
 
 
 # ------------------------------------------------------------------------------ schema
@@ -172,18 +178,18 @@ class Scenario:
 
     name: str
     robot: Robot
-    q0: np.ndarray
-    tasks: list
-    constraints: list
+    q0: NDArray[np.float64]
+    tasks: list[Task]
+    constraints: list[Constraint]
     solver: str
     dt: float
     duration: float
     damping: float
     reduced: bool = False
-    reference: object | None = None
+    reference: ReferenceMotion | None = None
     reference_task: FrameTask | PositionTask | None = None
     source: Path | None = None
-    spec: dict = field(default_factory=dict)
+    spec: dict[str, Any] = field(default_factory=dict)
     #: the priority level of each task (``[[tasks]] level``); empty: one level
     levels: list[int] = field(default_factory=list)
     #: what the scenario shows, one line (the file's ``description``)
@@ -198,7 +204,7 @@ class Scenario:
                 raise ScenarioError(f"{name} must be a finite number > 0 [s], got {value!r}")
 
     @property
-    def task_levels(self) -> list:
+    def task_levels(self) -> list[Task] | list[list[Task]]:
         """The ``tasks`` argument of the controller: the tasks, or one list per level (highest first)."""
         if not self.levels:
             return self.tasks
@@ -230,7 +236,15 @@ def scenario_file(name_or_path: str | Path) -> Path:
 
 def load_scenario(path: str | Path) -> Scenario:
     """Parse and validate a scenario file, given by path or by the name of a shipped scenario
-    (:func:`scenario_file`); any mistake is a ScenarioError naming the file and key."""
+    (:func:`scenario_file`).
+
+    Returns:
+        The scenario: robot, initial configuration, tasks, constraints, reference, controller settings.
+
+    Raises:
+        ScenarioError: any mistake (unreadable file, unknown or misspelt key, wrong type,
+            out-of-range value, an item that does not fit the robot), naming the file and key.
+    """
     path = scenario_file(path)
     spec = read_toml(path, ScenarioError, "scenario")
     try:
@@ -241,7 +255,7 @@ def load_scenario(path: str | Path) -> Scenario:
         raise ScenarioError(f"{path}: {exc}") from exc
 
 
-def _build(checked: ScenarioFile, spec: dict, path: Path) -> Scenario:
+def _build(checked: ScenarioFile, spec: dict[str, Any], path: Path) -> Scenario:
     robot = _robot(checked.robot, path)
     q0 = _initial_configuration(checked.robot, robot)
     tasks = [_instantiate(entry, TASK_TYPES, f"[[tasks]] #{i + 1}", robot, q0) for i, entry in enumerate(checked.tasks)]
@@ -286,7 +300,7 @@ def _robot(table: RobotTable, path: Path) -> Robot:
         raise ScenarioError(f"[robot] name = {name!r}: {exc}") from exc
 
 
-def _initial_configuration(table: RobotTable, robot: Robot) -> np.ndarray:
+def _initial_configuration(table: RobotTable, robot: Robot) -> NDArray[np.float64]:
     if table.initial_configuration is None:
         return robot.neutral()
     try:
@@ -296,7 +310,8 @@ def _initial_configuration(table: RobotTable, robot: Robot) -> np.ndarray:
                             f"{robot.name} ({', '.join(robot.joint_names)})") from exc
 
 
-def _instantiate(entry: Entry, registry: dict, label: str, robot: Robot, q0: np.ndarray):
+def _instantiate(entry: Entry, registry: dict[str, type[_Item]], label: str, robot: Robot,
+                 q0: NDArray[np.float64]) -> _Item:
     """The task / constraint of one ``[[tasks]]`` / ``[[constraints]]`` entry, bound once to the
     robot (its frames, joints and sizes checked here, so the error names this entry)."""
     if entry.type not in registry:
@@ -315,7 +330,7 @@ def _instantiate(entry: Entry, registry: dict, label: str, robot: Robot, q0: np.
         raise ScenarioError(f"{label}: {exc}") from exc
 
 
-def _check_arguments(cls: type, arguments: dict, label: str) -> None:
+def _check_arguments(cls: type[Any], arguments: dict[str, Any], label: str) -> None:
     """Keys must be constructor parameters, values must fit their type hints (strictly)."""
     parameters = {name: p for name, p in inspect.signature(cls).parameters.items()
                   if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
@@ -328,7 +343,9 @@ def _check_arguments(cls: type, arguments: dict, label: str) -> None:
         raise ScenarioError(f"{label}: required key {missing[0]!r} missing; add `{missing[0]} = ...`")
     hints = typing.get_type_hints(cls.__init__)
     for key, value in arguments.items():
-        hint = hints.get(key, Literal["initial"] | _Numbers if cls is PostureTask and key == "target" else _Numbers)
+        hint = _toml_hint(hints[key]) if key in hints else _Numbers
+        if cls is PostureTask and key == "target":
+            hint = Literal["initial"] | hint
         try:
             _adapter(hint).validate_python(value)
         except ValidationError:
@@ -336,11 +353,28 @@ def _check_arguments(cls: type, arguments: dict, label: str) -> None:
                                 f"{' (numbers without quotes)' if isinstance(value, str) else ''}") from None
 
 
-_Numbers = float | list[float]  # unannotated constructor arguments: costs, targets
+_Numbers = float | list[float]  # unannotated or array-like constructor arguments: costs, targets
+_ARRAY_LIKE = frozenset(typing.get_args(ArrayLike))  # the members of numpy's ArrayLike union
+
+
+def _toml_hint(hint: Any) -> Any:
+    """A constructor's type hint as TOML values meet it: numpy's ``ArrayLike`` is a number or
+    an array of numbers (:data:`_Numbers`), a ``Sequence[X]`` an array (``list[X]``), a
+    ``Literal`` of names a string."""
+    if typing.get_origin(hint) in (Union, types.UnionType):
+        options = typing.get_args(hint)
+        if _ARRAY_LIKE <= set(options):
+            options = (_Numbers, *(option for option in options if option not in _ARRAY_LIKE))
+        return functools.reduce(operator.or_, [_toml_hint(option) for option in options])
+    if typing.get_origin(hint) is Sequence:
+        return types.GenericAlias(list, typing.get_args(hint))
+    if typing.get_origin(hint) is Literal and all(isinstance(option, str) for option in typing.get_args(hint)):
+        return str  # a choice of names: the constructor checks it and lists the valid ones
+    return hint
 
 
 @functools.cache
-def _adapter(hint: Any) -> TypeAdapter:
+def _adapter(hint: Any) -> TypeAdapter[Any]:
     return TypeAdapter(hint, config=ConfigDict(strict=True, allow_inf_nan=False))
 
 
@@ -352,7 +386,8 @@ def _describe(hint: Any) -> str:
                        if o is not type(None))
 
 
-def _reference(spec, tasks: list, robot: Robot, q0: np.ndarray):
+def _reference(spec: Reference, tasks: list[Task], robot: Robot,
+               q0: NDArray[np.float64]) -> tuple[FrameTask | PositionTask, ReferenceMotion]:
     """(task, reference) of the validated ``[reference]`` table."""
     task_type = PositionTask if spec.type == "point" else FrameTask
     matches = [t for t in tasks if isinstance(t, task_type) and spec.task in (None, t.name)]
@@ -366,13 +401,13 @@ def _reference(spec, tasks: list, robot: Robot, q0: np.ndarray):
         raise ScenarioError(f"[reference] ({spec.type}): {exc}") from exc
 
 
-def _make_reference(spec, robot: Robot, frame: str, q0: np.ndarray):
+def _make_reference(spec: Reference, robot: Robot, frame: str, q0: NDArray[np.float64]) -> ReferenceMotion:
     start = robot.frame_pose(q0, frame)
     if isinstance(spec, CircleReference):
-        return Circle(start=start, radius=spec.radius, period=spec.period, normal=spec.normal,
-                      start_axis=spec.start_axis, ramp_time=spec.ramp_time)
+        return Circle(start=start, radius=spec.radius, period=spec.period, normal=np.array(spec.normal),
+                      start_axis=np.array(spec.start_axis), ramp_time=spec.ramp_time)
     if isinstance(spec, PointReference):
-        return ConstantPoint(spec.position)
+        return ConstantPoint(np.array(spec.position))
     goal = _goal_pose(spec, start, robot, frame)
     if isinstance(spec, PoseReference):
         return ConstantPose(goal)
@@ -382,7 +417,7 @@ def _make_reference(spec, robot: Robot, frame: str, q0: np.ndarray):
     return plan_from_spec(plan_keys, robot, frame, q0, start, goal).reference
 
 
-def _goal_pose(spec: GoalKeys, start: np.ndarray, robot: Robot, frame: str) -> np.ndarray:
+def _goal_pose(spec: GoalKeys, start: NDArray[np.float64], robot: Robot, frame: str) -> NDArray[np.float64]:
     """The start pose, replaced by the frame's pose at ``configuration`` if given, then
     with ``position`` and/or ``rpy`` overridden."""
     pose = start.copy()

@@ -11,12 +11,16 @@ from __future__ import annotations
 import difflib
 import sys
 import types
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union, get_args, get_origin
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from .errors import WbcError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from pydantic_core import ErrorDetails
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -28,7 +32,7 @@ NonNegative = Annotated[float, Field(ge=0.0)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
-def read_toml(path: Path, error: type[WbcError], what: str = "") -> dict:
+def read_toml(path: Path, error: type[WbcError], what: str = "") -> dict[str, Any]:
     """The tables of the TOML file ``path``; an unreadable file, a syntax error or bytes that are
     not UTF-8 raise ``error`` saying ``cannot read {what} {path}: ...`` and the fix."""
     where = f"{what} {path}" if what else str(path)
@@ -48,7 +52,7 @@ class Table(BaseModel):
     model_config = ConfigDict(strict=True, extra="forbid", allow_inf_nan=False, frozen=True)
 
 
-def suggest(word: str, valid) -> str:
+def suggest(word: object, valid: Iterable[object]) -> str:
     """``"; did you mean 'x'?"`` for the closest valid name, or ``""``."""
     close = difflib.get_close_matches(str(word), [str(v) for v in valid], n=1, cutoff=0.6)
     return f"; did you mean {close[0]!r}?" if close else ""
@@ -83,7 +87,7 @@ def _nested(annotation: Any) -> tuple[str, Any] | None:
     return None
 
 
-def _tags(model: type[BaseModel]) -> tuple:
+def _tags(model: type[BaseModel]) -> tuple[Any, ...]:
     """The literal values of a union member's discriminator (its first Literal field)."""
     for field in model.model_fields.values():
         if get_origin(field.annotation) is Literal:
@@ -91,9 +95,11 @@ def _tags(model: type[BaseModel]) -> tuple:
     raise TypeError(f"{model.__name__} has no Literal discriminator")
 
 
-def _locate(schema: type[BaseModel], loc: tuple) -> tuple[str, str, type[BaseModel] | None]:
+def _locate(schema: type[BaseModel], loc: tuple[int | str, ...]) -> tuple[str, str, type[BaseModel] | None]:
     """(table header, key, model holding the key) of an error location."""
-    model, names, header, key = schema, [], "top level", ""
+    model: type[BaseModel] | None = schema
+    names: list[str] = []
+    header, key = "top level", ""
     pending: tuple[str, Any] | None = None
     for part in loc:
         if key:
@@ -116,7 +122,7 @@ def _locate(schema: type[BaseModel], loc: tuple) -> tuple[str, str, type[BaseMod
     return header, key, model
 
 
-def _explain_one(item: dict, schema: type[BaseModel]) -> str:
+def _explain_one(item: ErrorDetails, schema: type[BaseModel]) -> str:
     header, key, model = _locate(schema, item["loc"])
     kind, value = item["type"], item.get("input")
     where = f"{header} {key}".strip() if key else header
@@ -137,7 +143,7 @@ def _explain_one(item: dict, schema: type[BaseModel]) -> str:
     return f"{where} = {value!r}: {message[0].lower()}{message[1:]}" if key else f"{where}: {message}"
 
 
-def _explain_choice(item: dict, where: str, model: type[BaseModel] | None, key: str) -> str:
+def _explain_choice(item: ErrorDetails, where: str, model: type[BaseModel] | None, key: str) -> str:
     """Unknown or missing ``type`` / ``kind`` tags and literal values, with suggestions."""
     context = item.get("ctx", {})
     if item["type"] == "literal_error" and model is not None and key in model.model_fields:

@@ -14,6 +14,7 @@ is linear with determinant 1, so it changes no Jacobian rank.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .validation import as_vector
 
@@ -27,12 +28,12 @@ _DH_TO_MEASURED = np.array([
 _MEASURED_TO_DH = np.linalg.inv(_DH_TO_MEASURED)
 
 
-def scorbot_measured_angles(theta) -> np.ndarray:
+def scorbot_measured_angles(theta: ArrayLike) -> NDArray[np.float64]:
     """Gierlak's measured angles q (eq. 14) from the DH angles theta of the model."""
     return _DH_TO_MEASURED @ as_vector(theta, 5, "theta")
 
 
-def scorbot_dh_angles(q) -> np.ndarray:
+def scorbot_dh_angles(q: ArrayLike) -> NDArray[np.float64]:
     """DH angles theta of the model from the measured angles q: theta3 = q3 - q2, theta4 = q4 - q3."""
     return _MEASURED_TO_DH @ as_vector(q, 5, "q")
 

@@ -14,33 +14,41 @@ lets these (and properties with setters) be assigned after a controller uses the
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Generic, TypeVar, overload
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .validation import as_weights
 
+_In = TypeVar("_In")  # what an assignment takes (the check's argument)
+_Out = TypeVar("_Out")  # what a read gives (the check's result)
 
-class Setting:
+
+class Setting(Generic[_In, _Out]):
     """A validated setting kept on the instance: ``gain = Setting(as_gain)`` makes
     ``task.gain = x`` store ``as_gain(x, "gain")`` (raising on bad input) in ``task._gain``."""
 
-    def __init__(self, check: Callable[[Any, str], Any]) -> None:
+    def __init__(self, check: Callable[[_In, str], _Out]) -> None:
         self._check = check
 
     def __set_name__(self, owner: type, name: str) -> None:
         self._name, self._slot = name, f"_{name}"
 
-    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+    @overload
+    def __get__(self, instance: None, owner: type | None = None) -> Setting[_In, _Out]: ...
+    @overload
+    def __get__(self, instance: object, owner: type | None = None) -> _Out: ...
+    def __get__(self, instance: object, owner: type | None = None) -> Setting[_In, _Out] | _Out:
         if instance is None:
             return self
         return getattr(instance, self._slot)
 
-    def __set__(self, instance: Any, value: Any) -> None:
+    def __set__(self, instance: object, value: _In) -> None:
         setattr(instance, self._slot, self._check(value, self._name))
 
 
-class Operand:
+class Operand(Generic[_In]):
     """A scalar setting that lives in an operand array of a compiled op.
 
     ``gain = Operand("_parameters", 36, as_gain)`` makes ``task.gain`` read and write slot
@@ -48,18 +56,22 @@ class Operand:
     tuning a setting between ticks reaches the compiled code.
     """
 
-    def __init__(self, array: str, index: int, check: Callable[[Any, str], float]) -> None:
+    def __init__(self, array: str, index: int, check: Callable[[_In, str], float]) -> None:
         self._array, self._index, self._check = array, index, check
 
     def __set_name__(self, owner: type, name: str) -> None:
         self._name = name
 
-    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+    @overload
+    def __get__(self, instance: None, owner: type | None = None) -> Operand[_In]: ...
+    @overload
+    def __get__(self, instance: object, owner: type | None = None) -> float: ...
+    def __get__(self, instance: object, owner: type | None = None) -> Operand[_In] | float:
         if instance is None:
             return self
         return float(getattr(instance, self._array)[self._index])
 
-    def __set__(self, instance: Any, value: Any) -> None:
+    def __set__(self, instance: object, value: _In) -> None:
         getattr(instance, self._array)[self._index] = self._check(value, self._name)
 
 
@@ -77,12 +89,16 @@ class Cost:
     def __set_name__(self, owner: type, name: str) -> None:
         self._name = name
 
-    def __get__(self, instance: Any, owner: type | None = None) -> Any:
+    @overload
+    def __get__(self, instance: None, owner: type | None = None) -> Cost: ...
+    @overload
+    def __get__(self, instance: object, owner: type | None = None) -> NDArray[np.float64]: ...
+    def __get__(self, instance: object, owner: type | None = None) -> Cost | NDArray[np.float64]:
         if instance is None:
             return self
         return instance.__dict__[self._name].copy()
 
-    def __set__(self, instance: Any, value: Any) -> None:
+    def __set__(self, instance: object, value: ArrayLike) -> None:
         weights = getattr(instance, self._array)[self._rows]
         cost = as_weights(value, len(weights), self._name)
         weights[...] = np.sqrt(cost)

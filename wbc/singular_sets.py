@@ -13,16 +13,17 @@ columns index ``u`` of ``v = S(q) u``, :meth:`Robot.input_map`).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from .errors import ModelError
 from .robot import Robot
 
-Residuals = Callable[[np.ndarray], np.ndarray]
-Projection = Callable[[np.ndarray], "np.ndarray | None"]
+Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
+Projection = Callable[[NDArray[np.float64]], NDArray[np.float64] | None]
 
 
 @dataclass(frozen=True)
@@ -40,8 +41,8 @@ class SingularCondition:
     rank: int
     project: Projection
 
-    def residual(self, q: np.ndarray) -> float:
-        """max |residual_i(q)| (dimensionless)."""
+    def residual(self, q: NDArray[np.float64]) -> float:
+        """``max_i |residual_i(q)|`` (dimensionless)."""
         return float(np.max(np.abs(self.residuals(q))))
 
 
@@ -64,8 +65,8 @@ class SingularSystem:
         return min(len(self.rows), len(self.columns))
 
 
-def _set_angle(q: np.ndarray | None, index: int, candidates, low: np.ndarray,
-               high: np.ndarray) -> np.ndarray | None:
+def _set_angle(q: NDArray[np.float64] | None, index: int, candidates: Sequence[float], low: NDArray[np.float64],
+               high: NDArray[np.float64]) -> NDArray[np.float64] | None:
     """A copy of ``q`` with ``q[index]`` set to the angle ``candidates + 2 pi k`` inside the
     joint's limits closest to its current value; None if ``q`` is None or no candidate fits."""
     if q is None:
@@ -98,32 +99,32 @@ def _youbot(robot: Robot) -> tuple[SingularSystem, ...]:
     low, high = robot.lower, robot.upper
     length = g["a2"] + g["a3"] + g["c"]
 
-    def stretched_up(q):
+    def stretched_up(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[4]), np.sin(q[4] + q[5])])
 
-    def project_stretched_up(q):
+    def project_stretched_up(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         out = q.copy()
         out[4:6] = 0.0
         return out
 
-    def gripper_vertical(q):
+    def gripper_vertical(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[4] + q[5] + q[6])])
 
-    def project_gripper_vertical(q):
+    def project_gripper_vertical(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return _set_angle(q, 6, [-q[4] - q[5], np.pi - q[4] - q[5]], low, high)
 
-    def elbow(q):
+    def elbow(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[5])])
 
-    def project_elbow(q):
+    def project_elbow(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return _set_angle(q, 5, [0.0, np.pi], low, high)
 
-    def on_axis_1(q):
+    def on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64]:
         t2, t23, t234 = q[4], q[4] + q[5], q[4] + q[5] + q[6]
         ell = g["a1"] + g["a2"] * np.sin(t2) + g["a3"] * np.sin(t23) + g["c"] * np.sin(t234)
         return np.array([np.sin(t234), ell / length])
 
-    def project_on_axis_1(q):
+    def project_on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         s23 = -(g["a1"] + g["a2"] * np.sin(q[4])) / g["a3"]
         if abs(s23) > 1.0:
             return None
@@ -164,18 +165,18 @@ def _scorbot(robot: Robot) -> tuple[SingularSystem, ...]:
     low, high = robot.lower, robot.upper
     length = g["l2"] + g["l3"] + g["d5"]
 
-    def elbow(q):
+    def elbow(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[2])])
 
-    def project_elbow(q):
+    def project_elbow(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return _set_angle(q, 2, [0.0, np.pi], low, high)
 
-    def tool_on_axis_1(q):
+    def tool_on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64]:
         q2, q3, q4 = q[1], q[1] + q[2], q[1] + q[2] + q[3]
         radius = g["l1"] + g["l2"] * np.cos(q2) + g["l3"] * np.cos(q3) + g["d5"] * np.cos(q4)
         return np.array([np.cos(q4), radius / length])
 
-    def project_tool_on_axis_1(q):
+    def project_tool_on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         c3 = -(g["l1"] + g["l2"] * np.cos(q[1])) / g["l3"]
         if abs(c3) > 1.0:
             return None
@@ -205,26 +206,26 @@ def _puma560(robot: Robot) -> tuple[SingularSystem, ...]:
     length = g["a2"] + g["d4"]
     forearm = np.hypot(g["a3"], g["d4"])
 
-    def wrist(q):
+    def wrist(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[4])])
 
-    def project_wrist(q):
+    def project_wrist(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return _set_angle(q, 4, [0.0, np.pi], low, high)
 
-    def elbow(q):
+    def elbow(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([(g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])) / forearm])
 
-    def project_elbow(q):
+    def project_elbow(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         root = np.arctan2(-g["d4"], g["a3"])
         return _set_angle(q, 2, [root, root + np.pi], low, high)
 
-    def reach(q):
+    def reach(q: NDArray[np.float64]) -> float:
         return g["a2"] * np.cos(q[1]) + g["a3"] * np.cos(q[1] + q[2]) - g["d4"] * np.sin(q[1] + q[2])
 
-    def shoulder(q):
+    def shoulder(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([reach(q) / length])
 
-    def project_shoulder(q):
+    def project_shoulder(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         # reach = A cos(theta2) - B sin(theta2) = rho cos(theta2 + beta)
         big_a = g["a2"] + g["a3"] * np.cos(q[2]) - g["d4"] * np.sin(q[2])
         big_b = g["a3"] * np.sin(q[2]) + g["d4"] * np.cos(q[2])
@@ -258,34 +259,34 @@ def _deluca_mm(robot: Robot) -> tuple[SingularSystem, ...]:
     length = g["l2"] + g["l3"]
     heading, theta1, theta2, theta3 = 2, 3, 4, 5
 
-    def reach(q):
+    def reach(q: NDArray[np.float64]) -> float:
         return (g["l2"] * np.cos(q[theta2]) + g["l3"] * np.cos(q[theta2] + q[theta3])) / length
 
-    def project_on_axis_1(q):
+    def project_on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         # R = A cos(theta2) - B sin(theta2) with A = l2 + l3 c3, B = l3 s3
         big_a = g["l2"] + g["l3"] * np.cos(q[theta3])
         big_b = g["l3"] * np.sin(q[theta3])
         beta = np.arctan2(big_b, big_a)
         return _set_angle(q, theta2, [np.pi / 2 - beta, -np.pi / 2 - beta], low, high)
 
-    def project_stretched(q):
+    def project_stretched(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         return _set_angle(q, theta3, [0.0, np.pi], low, high)
 
-    def steer(q, offset):
+    def steer(q: NDArray[np.float64] | None, offset: float) -> NDArray[np.float64] | None:
         if q is None:
             return None
         out = q.copy()
         out[heading] = q[theta1] + offset  # the steering angle is unbounded
         return out
 
-    def project_double(q):
+    def project_double(q: NDArray[np.float64]) -> NDArray[np.float64] | None:
         stretched = project_stretched(q)
         return None if stretched is None else project_on_axis_1(stretched)
 
-    def on_axis_1(q):
+    def on_axis_1(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([reach(q)])
 
-    def stretched(q):
+    def stretched(q: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.array([np.sin(q[theta3])])
 
     arm_conditions = (

@@ -20,6 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .errors import InvalidInputError
 from .robot import Robot
@@ -48,8 +49,8 @@ def analytic_conditions(robot: Robot, subsystem: str | None = None) -> tuple[Sin
     return singular_system(robot, subsystem).conditions
 
 
-def is_singular(robot: Robot, q, tol: float = RESIDUAL_TOLERANCE, subsystem: str | None = None) -> bool:
-    """True where some condition holds: max_i |residual_i(q)| <= tol (residuals are dimensionless)."""
+def is_singular(robot: Robot, q: ArrayLike, tol: float = RESIDUAL_TOLERANCE, subsystem: str | None = None) -> bool:
+    """True where some condition holds: ``max_i |residual_i(q)| <= tol`` (residuals are dimensionless)."""
     q = robot.check_configuration(q)
     tol = as_positive(tol, "tol")
     return any(c.residual(q) <= tol for c in analytic_conditions(robot, subsystem))
@@ -74,8 +75,8 @@ def _setup(robot: Robot, frame: str | None, subsystem: str | None,
     return frame, columns, scale
 
 
-def scaled_jacobian(robot: Robot, q, frame: str | None = None, subsystem: str | None = None,
-                    length_scale: float | None = None) -> np.ndarray:
+def scaled_jacobian(robot: Robot, q: ArrayLike, frame: str | None = None, subsystem: str | None = None,
+                    length_scale: float | None = None) -> NDArray[np.float64]:
     """J_s = diag(I/L, I) J diag(c) (see the module docstring); L = 1 m if none is known."""
     frame, columns, scale = _setup(robot, frame, subsystem, length_scale)
     scale = 1.0 if scale is None else scale
@@ -98,7 +99,7 @@ def _rows_and_inputs(robot: Robot, subsystem: str | None) -> tuple[tuple[int, ..
     return tuple(range(6)), False
 
 
-def numeric_rank(robot: Robot, q, frame: str | None = None, tol: float = RANK_TOLERANCE,
+def numeric_rank(robot: Robot, q: ArrayLike, frame: str | None = None, tol: float = RANK_TOLERANCE,
                  subsystem: str | None = None) -> int:
     """Number of singular values of J_s above ``tol * sigma_max``."""
     tol = as_positive(tol, "tol")
@@ -106,8 +107,8 @@ def numeric_rank(robot: Robot, q, frame: str | None = None, tol: float = RANK_TO
     return int(np.sum(sigma > tol * sigma[0])) if sigma[0] > 0.0 else 0
 
 
-def lost_directions(robot: Robot, q, frame: str | None = None, tol: float = RANK_TOLERANCE,
-                    subsystem: str | None = None) -> np.ndarray:
+def lost_directions(robot: Robot, q: ArrayLike, frame: str | None = None, tol: float = RANK_TOLERANCE,
+                    subsystem: str | None = None) -> NDArray[np.float64]:
     """Left null space of J: a 6 x k matrix W with orthonormal columns and W^T J = 0
     (len(rows) x k for a system on some rows only, e.g. 3 x k for De Luca's wrist centre).
 
@@ -127,7 +128,7 @@ def lost_directions(robot: Robot, q, frame: str | None = None, tol: float = RANK
     return basis
 
 
-def singularity_measure(robot: Robot, q, frame: str | None = None, subsystem: str | None = None,
+def singularity_measure(robot: Robot, q: ArrayLike, frame: str | None = None, subsystem: str | None = None,
                         length_scale: float | None = None) -> float:
     """det(J_s^T J_s) for tall or square J_s, det(J_s J_s^T) for wide J_s = prod_i sigma_i(J_s)^2.
 
@@ -141,7 +142,7 @@ def singularity_measure(robot: Robot, q, frame: str | None = None, subsystem: st
     return float(np.prod(sigma**2))
 
 
-def in_singular_region(robot: Robot, q, threshold: float, frame: str | None = None,
+def in_singular_region(robot: Robot, q: ArrayLike, threshold: float, frame: str | None = None,
                        subsystem: str | None = None, length_scale: float | None = None) -> bool:
     """The singular region of Lu et al.: ``singularity_measure(q) <= threshold``.
 
@@ -160,17 +161,17 @@ class Agreement:
     label: str
     agree: int = 0
     total: int = 0
-    failures: list[np.ndarray] = field(default_factory=list)
+    failures: list[NDArray[np.float64]] = field(default_factory=list)
 
-    def add(self, ok: bool, q: np.ndarray) -> None:
+    def add(self, ok: bool, q: NDArray[np.float64]) -> None:
         self.total += 1
         self.agree += ok
         if not ok:
             self.failures.append(q)
 
 
-def _step_off(robot: Robot, condition: SingularCondition, q: np.ndarray, epsilon: float,
-              rng: np.random.Generator) -> np.ndarray:
+def _step_off(robot: Robot, condition: SingularCondition, q: NDArray[np.float64], epsilon: float,
+              rng: np.random.Generator) -> NDArray[np.float64]:
     """q moved by epsilon in a random direction that leaves the set (residual >= epsilon / 10;
     after 100 failed draws the last one is returned and the check reports what it finds)."""
     for _ in range(100):
@@ -194,7 +195,7 @@ def verify(robot: Robot, rng: np.random.Generator, samples: int = 2000, on_set: 
     system = singular_system(robot, subsystem)
     name = system.name
 
-    def rank(q):
+    def rank(q: NDArray[np.float64]) -> int:
         return numeric_rank(robot, q, subsystem=name)
 
     random = Agreement("random configurations")
@@ -207,11 +208,11 @@ def verify(robot: Robot, rng: np.random.Generator, samples: int = 2000, on_set: 
         for _ in range(50 * on_set):
             if exact.total == on_set:
                 break
-            q = condition.project(robot.random_configuration(rng))
-            if q is None:
+            on = condition.project(robot.random_configuration(rng))
+            if on is None:
                 continue
-            exact.add(rank(q) == condition.rank and is_singular(robot, q, subsystem=name), q)
-            moved = _step_off(robot, condition, q, epsilon, rng)
+            exact.add(rank(on) == condition.rank and is_singular(robot, on, subsystem=name), on)
+            moved = _step_off(robot, condition, on, epsilon, rng)
             near.add(rank(moved) == system.full_rank and not is_singular(robot, moved, subsystem=name), moved)
         reports += [exact, near]
     return reports

@@ -12,6 +12,7 @@ import math
 import numbers
 import re
 from functools import cache
+from typing import Any
 
 from .errors import InvalidInputError
 from .quiet import silenced
@@ -137,16 +138,18 @@ def _check_value(name: str, key: str, value: object, default: object) -> None:
         return
     budget, tolerance = _BUDGET.search(key), _TOLERANCE.search(key) and not (
         isinstance(default, numbers.Real) and default < 0)
-    numeric = isinstance(default, numbers.Real) or budget or tolerance
-    if numeric and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+    if not (isinstance(default, numbers.Real) or budget or tolerance):
+        return  # not a number: the backend checks it
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InvalidSolverOptionError(f"{where} must be a number, got {value!r}")
-    if budget and not (math.isfinite(value) and value > 0):
+    number = float(value)
+    if budget and not (math.isfinite(number) and number > 0):
         raise InvalidSolverOptionError(f"{where} is a budget: it must be finite and > 0, got {value!r}")
-    if tolerance and not (math.isfinite(value) and value >= 0):
+    if tolerance and not (math.isfinite(number) and number >= 0):
         raise InvalidSolverOptionError(f"{where} is a tolerance: it must be finite and >= 0, got {value!r}")
 
 
-def validate_options(name: str, options: dict | None) -> dict:
+def validate_options(name: str, options: dict[str, Any] | None) -> dict[str, Any]:
     """Checked copy of ``options`` for backend ``name``, generic budgets translated to its
     own keys; raises :class:`InvalidSolverOptionError` naming the key, solver and valid keys."""
     if options is None:
@@ -154,7 +157,7 @@ def validate_options(name: str, options: dict | None) -> dict:
     if not isinstance(options, dict):
         raise InvalidSolverOptionError(f"solver_options must be a dict, got {type(options).__name__}")
     valid = valid_options(name)
-    checked: dict = {}
+    checked: dict[str, Any] = {}
     for key, value in options.items():
         _check_key(name, key, valid)
         _check_value(name, key, value, None if valid is None else valid.get(key))

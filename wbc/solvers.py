@@ -14,11 +14,12 @@ import math
 import time
 import warnings
 from abc import ABC, abstractmethod
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import qpsolvers
 import scipy.sparse as sp
+from numpy.typing import NDArray
 
 from . import daqp_abi, kernels
 from .daqp_native import NativeWorkspace
@@ -29,7 +30,7 @@ from .quiet import silenced
 from .solver_options import BUDGET_KEYS, validate_options
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
-DEFAULT_SETTINGS: dict[str, dict] = {
+DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
     # time_limit [s]: a safety cap per solve (a hung backend would hang the control loop);
     # tighten it to your period with solver_options
     # polishing off: OSQP >= 1.0 prints "Polishing not needed - no active set detected" to
@@ -77,7 +78,7 @@ WARM_START_SOLVERS = frozenset({"daqp", "osqp", "proxqp"})
 class QPSolution(NamedTuple):
     """Outcome of one solve: ``x`` is None unless ``success``."""
 
-    x: np.ndarray | None
+    x: NDArray[np.float64] | None
     success: bool
     status: str
     solve_time: float  #: wall time inside the backend [s]
@@ -95,10 +96,16 @@ class QPSolver(ABC):
     """A QP backend."""
 
     name: str
-    settings: dict
+    settings: dict[str, Any]
 
     @abstractmethod
-    def solve(self, qp: QP) -> QPSolution: ...
+    def solve(self, qp: QP) -> QPSolution:
+        """Solve ``qp`` now.
+
+        Returns:
+            The answer (``x`` None unless ``success``), the backend's status and time. A backend
+            never raises for a failed solve: the failure is in the solution.
+        """
 
     def reset(self) -> None:  # noqa: B027 -- optional hook: a backend without warm-start state keeps this no-op
         """Forget any warm start (the next solve starts cold)."""
@@ -113,14 +120,14 @@ class QPSolver(ABC):
         """The answer of the solve that the bound tick program ran (see :meth:`bind_program`)."""
         raise NotImplementedError(f"{self.name} does not run inside a tick program")
 
-    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
+    def collect_optimal(self, tolerance: float) -> tuple[NDArray[np.float64], float] | None:
         """The control loop's fast path of :meth:`collect`: ``(x, solve time [s])`` when the
         bound solve succeeded and its answer's defect is at most ``tolerance``; None
         otherwise (then :meth:`collect` says what happened)."""
         return None
 
     @property
-    def fallback_budget(self) -> dict:
+    def fallback_budget(self) -> dict[str, Any]:
         """DAQP settings (``time_limit`` [s], ``iter_limit``) for the elastic fallback solve:
         this backend's time budget whatever the backend; its iteration budget only when it
         is DAQP (iterations of other algorithms do not count the same work). Nothing for a
@@ -140,12 +147,15 @@ def available_solvers() -> list[str]:
     return list(qpsolvers.available_solvers)
 
 
-def make_solver(name: str, options: dict | None = None) -> QPSolver:
+def make_solver(name: str, options: dict[str, Any] | None = None) -> QPSolver:
     """Backend for ``name``: the direct DAQP backend for ``"daqp"``, qpsolvers otherwise.
 
     ``options`` are checked by the backend's constructor
-    (:func:`wbc.solver_options.validate_options`): an unknown key or a bad value raises
-    :class:`~wbc.solver_options.InvalidSolverOptionError`.
+    (:func:`wbc.solver_options.validate_options`).
+
+    Raises:
+        UnknownSolverError: ``name`` is not a solver qpsolvers finds installed.
+        InvalidSolverOptionError: an unknown key or a bad value in ``options``.
     """
     if not isinstance(name, str) or name not in qpsolvers.available_solvers:
         raise UnknownSolverError(
@@ -163,7 +173,7 @@ class QpsolversBackend(QPSolver):
     primal initial guess to the backends in :data:`WARM_START_SOLVERS`.
     """
 
-    def __init__(self, name: str, options: dict | None = None) -> None:
+    def __init__(self, name: str, options: dict[str, Any] | None = None) -> None:
         self.name = name
         settings = {**DEFAULT_SETTINGS.get(name, {}), **validate_options(name, options)}
         self.warm_start = bool(settings.pop("warm_start", True)) and name in WARM_START_SOLVERS
@@ -242,6 +252,7 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
     controller's feasibility check cannot make. 0 where the backend returned no multipliers
     (qpsolvers then reports inf: nothing to check)."""
     x = solution.x
+    assert x is not None  # the caller checked that the backend found one
     scale = 1.0 + float(np.max(np.abs(qp.c))) + float(np.max(np.abs(qp.H @ x)))
     dual, gap = solution.dual_residual(), solution.duality_gap()
     dual = dual / scale if math.isfinite(dual) else 0.0
@@ -274,7 +285,7 @@ class DaqpBackend(QPSolver):
 
     name = "daqp"
 
-    def __init__(self, options: dict | None = None) -> None:
+    def __init__(self, options: dict[str, Any] | None = None) -> None:
         chosen = validate_options(self.name, options)
         self.options = dict(options or {})  #: as given (for :meth:`for_levels`)
         settings = {**DEFAULT_SETTINGS[self.name], **chosen}
@@ -283,7 +294,7 @@ class DaqpBackend(QPSolver):
         self._library = daqp_abi.native()
         self._workspace: NativeWorkspace | None = None  # native path
         self._bound: NativeWorkspace | None = None  # the one a tick program runs
-        self._model = None  # binding path
+        self._model: Any = None  # binding path: a daqp.Model (untyped extension)
         self._data: np.ndarray | None = None  # buffer of the QP the binding's workspace points into
         self._shape: tuple[int, int, int] | None = None
         self._sense = np.zeros(0, dtype=np.int32)
@@ -328,10 +339,13 @@ class DaqpBackend(QPSolver):
 
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""
-        return self._native_solution(self._bound, *self._bound.outcome())
-
-    def collect_optimal(self, tolerance: float) -> tuple[np.ndarray, float] | None:
         bound = self._bound
+        assert bound is not None, "collect() before bind_program()"
+        return self._native_solution(bound, *bound.outcome())
+
+    def collect_optimal(self, tolerance: float) -> tuple[NDArray[np.float64], float] | None:
+        bound = self._bound
+        assert bound is not None, "collect_optimal() before bind_program()"
         exitflag, defect, elapsed = bound.control[kernels.DAQP_CONTROL_OUTCOME].tolist()
         if exitflag >= 1.0 and defect <= tolerance:
             return bound.x.copy(), elapsed
@@ -340,14 +354,16 @@ class DaqpBackend(QPSolver):
     def solve(self, qp: QP) -> QPSolution:
         if self._library is None:
             return self._binding_solve(qp)
+        workspace: NativeWorkspace | None
         if self._bound is not None and self._bound.qp is qp:
             workspace = self._bound
         else:  # any other QP: copied into a workspace of its shape, which keeps its warm start
             workspace = self._workspace
             if workspace is None or (workspace.qp.n, workspace.qp.n_ineq, workspace.qp.n_eq) != (qp.n, qp.n_ineq,
                                                                                              qp.n_eq):
-                workspace = self._workspace = NativeWorkspace(self._library, QP(qp.n, qp.n_ineq, qp.n_eq),
-                                                              self.settings, self.warm_start)
+                workspace = NativeWorkspace(self._library, QP(qp.n, qp.n_ineq, qp.n_eq), self.settings,
+                                            self.warm_start)
+                self._workspace = workspace
             workspace.qp.data[...] = qp.data
         return self._native_solution(workspace, *workspace.solve())
 

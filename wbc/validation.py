@@ -7,17 +7,20 @@ the offending argument, before any kinematics or solver code runs.
 from __future__ import annotations
 
 import math
+from typing import TypeVar
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from . import kernels
 from .errors import InvalidInputError
 
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
 _FLOAT64 = np.dtype(np.float64)
+_Item = TypeVar("_Item")
 
 
-def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
+def _real_array(value: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.float64]:
     """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
     if np.iscomplexobj(value):
         raise InvalidInputError(f"{name} must be real, got complex values")
@@ -33,20 +36,20 @@ def _real_array(value, shape: tuple[int, ...], name: str) -> np.ndarray:
     return array
 
 
-def _all_real(value) -> bool:
+def _all_real(value: ArrayLike) -> bool:
     """True for an object array / nested list holding only real numbers (not bools)."""
     items = np.asarray(value, dtype=object).ravel()
     return all(isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
                for x in items)
 
 
-def _describe(value) -> str:
+def _describe(value: object) -> str:
     if isinstance(value, np.ndarray):
         return f"an array of dtype {value.dtype}"
     return f"{type(value).__name__} {value!r}"[:80]
 
 
-def as_vector(value, size: int, name: str) -> np.ndarray:
+def as_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
     """Return ``value`` as a finite float64 vector of length ``size``.
 
     Fast path for the control loop: a float64 array of the right shape is checked
@@ -62,7 +65,7 @@ def as_vector(value, size: int, name: str) -> np.ndarray:
     return array
 
 
-def as_weights(value, size: int, name: str) -> np.ndarray:
+def as_weights(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
     """Return a scalar or per-axis cost as a non-negative finite vector of length ``size``."""
     array = _real_array(value, np.shape(value), name)
     if array.ndim == 0:
@@ -73,14 +76,14 @@ def as_weights(value, size: int, name: str) -> np.ndarray:
     return array
 
 
-def as_number(value, name: str) -> float:
+def as_number(value: object, name: str) -> float:
     """Return a real scalar (int or float, not bool or str) as a float."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise InvalidInputError(f"{name} must be a number, got {_describe(value)}")
     return float(value)
 
 
-def as_positive(value, name: str) -> float:
+def as_positive(value: float, name: str) -> float:
     """Return ``value`` as a finite float > 0."""
     number = as_number(value, name)
     if not np.isfinite(number) or number <= 0.0:
@@ -88,7 +91,7 @@ def as_positive(value, name: str) -> float:
     return number
 
 
-def as_nonnegative(value, name: str) -> float:
+def as_nonnegative(value: float, name: str) -> float:
     """Return ``value`` as a finite float >= 0."""
     number = as_number(value, name)
     if not np.isfinite(number) or number < 0.0:
@@ -96,7 +99,7 @@ def as_nonnegative(value, name: str) -> float:
     return number
 
 
-def as_items(value, kind: type, name: str) -> list:
+def as_items(value: object, kind: type[_Item], name: str) -> list[_Item]:
     """``value`` (a list or tuple of ``kind``) as a list; a single item or anything else is refused."""
     if isinstance(value, kind):
         raise InvalidInputError(f"{name} must be a list of {kind.__name__}s, got a single {type(value).__name__}: "
@@ -109,19 +112,19 @@ def as_items(value, kind: type, name: str) -> list:
     return list(value)
 
 
-def as_flag(value, name: str) -> bool:
+def as_flag(value: object, name: str) -> bool:
     """Return a boolean option; anything but a bool (e.g. the string ``"false"``) is refused."""
     if not isinstance(value, (bool, np.bool_)):
         raise InvalidInputError(f"{name} must be True or False, got {value!r}")
     return bool(value)
 
 
-def as_speed_limit(value, name: str) -> float:
+def as_speed_limit(value: float | None, name: str) -> float:
     """Return an optional speed bound: ``None`` means unbounded (inf), else a finite float > 0."""
     return np.inf if value is None else as_positive(value, name)
 
 
-def as_gain(value, name: str = "gain") -> float:
+def as_gain(value: float, name: str = "gain") -> float:
     """Return a per-tick gain in (0, 1]."""
     gain = as_positive(value, name)
     if gain > 1.0:
@@ -129,7 +132,7 @@ def as_gain(value, name: str = "gain") -> float:
     return gain
 
 
-def as_pose(value, name: str) -> np.ndarray:
+def as_pose(value: ArrayLike, name: str) -> NDArray[np.float64]:
     """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation.
 
     Fast path for the control loop: a float64 (4, 4) array is checked by one compiled call

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..item import Item
 from ..kinematics import Kinematics
@@ -28,12 +29,12 @@ from ..robot import Robot
 class ConstraintRows:
     """Where a constraint writes this tick (all views into controller buffers)."""
 
-    lower: np.ndarray  #: (nv,) own lower bound on v
-    upper: np.ndarray  #: (nv,) own upper bound on v
-    G: np.ndarray  #: (n_inequalities, nv)
-    h: np.ndarray  #: (n_inequalities,)
-    A: np.ndarray  #: (n_equalities, nv)
-    b: np.ndarray  #: (n_equalities,)
+    lower: NDArray[np.float64]  #: (nv,) own lower bound on v
+    upper: NDArray[np.float64]  #: (nv,) own upper bound on v
+    G: NDArray[np.float64]  #: (n_inequalities, nv)
+    h: NDArray[np.float64]  #: (n_inequalities,)
+    A: NDArray[np.float64]  #: (n_equalities, nv)
+    b: NDArray[np.float64]  #: (n_equalities,)
 
 
 class ConstraintData:
@@ -74,7 +75,7 @@ class ConstraintData:
 
 
 class Constraint(Item, ConstraintData):
-    """Base class of all constraints: a specification that :meth:`bind` turns into
+    """Base class of all constraints: a specification that :meth:`Constraint.bind` turns into
     per-controller :class:`ConstraintData` (see :class:`~wbc.item.Item`). A simple custom
     constraint is its own data: set its row counts, implement :meth:`compute`."""
 
@@ -84,8 +85,10 @@ class Constraint(Item, ConstraintData):
     def __init__(self, name: str | None = None) -> None:
         self.name = name or type(self).__name__
 
+    # A constraint that is its own data is its own ``constraint``, which stays read-only
+    # (ConstraintData's is an attribute set by its __init__; mypy flags the narrowing).
     @property
-    def constraint(self) -> Constraint:
+    def constraint(self) -> Constraint:  # type: ignore[override]
         return self
 
     def bind(self, robot: Robot) -> ConstraintData:

@@ -55,6 +55,7 @@ class JointPositionLimitsData(ConstraintData):
     """:class:`JointPositionLimits` in one controller: the robot's bounded 1-DOF joints."""
 
     has_bounds = True
+    constraint: JointPositionLimits
 
     def __init__(self, limits: JointPositionLimits, robot: Robot) -> None:
         super().__init__(limits)

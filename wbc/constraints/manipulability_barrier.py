@@ -7,7 +7,7 @@ import numpy as np
 from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..manipulability import Manipulability, row_selection
+from ..manipulability import Manipulability, Rows, row_selection
 from ..program import TickProgram
 from ..robot import Robot
 from ..settings import Operand
@@ -51,7 +51,7 @@ class ManipulabilityBarrier(Constraint):
     min_value = Operand("_settings", 1, as_positive)
     hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
 
-    def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: str = "all",
+    def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: Rows = "all",
                  name: str | None = None) -> None:
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
@@ -75,6 +75,7 @@ class ManipulabilityBarrierData(ConstraintData):
     value at the last tick."""
 
     n_inequalities = 1
+    constraint: ManipulabilityBarrier
 
     def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:
         super().__init__(barrier)

@@ -49,9 +49,10 @@ class WheelSpeedLimitsData(ConstraintData):
 
     def __init__(self, limits: WheelSpeedLimits, robot: Robot) -> None:
         super().__init__(limits)
-        base = robot.base
-        self._H0 = base.wheels.inverse_matrix()
-        self.max_speed = limits._max_speed if limits._max_speed is not None else base.wheels.max_speed
+        base, wheels = robot.base, robot.base.wheels
+        assert wheels is not None  # bind() refuses a base without wheel geometry
+        self._H0 = wheels.inverse_matrix()
+        self.max_speed = limits._max_speed if limits._max_speed is not None else wheels.max_speed
         if not np.isfinite(self.max_speed):
             raise InvalidInputError(f"{self.name}: no wheel speed limit given or declared by the model")
         self._x, self._y, self._heading = base.indices

@@ -204,7 +204,7 @@ def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifte
     one non-zero entry (posture, damping), 0 for a dense one (k of them). ``source``: the
     v-QP's buffer (:class:`wbc.qp.QP` with nv variables, p inequality and e equality rows;
     its bounds and rows are read, its H and c are not used). ``lifted``: the buffer of the
-    QP over ``x = (v, w)``, N = nv + k variables, rows ``[G 0; A 0; U -I]``:
+    QP over ``x = (v, w)``, N = nv + k variables, rows ``[G 0; A 0; U -I]``::
 
         min 1/2 v^T D v + d^T v + 1/2 |w|^2 - t^T w   s.t. U v - w = 0 and the v-QP's limits,
 

@@ -46,6 +46,7 @@ from . import (
     POSITION_SETTINGS,
 )
 
+#: an operand's shape: ints and expressions over the op's int operands; None for an int operand
 Shape = tuple[int | str, ...] | None
 
 
@@ -59,6 +60,7 @@ class OpSpec(NamedTuple):
 
 _STACK = ("stack", ("nv + 1", "rows"))  # the controller's task stack A^T ((nv + 1) x rows)
 
+#: the schema of every op of wbc's tick program, by opcode (checked by :meth:`wbc.program.TickProgram.add`)
 OP_SPECS: dict[int, OpSpec] = {
     OP_FRAME_TASK: OpSpec("FRAME_TASK", (
         ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),

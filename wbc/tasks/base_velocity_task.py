@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
@@ -25,19 +26,23 @@ class BaseVelocityTask(Task):
 
     cost = Cost("_weights", slice(0, 3))  #: may be changed between ticks
 
-    def __init__(self, cost, name: str | None = None) -> None:
+    def __init__(self, cost: ArrayLike, name: str | None = None) -> None:
         super().__init__(name)
         self._weights = np.zeros(3)
         self.cost = cost
         self._twist = np.zeros(3)
 
     @property
-    def twist(self) -> np.ndarray:
+    def twist(self) -> NDArray[np.float64]:
         """Commanded (v_x [m/s], v_y [m/s], omega [rad/s]), base frame."""
         return self._twist.copy()
 
-    def set_target(self, twist) -> None:
-        """Command a base-frame twist ``(v_x, v_y, omega)``."""
+    def set_target(self, twist: ArrayLike) -> None:
+        """Command a base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s].
+
+        Raises:
+            InvalidInputError: ``twist`` is not 3 finite numbers.
+        """
         self._twist[...] = as_vector(twist, 3, "base twist")
 
     def bind(self, robot: Robot) -> BaseVelocityTaskData:
@@ -53,6 +58,7 @@ class BaseVelocityTaskData(TaskData):
     """A :class:`BaseVelocityTask` in one controller: the base coordinates of the robot."""
 
     dim = 3
+    task: BaseVelocityTask
 
     def __init__(self, task: BaseVelocityTask, robot: Robot) -> None:
         super().__init__(task)

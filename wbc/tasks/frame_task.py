@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .. import kernels
 from ..errors import InvalidInputError
@@ -51,7 +52,7 @@ class FrameTask(Task):
     position_cost = Cost("_weights", slice(0, 3))
     orientation_cost = Cost("_weights", slice(3, 6))
 
-    def __init__(self, frame: str, position_cost=1.0, orientation_cost=1.0, gain: float = 1.0,
+    def __init__(self, frame: str, position_cost: ArrayLike = 1.0, orientation_cost: ArrayLike = 1.0, gain: float = 1.0,
                  max_speed: float | None = None, max_angular_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
@@ -70,8 +71,20 @@ class FrameTask(Task):
     def default_name(self) -> str:
         return f"FrameTask({self.frame})"
 
-    def set_target(self, pose, twist=None) -> None:
-        """Set the target world pose (4x4) and optionally its twist (6, world-aligned, linear; angular)."""
+    def set_target(self, pose: ArrayLike, twist: ArrayLike | None = None) -> None:
+        """Set the target of the next ticks.
+
+        Args:
+            pose: the 4x4 world pose of the frame (a float64 array takes the control loop's
+                fast path: one compiled check and copy).
+            twist: optional feed-forward twist of a moving target (6, world-aligned at the frame
+                origin, (linear [m/s]; angular [rad/s])); None for a fixed target.
+
+        Raises:
+            InvalidInputError: ``pose`` is not a 4x4 homogeneous transform (NaN or inf, last row
+                not ``[0, 0, 0, 1]``, a block that is not a rotation), or ``twist`` is not 6
+                finite numbers. The previous target is then kept.
+        """
         twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
         if not (type(pose) is np.ndarray and pose.dtype is _FLOAT64 and pose.shape == (4, 4)
                 and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == _POSE_OK):
@@ -80,12 +93,12 @@ class FrameTask(Task):
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
             self._has_target = True
 
-    def set_target_from_configuration(self, robot: Robot, q) -> None:
+    def set_target_from_configuration(self, robot: Robot, q: ArrayLike) -> None:
         """Hold the frame at the pose it has in configuration ``q``."""
         self.set_target(robot.frame_pose(q, self.frame))
 
     @property
-    def target(self) -> np.ndarray:
+    def target(self) -> NDArray[np.float64]:
         pose = np.eye(4)
         pose[:3, :3], pose[:3, 3] = self._target_rotation, self._target_position
         return pose
@@ -108,6 +121,7 @@ class FrameTaskData(TaskData):
     error ``e = (position; orientation)`` of the last tick."""
 
     dim = 6
+    task: FrameTask
 
     def __init__(self, task: FrameTask, robot: Robot) -> None:
         super().__init__(task)

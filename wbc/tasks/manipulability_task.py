@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..manipulability import Manipulability, row_selection
+from ..manipulability import Manipulability, Rows, row_selection
 from ..robot import Robot
 from ..settings import Setting
 from ..validation import as_gain, as_nonnegative, as_positive
@@ -49,7 +49,7 @@ class ManipulabilityTask(Task):
     gain = Setting(as_gain)
     target = Setting(as_positive)  # m* > 0
 
-    def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: str = "all",
+    def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: Rows = "all",
                  name: str | None = None) -> None:
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
@@ -75,6 +75,7 @@ class ManipulabilityTaskData(TaskData):
     value and log-ratio error at the last tick."""
 
     dim = 1
+    task: ManipulabilityTask
 
     def __init__(self, task: ManipulabilityTask, robot: Robot) -> None:
         super().__init__(task)

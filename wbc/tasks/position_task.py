@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .. import kernels
 from ..errors import InvalidInputError
@@ -35,7 +36,7 @@ class PositionTask(Task):
     max_speed = Operand("_settings", kernels.POSITION_MAX_SPEED, as_speed_limit)
     cost = Cost("_weights", slice(0, 3))
 
-    def __init__(self, frame: str, cost=1.0, gain: float = 1.0, max_speed: float | None = None,
+    def __init__(self, frame: str, cost: ArrayLike = 1.0, gain: float = 1.0, max_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
@@ -52,15 +53,19 @@ class PositionTask(Task):
     def default_name(self) -> str:
         return f"PositionTask({self.frame})"
 
-    def set_target(self, position, velocity=None) -> None:
-        """Target point [m] (world) and optional feed-forward velocity [m/s]."""
+    def set_target(self, position: ArrayLike, velocity: ArrayLike | None = None) -> None:
+        """Set the target point [m] (world) and optionally its feed-forward velocity [m/s].
+
+        Raises:
+            InvalidInputError: ``position`` or ``velocity`` is not 3 finite numbers.
+        """
         self._target[...] = as_vector(position, 3, "target position")
         self._feedforward[...] = 0.0 if velocity is None else as_vector(velocity, 3, "target velocity")
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
             self._has_target = True
 
     @property
-    def target(self) -> np.ndarray:
+    def target(self) -> NDArray[np.float64]:
         return self._target.copy()
 
     def bind(self, robot: Robot) -> PositionTaskData:
@@ -80,6 +85,7 @@ class PositionTaskData(TaskData):
     the error ``p* - p`` of the last tick."""
 
     dim = 3
+    task: PositionTask
 
     def __init__(self, task: PositionTask, robot: Robot) -> None:
         super().__init__(task)

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import weakref
+from collections.abc import Sequence
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from .. import kernels
 from ..errors import InvalidInputError
@@ -31,7 +33,8 @@ class PostureTask(Task):
             rarely wanted).
     """
 
-    def __init__(self, cost, target=None, gain: float = 1.0, joints: list[str] | None = None,
+    def __init__(self, cost: ArrayLike, target: ArrayLike | None = None, gain: float = 1.0,
+                 joints: Sequence[str] | None = None,
                  name: str | None = None) -> None:
         super().__init__(name)
         if joints is not None and (isinstance(joints, str) or not all(isinstance(j, str) for j in joints)):
@@ -50,16 +53,20 @@ class PostureTask(Task):
         return float(self._settings[0])
 
     @gain.setter
-    def gain(self, value) -> None:
+    def gain(self, value: float) -> None:
         self._settings[0] = as_gain(value)
 
     @property
-    def target(self):
+    def target(self) -> ArrayLike | None:
         """The reference configuration as given (``None``: each robot's neutral configuration)."""
         return self._target_spec
 
-    def set_target(self, q) -> None:
-        """New reference configuration (size nq of every robot the task is used with)."""
+    def set_target(self, q: ArrayLike) -> None:
+        """New reference configuration (size nq of every robot the task is used with).
+
+        Raises:
+            InvalidInputError: ``q`` does not fit one of those robots (then no robot's reference changes).
+        """
         for data in self._data:
             data.robot.check_configuration(q)  # all or nothing
         self._target_spec = q
@@ -80,6 +87,7 @@ class PostureTaskData(TaskData):
     weights and reference, and the error of the last tick."""
 
     diagonal_rows = True  # row i is W_i e_j for the i-th selected coordinate j
+    task: PostureTask
 
     def __init__(self, task: PostureTask, robot: Robot) -> None:
         super().__init__(task)
@@ -112,7 +120,7 @@ class PostureTaskData(TaskData):
         self._target_selected = np.zeros(self.dim)
         self.apply_target(robot.neutral() if task._target_spec is None else task._target_spec)
 
-    def apply_target(self, q) -> None:
+    def apply_target(self, q: ArrayLike) -> None:
         """Validate ``q`` against this robot and write it in place (compiled programs hold the buffers)."""
         self.target[:] = as_vector(q, self.robot.nq, "target")  # a configuration of the robot
         if self._q_slice is not None:

@@ -63,7 +63,7 @@ class SteeringTask(Task):
         return self._parameters[0] ** 2
 
     @cost.setter
-    def cost(self, value) -> None:
+    def cost(self, value: float) -> None:
         self._parameters[0] = math.sqrt(as_positive(value, "cost"))
 
     def __init__(self, cost: float = 1.0, gain: float = 0.1, speed_scale: float = 0.1,
@@ -88,6 +88,7 @@ class SteeringTaskData(TaskData):
 
     dim = 1
     uses_preview = True
+    task: SteeringTask
 
     def __init__(self, task: SteeringTask, robot: Robot) -> None:
         super().__init__(task)

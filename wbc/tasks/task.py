@@ -84,7 +84,7 @@ class TaskData:
 
 
 class Task(Item, TaskData):
-    """Base class of all tasks: a specification (settings) that :meth:`bind` turns into
+    """Base class of all tasks: a specification (settings) that :meth:`Task.bind` turns into
     per-controller :class:`TaskData` (see :class:`~wbc.item.Item`).
 
     A simple custom task is its own data: set ``dim``, implement :meth:`compute` and
@@ -95,8 +95,10 @@ class Task(Item, TaskData):
     def __init__(self, name: str | None = None) -> None:
         self.name = name or self.default_name()
 
+    # A task that is its own data is its own ``task``, which stays read-only (TaskData's is an
+    # attribute because its __init__ sets it; mypy flags the narrowing of a writable attribute).
     @property
-    def task(self) -> Task:
+    def task(self) -> Task:  # type: ignore[override]
         return self
 
     def default_name(self) -> str:

@@ -11,7 +11,7 @@ A flip is reported where joints a and b both turn by at least ``angle`` (default
 pi/2), in opposite directions, within a time window shorter than ``angle / rate_a``
 (default rate: the joint's velocity limit): faster, on average, than the drive may
 turn. Turning by pi at bounded speed (the detour of :mod:`.planner`, which keeps
-|theta5| away from 0) is not a flip.
+``|theta5|`` away from 0) is not a flip.
 
 A *branch switch* (:func:`branch_switches`) is the other way through: theta5 changes
 sign, the wrist passes through the singular set and ends on the other IK solution. A

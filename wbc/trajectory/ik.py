@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..robot import Robot
 from ..validation import as_pose, as_positive
@@ -44,8 +45,8 @@ def pose_error(current: np.ndarray, target: np.ndarray) -> np.ndarray:
     return np.r_[target[:3, 3] - current[:3, 3], pin.log3(target[:3, :3] @ current[:3, :3].T)]
 
 
-def solve_ik(robot: Robot, frame: str, target, seed, tol: float = TOLERANCE, damping: float = DAMPING,
-             max_step: float = MAX_STEP, max_iterations: int = MAX_ITERATIONS) -> IKResult:
+def solve_ik(robot: Robot, frame: str, target: ArrayLike, seed: ArrayLike, tol: float = TOLERANCE,
+             damping: float = DAMPING, max_step: float = MAX_STEP, max_iterations: int = MAX_ITERATIONS) -> IKResult:
     """Configuration that puts ``frame`` at the 4x4 world pose ``target``, starting from ``seed``."""
     target = as_pose(target, "IK target")
     q = np.clip(robot.check_configuration(seed), robot.lower, robot.upper)

@@ -2,7 +2,7 @@
 
 Positions follow a straight line (Lu et al., eq. 1) or a circular arc (eqs. 2-3); the
 orientation follows the geodesic of SO(3) between the end rotations (the paper's
-``R1 Rot(f, theta_i)``, eq. 4, with f the fixed axis of R1^T R2):
+``R1 Rot(f, theta_i)``, eq. 4, with f the fixed axis of R1^T R2)::
 
     R(s) = R0 exp(s [phi]),   phi = log(R0^T R1)   (|phi| < pi),
 
@@ -21,12 +21,13 @@ from typing import Protocol
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from ..validation import as_pose, as_positive, as_vector
 from .quintic import Quintic
 
-RADIUS_TOLERANCE = 1e-6  #: relative mismatch of |O P1| and |O P2| accepted for an arc
+RADIUS_TOLERANCE = 1e-6  #: relative mismatch of ``|O P1|`` and ``|O P2|`` accepted for an arc
 
 
 class Path(Protocol):
@@ -47,7 +48,7 @@ class Path(Protocol):
 class _Geodesic:
     """Orientation part shared by the paths: R(s) = R0 exp(s phi)."""
 
-    def __init__(self, start: np.ndarray, end: np.ndarray) -> None:
+    def __init__(self, start: ArrayLike, end: ArrayLike) -> None:
         self.start = as_pose(start, "start pose").copy()
         self.end = as_pose(end, "end pose").copy()
         self._phi = pin.log3(self.start[:3, :3].T @ self.end[:3, :3])
@@ -61,7 +62,7 @@ class _Geodesic:
 class LinePath(_Geodesic):
     """Straight line p(s) = p0 + s (p1 - p0) with geodesic orientation (eq. 1)."""
 
-    def __init__(self, start, end) -> None:
+    def __init__(self, start: ArrayLike, end: ArrayLike) -> None:
         super().__init__(start, end)
         self._delta = self.end[:3, 3] - self.start[:3, 3]
         self.length = float(np.linalg.norm(self._delta))
@@ -82,7 +83,7 @@ class ArcPath(_Geodesic):
     """Circular arc about ``centre`` from the start to the end position (eqs. 2-3).
 
     With u0 = p_start - O, u1 = p_end - O (equal lengths r), theta = angle(u0, u1) in
-    (0, pi) and n = u0 x u1 / |u0 x u1|:
+    (0, pi) and ``n = u0 x u1 / |u0 x u1|``::
 
         p(s) = O + Rot(n, s theta) u0 = O + [sin((1 - s) theta) u0 + sin(s theta) u1] / sin theta,
 
@@ -90,7 +91,7 @@ class ArcPath(_Geodesic):
     d2p/ds2 = -theta^2 (p - O). Arcs of pi or more are not representable (n is undefined).
     """
 
-    def __init__(self, start, end, centre) -> None:
+    def __init__(self, start: ArrayLike, end: ArrayLike, centre: ArrayLike) -> None:
         super().__init__(start, end)
         self.centre = as_vector(centre, 3, "centre").copy()
         u0, u1 = self.start[:3, 3] - self.centre, self.end[:3, 3] - self.centre
@@ -131,7 +132,7 @@ class TimedPath:
 
     def state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pose (4x4), twist (6) and acceleration (6: linear; angular) at time ``t``."""
-        s, rate, acceleration = self.timing(t)
+        s, rate, acceleration = (float(x) for x in self.timing(t))  # (0-d arrays: a scalar quintic)
         first, second = self.path.derivatives(s)
         return self.path.pose(s), first * rate, second * rate**2 + first * acceleration
 

@@ -19,12 +19,12 @@
    The joint quintic moves every joint monotonically between its end values. For the
    PUMA wrist both ends have theta5 of one sign and well off zero, so theta5 stays there
    while theta4 and theta6 turn: the paper's arc "about Z with joint 5 held" (sec. 4).
-   Its duration T = 15/8 max_i |dq_i| / (speed_fraction v_max,i) keeps every joint below
+   Its duration ``T = 15/8 max_i |dq_i| / (speed_fraction v_max,i)`` keeps every joint below
    ``speed_fraction`` of its velocity limit. Along it m is checked again; if m reaches the
    threshold the margin is doubled (wider cuts) and the plan rebuilt.
 
 Limits: across a cut the tool leaves the Cartesian path (for the PUMA its orientation
-wanders by about twice the |theta5| at the cut points). The detour stays on the IK branch
+wanders by about twice the ``|theta5|`` at the cut points). The detour stays on the IK branch
 of the start: when the continuation itself crosses the singular set (an exact crossing,
 reported as an IK jump), or the joint-space segment between the cut points meets the
 region whatever the margin, PlanningError says so. Joint-space segments need nq == nv.
@@ -33,9 +33,11 @@ region whatever the margin, PlanningError says so. Joint-space segments need nq 
 from __future__ import annotations
 
 import bisect
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError, PlanningError
 from ..robot import Robot
@@ -55,7 +57,7 @@ MAX_WIDENINGS = 8  #: margin doublings tried before giving up
 class JointSegment:
     """Rest-to-rest joint quintic as a frame reference: ``(FK(q(t)), J(q(t)) qdot(t))``."""
 
-    def __init__(self, robot: Robot, frame: str, start: np.ndarray, end: np.ndarray, duration: float) -> None:
+    def __init__(self, robot: Robot, frame: str, start: ArrayLike, end: ArrayLike, duration: float) -> None:
         self.robot, self.frame, self.duration = robot, frame, duration
         self.quintic = Quintic.rest_to_rest(start, end, duration)
 
@@ -68,7 +70,7 @@ class PlannedReference:
     """``reference(t) -> (pose 4x4, twist 6)``: segments played one after the other,
     the last pose held (zero twist) after ``duration``."""
 
-    def __init__(self, segments: list[TimedPath | JointSegment]) -> None:
+    def __init__(self, segments: Sequence[TimedPath | JointSegment]) -> None:
         self.segments = segments
         self.starts = list(np.cumsum([0.0] + [s.duration for s in segments[:-1]]))
         self.duration = float(self.starts[-1] + segments[-1].duration)
@@ -115,7 +117,7 @@ class Plan:
         return self.joints.min_measure
 
 
-def plan(robot: Robot, path: Path, q0, duration: float, threshold: float, frame: str | None = None,
+def plan(robot: Robot, path: Path, q0: ArrayLike, duration: float, threshold: float, frame: str | None = None,
          reroute: bool = True, wrist: tuple[str, str, str] | None = None, margin: float = MARGIN,
          speed_fraction: float = SPEED_FRACTION, samples: int = SAMPLES, max_joint_step: float = MAX_JOINT_STEP,
          length_scale: float | None = None) -> Plan:
@@ -137,11 +139,13 @@ def plan(robot: Robot, path: Path, q0, duration: float, threshold: float, frame:
         raise InvalidInputError(f"margin must be >= 1, got {margin}")
     timed = TimedPath(path, duration)
 
-    def sample(trajectory: TimedPath, q_start) -> JointTrajectory:
+    def sample(trajectory: TimedPath, q_start: ArrayLike) -> JointTrajectory:
         return follow(robot, frame, trajectory, q_start, samples, max_joint_step, length_scale)
 
     straight = sample(timed, q0)
-    segments, joints, detours = [timed], straight, []
+    segments: list[TimedPath | JointSegment] = [timed]
+    detours: list[Detour]
+    joints, detours = straight, []
     if reroute and straight.min_measure <= threshold:
         for _ in range(MAX_WIDENINGS):
             rerouted = _reroute(robot, frame, timed, straight, threshold, margin, speed_fraction, length_scale, sample)
@@ -168,7 +172,10 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def _reroute(robot, frame, timed, straight, threshold, margin, speed_fraction, length_scale, sample):
+def _reroute(robot: Robot, frame: str, timed: TimedPath, straight: JointTrajectory, threshold: float, margin: float,
+             speed_fraction: float, length_scale: float | None,
+             sample: Callable[[TimedPath, ArrayLike], JointTrajectory],
+             ) -> tuple[list[TimedPath | JointSegment], JointTrajectory, list[Detour]] | None:
     """Segments, joint trajectory and detours with cuts at ``margin``; None if a detour meets the region."""
     if robot.nq != robot.nv:
         raise PlanningError(f"robot {robot.name!r}: joint-space detours need nq == nv")
@@ -180,19 +187,22 @@ def _reroute(robot, frame, timed, straight, threshold, margin, speed_fraction, l
     if any(a == 0 or b == straight.time.size - 1 for a, b in runs):
         raise PlanningError("the start or goal pose lies within the re-routing margin of the singular "
                             f"region (m < {margin:g} * threshold): no room for a detour")
-    progress = [timed.timing(t)[0] for t in straight.time]  # path parameter s of every sample
+    progress = [float(timed.timing(t)[0]) for t in straight.time]  # path parameter s of every sample
     limit = speed_fraction * robot.velocity_limit
-    segments, pieces, detours = [], [], []
+    segments: list[TimedPath | JointSegment] = []
+    pieces: list[JointTrajectory] = []
+    detours: list[Detour] = []
     clock, s_start, q_start = 0.0, 0.0, straight.q[0]
-    for first, last in runs + [(None, None)]:
-        s_end = 1.0 if first is None else progress[first - 1]
+    for run in [*runs, None]:  # None: the part after the last run
+        s_end = 1.0 if run is None else progress[run[0] - 1]
         part = TimedPath(SubPath(timed.path, s_start, s_end), timed.duration * np.sqrt(s_end - s_start))
         followed = sample(part, q_start)
         segments.append(part)
         pieces.append(_shifted(followed, clock))
         clock += part.duration
-        if first is None:
+        if run is None:
             break
+        last = run[1]
         q_cut, q_after = followed.q[-1], straight.q[last + 1]
         span = REST_TO_REST_PEAK_SPEED * np.max(np.abs(q_after - q_cut) / limit)
         segment = JointSegment(robot, frame, q_cut, q_after, span)

@@ -22,7 +22,10 @@ whose peak speed is 15 / (8 T) and peak acceleration 10 / (sqrt(3) T^2).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import InvalidInputError
 from ..validation import as_positive
@@ -43,7 +46,7 @@ class Quintic:
     [0, T] time is clamped to the segment: the boundary state is returned.
     """
 
-    def __init__(self, start, end, duration: float) -> None:
+    def __init__(self, start: Sequence[ArrayLike], end: Sequence[ArrayLike], duration: float) -> None:
         self.duration = as_positive(duration, "duration")
         if len(start) != 3 or len(end) != 3:
             raise InvalidInputError("start and end must each be (position, velocity, acceleration)")
@@ -63,7 +66,7 @@ class Quintic:
         ])
 
     @classmethod
-    def rest_to_rest(cls, start, end, duration: float) -> Quintic:
+    def rest_to_rest(cls, start: ArrayLike, end: ArrayLike, duration: float) -> Quintic:
         """Segment from ``start`` to ``end`` with zero velocity and acceleration at both ends."""
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
         zero = np.zeros_like(start)
@@ -89,7 +92,7 @@ def rest_to_rest_duration(distance: float, max_speed: float, max_acceleration: f
     return float(duration)
 
 
-def _finite(value, name: str) -> np.ndarray:
+def _finite(value: ArrayLike, name: str) -> np.ndarray:
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import PlanningError
 from ..robot import Robot
@@ -43,11 +44,11 @@ class JointTrajectory:
         return float(self.measure.min())
 
     def speed_ratio(self, robot: Robot) -> np.ndarray:
-        """(K, nv) |qdot_i| / velocity_limit_i."""
+        """``(K, nv)`` array of ``|qdot_i| / velocity_limit_i``."""
         return np.abs(self.qdot) / robot.velocity_limit
 
     def max_speed_ratio(self, robot: Robot) -> float:
-        """Largest |qdot_i| / velocity_limit_i over the whole trajectory."""
+        """Largest ``|qdot_i| / velocity_limit_i`` over the whole trajectory."""
         return float(self.speed_ratio(robot).max())
 
 
@@ -56,7 +57,7 @@ def joint_rates(robot: Robot, frame: str, q: np.ndarray, twist: np.ndarray) -> n
     return np.linalg.lstsq(robot.frame_jacobian(q, frame), twist, rcond=None)[0]
 
 
-def follow(robot: Robot, frame: str, trajectory: TimedPath, q0, samples: int = SAMPLES,
+def follow(robot: Robot, frame: str, trajectory: TimedPath, q0: ArrayLike, samples: int = SAMPLES,
            max_joint_step: float = MAX_JOINT_STEP, length_scale: float | None = None) -> JointTrajectory:
     """IK continuation of ``trajectory`` from ``q0`` (solved onto the start pose first).
 

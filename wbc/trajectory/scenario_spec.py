@@ -13,18 +13,21 @@ pose of the reference (``configuration`` / ``position`` / ``rpy``, as for "line"
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..errors import ScenarioError
 from ..robot import Robot
-from .paths import ArcPath, LinePath
+from .paths import ArcPath, LinePath, Path
 from .planner import MARGIN, Plan, plan
 
 
-def plan_from_spec(spec: dict, robot: Robot, frame: str, q0: np.ndarray, start: np.ndarray,
+def plan_from_spec(spec: dict[str, Any], robot: Robot, frame: str, q0: np.ndarray, start: np.ndarray,
                    goal: np.ndarray) -> Plan:
     """Plan of a ``[reference]`` table; the keys above are consumed from ``spec``."""
     kind = spec.pop("path", "line")
+    path: Path
     if kind == "line":
         path = LinePath(start, goal)
     elif kind == "arc":
