@@ -53,6 +53,7 @@ class BaseVelocityTaskData(TaskData):
     """A :class:`BaseVelocityTask` in one controller: the base coordinates of the robot."""
 
     dim = 3
+    lm_damped = False  # a velocity reference, no error to overshoot
 
     def __init__(self, task: BaseVelocityTask, robot: Robot) -> None:
         super().__init__(task)

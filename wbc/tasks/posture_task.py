@@ -80,6 +80,7 @@ class PostureTaskData(TaskData):
     weights and reference, and the error of the last tick."""
 
     diagonal_rows = True  # row i is W_i e_j for the i-th selected coordinate j
+    lm_damped = False  # q moves exactly as the rows say: the linear model makes no overshoot
 
     def __init__(self, task: PostureTask, robot: Robot) -> None:
         super().__init__(task)
