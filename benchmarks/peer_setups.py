@@ -161,9 +161,10 @@ class WbcSetup:
             robot = wbc.load_robot(URDF)
             self.task = frame_task(spec.frame, spec.position_cost, spec.orientation_cost, gain=spec.gain)
             posture = PostureTask(spec.posture_cost, target=spec.posture_target, gain=spec.posture_gain)
+            # lm_damping 0: the peers' QP has no error-scaled damping (mink's lm_damping defaults to 0)
             controller = wbc.Controller(robot, [self.task, posture],
                                         [wbc.JointPositionLimits(gain=spec.limit_gain), WorldVelocityLimits()],
-                                        solver="daqp", dt=spec.dt, damping=spec.damping)
+                                        solver="daqp", dt=spec.dt, damping=spec.damping, lm_damping=0.0)
         else:
             self.task = next(t for t in controller.tasks if isinstance(t, FrameTask))
         self.controller = controller

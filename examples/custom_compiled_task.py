@@ -73,6 +73,8 @@ class CenteringTask(wbc.Task):
 class CenteringTaskData(TaskData):
     """The task in one controller: the robot's bounded joints, their ranges, the last error."""
 
+    lm_damped = False  # rows on joint coordinates: their linear model is exact (no error-scaled damping)
+
     def __init__(self, task: CenteringTask, robot: wbc.Robot) -> None:
         super().__init__(task)
         joints = [j for j in robot.model.joints[1:] if j.nq == 1 and j.nv == 1

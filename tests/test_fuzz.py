@@ -102,6 +102,8 @@ def beyond(value: float, limit: float) -> bool:
     """Whether ``|value|`` exceeds ``limit`` by more than :data:`LIMIT_TOL` relative."""
     return abs(value) > limit + LIMIT_TOL * max(1.0, limit)
 DAMPING = 1e-3  # the Controller default; the oracle uses the same value
+#: values of Controller(lm_damping=...) the cases draw: the default (twice), off, and strong
+LM_DAMPINGS = [1.0, 1.0, 0.0, 10.0]
 
 
 # ----------------------------------------------------------------------------- profiles
@@ -245,7 +247,7 @@ def cases(draw, solvers=None, robot_name=None):
     return dict(robot=name, q=q, tasks=tasks, levels=levels, constraints=constraints,
                 solver=draw(st.sampled_from(solvers or IN_PROCESS_SOLVERS)),
                 dt=draw(st.sampled_from([0.01, 0.01, 0.001, 0.1])), reduced=reduced,
-                ticks=draw(st.integers(1, 4)))
+                ticks=draw(st.integers(1, 4)), lm_damping=draw(st.sampled_from(LM_DAMPINGS)))
 
 
 # ----------------------------------------------------------------------------- building
@@ -295,7 +297,7 @@ def build(case: dict):
     stack = tasks if split is None else [tasks[:split], tasks[split:]]
     try:
         controller = wbc.Controller(robot, stack, constraints, solver=case["solver"], dt=case["dt"],
-                                    reduced=case["reduced"])
+                                    reduced=case["reduced"], lm_damping=case.get("lm_damping", 1.0))
     except wbc.InvalidInputError as exc:
         if needs_slip_row and "NonholonomicBase" in str(exc):
             raise Rejected(f"Controller: {exc}") from exc  # documented: required unless reduced
@@ -376,17 +378,23 @@ class NotComparable(Exception):
     """The independent QP cannot be trusted here (non-smooth point, oracle solver failure)."""
 
 
-def independent_qp(robot: wbc.Robot, case: dict, q: np.ndarray):
+def independent_qp(robot: wbc.Robot, case: dict, q: np.ndarray, damping: float = DAMPING):
     """H, c, (G, h), (A, b) of the tick at ``q`` built from the README's definitions alone.
 
-    Cost ``sum ||W (J v - r)||^2 + damping ||v||^2`` -> ``H = sum (WJ)^T WJ + damping I``,
-    ``c = -sum (WJ)^T W r`` (the 1/2 of ``1/2 v^T H v + c^T v`` absorbs the factor 2);
-    every bound is written as a row.
+    Cost ``sum ||W (J v - r)||^2 + max(damping, mu) ||v||^2`` -> ``H = sum (WJ)^T WJ + max(damping,
+    mu) I``, ``c = -sum (WJ)^T W r`` (the 1/2 of ``1/2 v^T H v + c^T v`` absorbs the factor 2), with
+    the error-scaled damping ``mu = lm_damping sum_t |dt W r_t| max_j |(W J_t) e_j|`` over the
+    frame, position and manipulability tasks t (the cases have no feed-forward; Controller's
+    docstring); every bound is written as a row.
     """
     nv, dt = robot.nv, case["dt"]
     base = robot.base
     rows_J, rows_r = [], []
     steering = []
+    mu = 0.0
+
+    def error_damping(WJ, Wr):  # lm_damping |dt W r| max_j |W J e_j|
+        return case.get("lm_damping", 1.0) * np.linalg.norm(dt * Wr) * np.max(np.linalg.norm(WJ, axis=0))
     for spec in case["tasks"]:
         kind = spec["kind"]
         if kind in ("FrameTask", "PositionTask"):
@@ -410,6 +418,7 @@ def independent_qp(robot: wbc.Robot, case: dict, q: np.ndarray):
                     r[block] *= limit / norm
             rows_J.append(weights[:, None] * J)
             rows_r.append(weights * r)
+            mu += error_damping(rows_J[-1], rows_r[-1])
         elif kind == "PostureTask":
             reference = robot.neutral() if spec["target"] is None else np.array(spec["target"])
             joints = [i for i in range(nv) if not (base.is_mobile and i in base.indices)]
@@ -434,11 +443,12 @@ def independent_qp(robot: wbc.Robot, case: dict, q: np.ndarray):
             w = math.sqrt(spec["cost"])
             rows_J.append(w * gradient[None, :] / m_used)
             rows_r.append(np.array([w * spec["gain"] / dt * math.log(spec["target"] / m_used)]))
+            mu += error_damping(rows_J[-1], rows_r[-1])
         elif kind == "SteeringTask":
             steering.append(spec)
     J = np.vstack(rows_J) if rows_J else np.zeros((0, nv))
     r = np.concatenate(rows_r) if rows_r else np.zeros(0)
-    H = J.T @ J + DAMPING * np.eye(nv)
+    H = J.T @ J + max(damping, mu) * np.eye(nv)
     c = -J.T @ r
     if steering:  # the holonomic relaxation of the other tasks (README: "Why a steering task")
         preview = np.linalg.solve(H, -c)
@@ -578,29 +588,37 @@ def check_optimum(robot, case, q, v):
 def check_cascade(robot, case, q, v):
     """Property 5 for strict priorities (``case["levels"]`` = s: tasks[:s] at level 0, the rest
     at level 1), from the independent QPs of each level's tasks alone (README, *Strict
-    priorities*): level 0's cost ``f0`` (its tasks, no damping) is minimal at ``v`` over the
-    limits, and level 1's cost ``f1`` (its tasks + damping) is no larger at ``v`` than at
-    ``v0``, a level-0 optimum found by another solver (``v`` minimises f1 among level-0 optima).
+    priorities*): level 0's cost ``f0`` (its tasks and their error-scaled damping, no damping)
+    has its optimum ``v0`` (found by another solver) where its tasks' cost alone equals that at
+    ``v`` (the band holds the task values; with the error-scaled damping v0 is unique), and
+    level 1's cost ``f1`` (its tasks + damping) is no larger at ``v`` than at ``v0`` (``v``
+    minimises f1 among the points with level 0's optimal task values).
     Costs relative to ``lambda_max (1 + |v|)^2`` as in :func:`check_optimum`, class 1e-3: what it
     catches are wrong cascades (a level below overriding one above: 0.1 .. 400 found), not the last
     digits -- every backend agrees with every other one to ~1e-8 on the cases where this oracle is
     2e-5 .. 7e-5 off (level 0's optimum found by an interior-point solver is accurate in its cost,
     not in its task values; the finite-difference manipulability gradient at level 0)."""
     split = case["levels"]
-    try:
-        H0, c0, G, h, A, b = independent_qp(robot, dict(case, tasks=case["tasks"][:split]), q)
-        H1, c1, *_ = independent_qp(robot, dict(case, tasks=case["tasks"][split:]), q)
-    except NotComparable as exc:
-        event(f"cascade not compared: {exc}")
-        return
-    H0 = H0 - DAMPING * np.eye(robot.nv)  # level 0 has no damping (only wbc's 1e-10 floor)
-    problem = qpsolvers.Problem(H0, c0, G if len(G) else None, h if len(h) else None, A if len(A) else None,
-                                b if len(b) else None)
     if any(spec["kind"] == "SteeringTask" for spec in case["tasks"]):
         # its row follows the preview, which for a hierarchy is the cascade without constraints
         # (tests/test_hierarchy.py checks that); independent_qp writes the flat stack's
         event("cascade not compared: SteeringTask")
         return
+    try:
+        # level 0 has no damping (only wbc's 1e-10 floor), but its tasks' error-scaled damping mu0;
+        # T0: its tasks' cost alone, which the band holds at its optimum's value
+        level0 = dict(case, tasks=case["tasks"][:split])
+        H0, c0, G, h, A, b = independent_qp(robot, level0, q, damping=0.0)
+        T0 = independent_qp(robot, dict(level0, lm_damping=0.0), q, damping=0.0)[0]
+        H1, c1, *_ = independent_qp(robot, dict(case, tasks=case["tasks"][split:]), q)
+    except NotComparable as exc:
+        event(f"cascade not compared: {exc}")
+        return
+    # scaled to a unit largest curvature (the minimiser is the same): a level weighted 1e-12 has
+    # entries the backends' absolute tolerances would swallow (DAQP was seen 0.3 rad/s off)
+    unit = 1.0 / max(float(np.max(np.diag(H0))), 1e-300)
+    problem = qpsolvers.Problem(unit * H0, unit * c0, G if len(G) else None, h if len(h) else None,
+                                A if len(A) else None, b if len(b) else None)
     v0 = None
     weights = [spec[key] for spec in case["tasks"][:split]
                for key in ("cost", "position_cost", "orientation_cost") if spec.get(key)]
@@ -643,9 +661,12 @@ def check_cascade(robot, case, q, v):
         return ((0.5 * v @ H @ v + c @ v) - (0.5 * v0 @ H @ v0 + c @ v0)) / (max(np.linalg.eigvalsh(H)[-1], 1e-300)
                                                                             * scale ** 2)
 
-    gap0 = gap(H0, c0)
+    gap0 = gap(T0, c0)
     assert gap0 <= tolerance, (f"status 'optimal' but level 0's cost at v exceeds its optimum by {gap0:.1e} "
                                f"(relative)\n v  = {v}\n v0 = {v0}")
+    if np.any(H0 != T0):  # an error-scaled damping makes v0 unique: its task values are v's
+        assert gap0 >= -tolerance, (f"status 'optimal' but level 0's tasks' cost at v is below that of the "
+                                    f"damped optimum by {-gap0:.1e} (relative)\n v  = {v}\n v0 = {v0}")
     # v0 competes at level 1 only if it is at least as good at level 0 (an oracle's level-0
     # optimum ~1e-9 off can be far better at level 1: a flat level 0 leaves it free)
     # Level 1 only for the exact active-set backends: on a level's thin band set Clarabel's answers
@@ -790,8 +811,8 @@ def test_fuzz_shared_objects(case, data):
     robots = (robot, robot, other_robot)
     split = case.get("levels")
     stack = tasks if split is None else [tasks[:split], tasks[split:]]
-    shared = [wbc.Controller(r, stack, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"])
-              for r in robots]
+    shared = [wbc.Controller(r, stack, constraints, solver=case["solver"], dt=case["dt"], reduced=case["reduced"],
+                             lm_damping=case.get("lm_damping", 1.0)) for r in robots]
     qs = [np.array(case["q"]), np.array(data.draw(configurations(robot), label="second q")),
           np.array(data.draw(configurations(other_robot), label="third q"))]
     for tick in range(case["ticks"]):

@@ -137,7 +137,7 @@ def test_two_levels_match_the_null_space_projection(youbot, rng, solver, damping
         ee.set_target(target)
         posture = wbc.PostureTask(0.3, target=posture_target, gain=0.01)
         controller = wbc.Controller(youbot, [[ee], [posture]], [wbc.JointVelocityLimits()], solver=solver,
-                                    damping=damping)
+                                    damping=damping, lm_damping=0.0)  # the classical hierarchy
         v = controller.step(q)
         assert controller.last.success or solver not in EXACT, controller.last.status
         A1, b1 = frame_rows(youbot, q, "ee", target, 1.0, 0.5, 0.03)
@@ -167,7 +167,7 @@ def test_three_levels_match_the_recursive_projection(youbot, rng):
         orientation = wbc.FrameTask("ee", position_cost=0.0, orientation_cost=1.0, gain=0.3)
         orientation.set_target(target)
         posture = wbc.PostureTask(1.0, target=posture_target, gain=0.1)
-        controller = wbc.Controller(youbot, [[position], [orientation], [posture]], damping=0.0)
+        controller = wbc.Controller(youbot, [[position], [orientation], [posture]], damping=0.0, lm_damping=0.0)
         v = controller.step(q)
         assert controller.last.success
         rows, targets = frame_rows(youbot, q, "ee", target, 0.0, 1.0, 0.3)
@@ -216,7 +216,8 @@ def test_a_level_infeasible_alone_takes_its_least_squares_optimum(solver):
         wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=0.5)
         wrist.set_target(goal)
         posture = wbc.PostureTask(1.0, target=posture_target, gain=0.005)
-        controller = wbc.Controller(robot, [[wrist], [posture]], [wbc.JointVelocityLimits()], solver=solver)
+        controller = wbc.Controller(robot, [[wrist], [posture]], [wbc.JointVelocityLimits()], solver=solver,
+                                    lm_damping=0.0)  # the exact lexicographic optimum
         v = controller.step(q)
         A1, b1 = position_rows(robot, q, "wrist_center", goal, 1.0, 0.5)
         A2, b2 = posture_rows(q, posture_target, 1.0, 0.005, slice(0, 6))
@@ -263,7 +264,8 @@ def test_nonholonomic_base_equality_and_reduced_forms_match_the_projection_over_
         reference = S @ (u1 + basis @ z)
         for reduced in (False, True):
             constraints = [] if reduced else [wbc.NonholonomicBase()]
-            controller = wbc.Controller(robot, [[wrist], [posture]], constraints, reduced=reduced, damping=damping)
+            controller = wbc.Controller(robot, [[wrist], [posture]], constraints, reduced=reduced, damping=damping,
+                                        lm_damping=0.0)
             v = controller.step(q)
             assert controller.last.success, controller.last.status
             np.testing.assert_allclose(v, reference, rtol=0, atol=1e-6)

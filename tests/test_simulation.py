@@ -51,5 +51,13 @@ def test_reach_converges_through_the_servos():
     result = run(scenario, simulation=simulation)
     assert result.position_error[-1] < 1e-3  # documented bound: 1 mm
     assert result.orientation_error[-1] < 2e-3
-    assert result.position_violation.max() < 1e-3  # servo lag may overshoot a limit slightly
     assert result.velocity_violation.max() <= 1e-9
+    # servo lag may overshoot a position limit: with one tick of delay a joint runs on for at
+    # most one tick at its recent speed (the damper stops it by the next), so a joint j outside
+    # its range at tick t is out by at most dt max |v_j| over the three commands before t
+    # (measured: 0.84 of that bound; 0.93 without the error-scaled damping, on a slower approach)
+    robot = scenario.robot
+    outside = np.maximum(robot.lower - result.q, result.q - robot.upper)  # youbot: q and v coordinates agree
+    for t, j in zip(*np.nonzero(outside > 0), strict=True):
+        assert outside[t, j] <= scenario.dt * np.abs(result.v[max(t - 3, 0):t, j]).max(), (t, j)
+    assert result.position_violation.max() < 1e-2

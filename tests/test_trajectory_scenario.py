@@ -151,7 +151,9 @@ def test_closed_loop_naive_switches_wrist_branch_planned_does_not(runs, scenario
     naive_loop, planned_loop = closed_loop(naive), closed_loop(planned)
     assert branch_switches(robot, naive_loop, "joint_5").size == 1
     assert naive_loop.min_measure < THRESHOLD / 100
-    assert naive.velocity_ratio[:, [3, 5]].max() > 0.999  # joints 4 and 6 saturate
+    # joints 4 and 6 run at their limits (99.6 % with the default error-scaled damping, which
+    # takes the edge off the demand near theta5 = 0; 100 % without it)
+    assert naive.velocity_ratio[:, [3, 5]].max() > 0.99
     assert branch_switches(robot, planned_loop, "joint_5").size == 0
     assert planned_loop.min_measure > THRESHOLD
     assert planned.velocity_ratio.max() < 0.9

@@ -38,6 +38,7 @@ from .hierarchy import Hierarchy, task_levels
 from .kinematics import Kinematics
 from .layout import ConstraintLayout, TaskStack
 from .lifting import LiftedQP, dense_rows, worth_lifting
+from .lm_damping import LMDamping
 from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -51,6 +52,10 @@ from .validation import as_flag, as_items, as_nonnegative, as_positive
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
 DAMPING_FLOOR = 1e-10
+#: default of ``Controller.lm_damping``: twice the smallest value that removed the full-speed
+#: chatter at unreachable targets on every shipped robot (NOTES: 26 directions x 4 distances x
+#: gains 0.1-1); at 1 the linear model of a one-joint reach cannot overshoot (see the class docstring)
+DEFAULT_LM_DAMPING = 1.0
 
 
 class Controller:
@@ -65,6 +70,7 @@ class Controller:
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
         dt: control period [s]; per-tick gains and dampers refer to it.
         damping: Tikhonov term ``damping * |v|^2`` [cost] / [unit/s]^2, keeps H positive definite.
+        lm_damping: scale (>= 0, dimensionless) of the error-scaled damping below; 0 turns it off.
         solver_options: settings passed to the backend (override :data:`wbc.solvers.DEFAULT_SETTINGS`).
         reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
@@ -80,6 +86,29 @@ class Controller:
             not fit the robot (an unknown frame or joint, a base it needs and the robot lacks).
         UnknownSolverError: ``solver`` is not installed.
         InvalidSolverOptionError: a misspelt or invalid key of ``solver_options``.
+
+    Error-scaled damping (Levenberg-Marquardt with a damping linear in the error, as in Fan and
+    Yuan 2005): the damping of each level is raised to ``mu = sum_t mu_t`` of its tasks, i.e.
+    ``max(damping, mu) |v|^2`` replaces ``damping |v|^2`` (a level above the last of a hierarchy,
+    which has no damping, gets ``mu |v|^2``), over the tasks t with ``TaskData.lm_damped``
+    (frames, positions, manipulability, custom tasks; not posture, base-velocity or steering), ::
+
+        mu_t = lm_damping * |dt W (r_t - xi_t)| * max_j |(W J_t) e_j|      [cost] / [unit/s]^2
+
+    -- the weighted step the task's error feedback asks this tick (``W r = W sat(gain e / dt) +
+    W xi``, the feed-forward ``W xi`` left out: ``TaskData.feedforward``) times its largest
+    weighted Jacobian column. Their product is the scale of the second-order term ``sum_i (W^2
+    dx)_i grad^2 x_i`` that the task's linear model drops (for one revolute joint ``|d^2 p / d
+    theta^2| = |d p / d theta|``, the distance to the axis). That term is what makes the linear
+    model overshoot where a task cannot be met: toward a target out of reach the arm stretches
+    to the boundary of its workspace, where J loses rank along the reach, and a step of ``gain
+    e`` folds it past the boundary and back every tick, at full speed. With the damping at least
+    the curvature along the reach the step cannot overshoot (one-joint model, ``lm_damping >=
+    1``); below half of it the overshoot grows into that chatter. ``mu`` scales with the costs,
+    the lengths and the gain like ``J^T W^2 J`` (``lm_damping`` is dimensionless) and vanishes
+    with the error: no fixed point moves, the final approach to a reachable target is unchanged,
+    and a tracked reference whose error stays small (``mu`` below ``damping``) is tracked as
+    without it. It may be changed between ticks.
 
     Failure handling (never a NaN, never an exception in the loop unless ``strict``):
 
@@ -97,13 +126,15 @@ class Controller:
 
     def __init__(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
                  constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
-                 solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False) -> None:
+                 solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False,
+                 lm_damping: float = DEFAULT_LM_DAMPING) -> None:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
         self.dt = dt
         # (damping, floor): operand of the cost normalisation, and where the damping setting lives
         self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
+        self._lm_damping = np.array([as_nonnegative(lm_damping, "lm_damping")])  # operand of the LM_DAMPING ops
         self.tasks, self._level_sizes = task_levels(tasks)  # the tasks in level order; sizes (None: one level)
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
@@ -152,6 +183,16 @@ class Controller:
     def damping(self, value: float) -> None:
         self._cost_scaling[0] = as_nonnegative(value, "damping")
         np.fill_diagonal(self._damping_rows, np.sqrt(self._cost_scaling[0]))
+
+    @property
+    def lm_damping(self) -> float:
+        """Scale of the error-scaled damping of the tasks (>= 0, dimensionless; see the class
+        docstring); may be changed between ticks."""
+        return float(self._lm_damping[0])
+
+    @lm_damping.setter
+    def lm_damping(self, value: float) -> None:
+        self._lm_damping[0] = as_nonnegative(value, "lm_damping")
 
     @property
     def levels(self) -> list[list[Task]]:
@@ -274,6 +315,9 @@ class Controller:
             diagonal = dense_rows(self._task_stack, nv)
             if worth_lifting(nv, diagonal):
                 self._lifted = LiftedQP(qp, diagonal)
+        self._lm = LMDamping(self._lm_damping, 1)
+        if self._lm.add_task_ops(program, stack, self._task_blocks, 0):  # sqrt(max(damping, mu)) I: the damping rows
+            self._lm.add_rows_op(program, stack, self._n_plain - nv, self._cost_scaling)
         if self._lifted is None:
             program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain,
                         reset=1, Hc=qp.Hc)

@@ -45,6 +45,12 @@ in :data:`SEMIDEFINITE_SOLVERS`) get the regularisation floor of every QP there
 relative along a direction of relative curvature c (< 1e-7 in the tests against the
 pseudo-inverse). The others take a semidefinite H and get the level as it is: exact.
 
+**Error-scaled damping.** The ``mu_t |v|^2`` of each task (``Controller.lm_damping``) belongs
+to the level of the task: it damps the step that level asks, where its linear model cannot be
+trusted (a target out of reach), and the band then holds the damped task values. It vanishes
+with the level's error, so it does not change the cascade at a fixed point. The steering
+preview of a hierarchy (below) leaves it out.
+
 **Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.daqp_native`)
 the whole cascade -- each level's QP, solve, answer check and band -- runs inside the tick
 program, one warm-started DAQP workspace per level; otherwise (other backends, DAQP's binding,
@@ -83,6 +89,7 @@ from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .layout import TaskBlock, TaskStack
+from .lm_damping import LMDamping
 from .outcome import Outcome
 from .program import TickProgram, ops_follow_compute
 from .qp import QP
@@ -218,6 +225,8 @@ class Hierarchy:
             start += size
         self.count = count = len(sizes)
         self.rows = rows = LevelRows(controller._task_stack, lambda task: level[id(task)], count, nv)
+        #: each level's ordinary task blocks (for the error-scaled damping of its tasks)
+        self._blocks = [[block for block in controller._task_blocks if level[id(block[0])] == k] for k in range(count)]
         first = controller._qp_v
         #: first band row of each level in the QPs below it (same in all of them)
         self.band_start = [first.n_ineq + 2 * sum(rows.dim(j) for j in range(k)) for k in range(count)]
@@ -265,11 +274,14 @@ class Hierarchy:
                                       and task.add_preview_ops(program, kin, stack, start, c._preview))]
             if python_preview:
                 rest = TickProgram()  # runs after the Python preview tasks
+        lm = LMDamping(c._lm_damping, self.count)
         for k, qp in enumerate(self.qps):
             for (first, last), reset in ((self.rows.normal[k], 1), (self.rows.preview[k], 0)):
                 if last > first or reset:
                     rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
                              reset=reset, Hc=qp.Hc)
+            if lm.add_task_ops(rest, stack, self._blocks[k], k):  # the error-scaled damping of the level's tasks
+                lm.add_level_op(rest, k, qp.Hc, c._cost_scaling if k == self.count - 1 else self._upper_scaling)
         first_qp = self.qps[0]
         c._bound_policy.add_op(rest, first_qp)
         for k, qp in enumerate(self.qps):

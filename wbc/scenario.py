@@ -51,7 +51,7 @@ from . import constraints as constraint_module
 from . import shipped
 from . import tasks as task_module
 from .constraints import Constraint
-from .controller import Controller
+from .controller import DEFAULT_LM_DAMPING, Controller
 from .errors import ScenarioError, WbcError
 from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
 from .robot import Robot, load_robot
@@ -78,6 +78,7 @@ class ControllerTable(Table):
     dt: Positive = 0.01
     duration: Positive = 10.0
     damping: NonNegative = 1e-3
+    lm_damping: NonNegative = DEFAULT_LM_DAMPING
     reduced: bool = False
 
     @model_validator(mode="after")
@@ -186,6 +187,7 @@ class Scenario:
     duration: float
     damping: float
     reduced: bool = False
+    lm_damping: float = DEFAULT_LM_DAMPING
     reference: ReferenceMotion | None = None
     reference_task: FrameTask | PositionTask | None = None
     source: Path | None = None
@@ -213,7 +215,7 @@ class Scenario:
 
     def make_controller(self, solver: str | None = None) -> Controller:
         return Controller(self.robot, self.task_levels, self.constraints, solver=solver or self.solver,
-                          dt=self.dt, damping=self.damping, reduced=self.reduced)
+                          dt=self.dt, damping=self.damping, reduced=self.reduced, lm_damping=self.lm_damping)
 
     @property
     def ticks(self) -> int:
@@ -265,7 +267,7 @@ def _build(checked: ScenarioFile, spec: dict[str, Any], path: Path) -> Scenario:
     scenario = Scenario(
         name=checked.name or path.stem, robot=robot, q0=q0, tasks=tasks, constraints=constraints,
         solver=control.solver, dt=control.dt, duration=control.duration, damping=control.damping,
-        reduced=control.reduced, source=path, spec=spec, levels=_levels(checked.tasks),
+        reduced=control.reduced, lm_damping=control.lm_damping, source=path, spec=spec, levels=_levels(checked.tasks),
         description=checked.description,
     )
     if checked.reference is not None:

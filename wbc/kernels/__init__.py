@@ -88,6 +88,10 @@ OP_FORWARD_KINEMATICS = 15
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
 #: the optimality certificate of a lifted QP's answer (wbc.lifting)
 OP_LIFT_CHECK = 20
+#: the error-scaled (Levenberg-Marquardt) damping of the tasks (Controller.lm_damping): each task's
+#: mu summed per level, then written into the damping rows of one weighted level, or added to the
+#: Hessian of one level of a hierarchy
+OP_LM_TASK, OP_LM_DAMPING_ROWS, OP_LM_DAMPING_LEVEL = 21, 22, 23
 
 # ------------------------------------------------------------------ chains
 
@@ -120,8 +124,9 @@ COMPILED = {
                "position_task_rows"),
     "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
-    "assembly": ("normal_equations", "preview_solve", "merge_bounds", "normalise_cost", "constraint_defect",
-                 "qp_defect", "has_nan", "has_non_finite", "lift_qp", "lifted_stationarity"),
+    "assembly": ("normal_equations", "lm_curvature", "lm_damping_rows", "lm_damping_level", "preview_solve",
+                 "merge_bounds", "normalise_cost", "constraint_defect", "qp_defect", "has_nan", "has_non_finite",
+                 "lift_qp", "lifted_stationarity"),
     "native_qp": ("daqp_solve",),
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),

@@ -45,6 +45,50 @@ def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc
             Hc[i, j] = Hc[j, i]
 
 
+@njit("float64(float64[:, :], float64[:], float64, int64, int64)", cache=True, nogil=True)
+def lm_curvature(stack_t: np.ndarray, feedforward: np.ndarray, dt: float, start: int, dim: int) -> float:
+    """``|dt (W r - W xi)| max_j |(W J) e_j|`` of the task whose rows of ``A = [W J | W r] =
+    stack_t^T`` are ``start:start + dim`` (``W xi``: their feed-forward part, ``feedforward``):
+    the weighted step the task's error feedback asks this tick times the norm of its largest
+    weighted Jacobian column -- the scale of the second-order term ``sum_i (W^2 dx)_i grad^2 x_i``
+    that the task's linear model drops (for one revolute joint ``|d^2 p / d theta^2| =
+    |d p / d theta|``, the distance to the axis). :class:`wbc.Controller` multiplies it by
+    ``lm_damping``. A NaN target gives NaN (the tick's NaN screen then refuses the QP)."""
+    nv = stack_t.shape[0] - 1
+    step = 0.0
+    for i in range(dim):
+        value = dt * (stack_t[nv, start + i] - feedforward[i])
+        step += value * value
+    lever = 0.0
+    for j in range(nv):
+        column = 0.0
+        for i in range(dim):
+            column += stack_t[j, start + i] * stack_t[j, start + i]
+        if column > lever:
+            lever = column
+    return math.sqrt(step) * math.sqrt(lever)
+
+
+@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+def lm_damping_rows(damping_rows_t: np.ndarray, damping: float, mu: float) -> None:
+    """The damping rows ``sqrt(max(damping, mu)) I`` of one weighted level (``damping_rows_t``:
+    their nv x nv block of the stack ``A^T``): the damping raised to the tasks' ``mu`` where that
+    is larger."""
+    value = math.sqrt(max(damping, mu)) if mu == mu else mu  # a NaN mu (NaN target) stays: the screen sees it
+    for j in range(damping_rows_t.shape[0]):
+        damping_rows_t[j, j] = value
+
+
+@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
+    """Raise the damping ``damping`` that one level of a hierarchy has (``Hc = [H; c]``) to its
+    tasks' ``mu``: add ``max(mu - damping, 0) I`` to its H."""
+    extra = mu - damping
+    if extra > 0.0 or extra != extra:  # a NaN mu (NaN target) stays: the screen sees it
+        for j in range(Hc.shape[1]):
+            Hc[j, j] += extra
+
+
 @njit("boolean(float64[:, :], float64[:, :], float64[:])", cache=True, nogil=True)
 def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
     """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (``factor``: nv x nv scratch).

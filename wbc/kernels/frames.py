@@ -175,12 +175,14 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:], float64[:, :])", cache=True, nogil=True)
+      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
 def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                        support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
-                       jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray) -> None:
+                       jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray,
+                       weighted_feedforward: np.ndarray) -> None:
     """Rows of :class:`~wbc.PositionTask`: ``error = p* - p``, ``jacobian = W J_lin``,
-    ``target = W (sat(gain/dt * error) + pdot*)`` (layouts: ``POSITION_*`` settings, frame data)."""
+    ``target = W (sat(gain/dt * error) + pdot*)``, and its feed-forward part ``W pdot*`` into
+    ``weighted_feedforward`` (layouts: ``POSITION_*`` settings, frame data)."""
     origin = frame[21:24]
     frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[0:12], support,
                    frame_jacobian_scratch, origin)
@@ -195,4 +197,5 @@ def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, 
     for a in range(3):
         for k in range(jacobian.shape[1]):
             jacobian[a, k] = weights[a] * frame_jacobian_scratch[a, k]
-        target[a] = weights[a] * (scale * error[a] + feedforward[a])
+        weighted_feedforward[a] = weights[a] * feedforward[a]
+        target[a] = weights[a] * (scale * error[a]) + weighted_feedforward[a]

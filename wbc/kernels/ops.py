@@ -33,6 +33,9 @@ from . import (
     OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
     OP_LIFT_CHECK,
+    OP_LM_DAMPING_LEVEL,
+    OP_LM_DAMPING_ROWS,
+    OP_LM_TASK,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -86,6 +89,14 @@ OP_SPECS: dict[int, OpSpec] = {
         ("bounds", ("2 * count", "nv")), ("count", None), ("n_hard", None), ("nv", None), ("upper", ("nv",)),
         ("lower", ("nv",))), ("1 <= count", "0 <= n_hard <= count")),
     OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None), ("infinite", None)), ("0 <= infinite <= 1",)),
+    OP_LM_TASK: OpSpec("LM_TASK", (
+        _STACK, ("feedforward", ("dim",)), ("mu", (1,)), ("lm", (1,)), ("start", None), ("dim", None), ("nv", None),
+        ("rows", None), ("reset", None)), ("0 <= start", "start + dim <= rows", "0 <= reset <= 1")),
+    OP_LM_DAMPING_ROWS: OpSpec("LM_DAMPING_ROWS", (
+        _STACK, ("mu", (1,)), ("scaling", (2,)), ("nv", None), ("rows", None), ("first", None)),
+        ("0 <= first", "first + nv <= rows")),
+    OP_LM_DAMPING_LEVEL: OpSpec("LM_DAMPING_LEVEL", (
+        ("mu", (1,)), ("scaling", (2,)), ("Hc", ("nv + 1", "nv")), ("nv", None))),
     OP_NORMALISE_COST: OpSpec("NORMALISE_COST", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
     OP_HEADING_ROWS: OpSpec("HEADING_ROWS", (
         ("cos_part", ("rows", 2)), ("sin_part", ("rows", 2)), ("q", ("nq",)), ("heading", None),
@@ -94,7 +105,7 @@ OP_SPECS: dict[int, OpSpec] = {
     OP_POSITION_TASK: OpSpec("POSITION_TASK", (
         ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
         ("settings", (POSITION_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (3,)), _STACK,
-        ("start", None), ("nv", None), ("rows", None), ("jacobian", (6, "nv"))),
+        ("start", None), ("nv", None), ("rows", None), ("jacobian", (6, "nv")), ("feedforward", (3,))),
         ("0 <= start", "start + 3 <= rows")),
     OP_MANIPULABILITY_BARRIER: OpSpec("MANIPULABILITY_BARRIER", (
         ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("local", (12,)),

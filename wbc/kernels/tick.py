@@ -36,6 +36,9 @@ from . import (
     OP_LEVEL_CONSTRAINTS,
     OP_LIFT,
     OP_LIFT_CHECK,
+    OP_LM_DAMPING_LEVEL,
+    OP_LM_DAMPING_ROWS,
+    OP_LM_TASK,
     OP_MANIPULABILITY_BARRIER,
     OP_MERGE_BOUNDS,
     OP_NORMAL_EQUATIONS,
@@ -54,6 +57,9 @@ from .assembly import (
     has_non_finite,
     lift_qp,
     lifted_stationarity,
+    lm_curvature,
+    lm_damping_level,
+    lm_damping_rows,
     merge_bounds,
     normal_equations,
     normalise_cost,
@@ -124,10 +130,14 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
       nv, rows, nq
     * MERGE_BOUNDS: bounds ((2 count) x nv: upper, lower of each bounded constraint), count, n_hard, nv, ub, lb
     * HAS_NAN: data, size, infinite (1: infinite entries count too)
+    * LM_TASK: stack, the task's weighted feed-forward (dim), mu (1), lm_damping (1), first row, dim, nv,
+      rows, reset (1: mu starts from 0); adds lm_damping times the task's lm_curvature to mu
+    * LM_DAMPING_ROWS: stack, mu (1), (damping, damping floor), nv, rows, first damping row
+    * LM_DAMPING_LEVEL: mu (1), the level's (damping, damping floor), Hc ((nv + 1) x nv), nv
     * NORMALISE_COST: Hc ((nv + 1) x nv), (damping, damping floor), nv
     * HEADING_ROWS: cos part (rows x 2), sin part, q (nq), heading index, G (rows x nv), rows, nq, nv, x, y
     * POSITION_TASK: J^T, R^T, p, support (nv), settings, frame data, error (3), stack, first row, nv,
-      rows, Jacobian scratch (6 x nv)
+      rows, Jacobian scratch (6 x nv), weighted feed-forward out (3)
     * MANIPULABILITY_BARRIER: J^T, R^T, p, frame in joint (12), support (nv), ancestor (nv x nv),
       Jacobian scratch (6 x nv), origin scratch (3), gradient (nv), G row (nv), h (1),
       settings (gain, min value), value out (1), first row, last row, nv
@@ -199,6 +209,22 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
         elif code == OP_HAS_NAN:
             data = _vector(addresses, op[1], op[2])
             found_nan = found_nan or (has_non_finite(data) if op[3] else has_nan(data))
+        elif code == OP_LM_TASK:
+            start, dim, nv, rows = op[5], op[6], op[7], op[8]
+            mu, lm = _vector(addresses, op[3], 1), _vector(addresses, op[4], 1)[0]
+            if op[9]:
+                mu[0] = 0.0
+            if lm > 0.0:
+                mu[0] += lm * lm_curvature(_matrix(addresses, op[1], nv + 1, rows), _vector(addresses, op[2], dim), dt,
+                                           start, dim)
+        elif code == OP_LM_DAMPING_ROWS:
+            nv, rows, first = op[4], op[5], op[6]
+            lm_damping_rows(_matrix(addresses, op[1], nv + 1, rows)[:nv, first:first + nv],
+                            _vector(addresses, op[3], 2)[0], _vector(addresses, op[2], 1)[0])
+        elif code == OP_LM_DAMPING_LEVEL:
+            nv = op[4]
+            lm_damping_level(_matrix(addresses, op[3], nv + 1, nv), _vector(addresses, op[2], 2)[0],
+                             _vector(addresses, op[1], 1)[0])
         elif code == OP_NORMALISE_COST:
             nv = op[3]
             damping = _vector(addresses, op[2], 2)
@@ -214,7 +240,8 @@ def run_program(packed: np.ndarray, dt: float) -> bool:
                                _vector(addresses, op[3], 3), _vector(addresses, op[4], nv),
                                _vector(addresses, op[5], POSITION_SETTINGS), _vector(addresses, op[6], FRAME_DATA),
                                dt, _vector(addresses, op[7], 3), stack_t[:nv, start:start + 3].T,
-                               stack_t[nv, start:start + 3], _matrix(addresses, op[12], 6, nv))
+                               stack_t[nv, start:start + 3], _matrix(addresses, op[12], 6, nv),
+                               _vector(addresses, op[13], 3))
         elif code == OP_MANIPULABILITY_BARRIER:
             nv = op[16]
             barrier_row(_matrix(addresses, op[1], nv, 6).T, _matrix(addresses, op[2], 3, 3).T,

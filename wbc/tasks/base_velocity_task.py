@@ -59,6 +59,7 @@ class BaseVelocityTaskData(TaskData):
 
     dim = 3
     task: BaseVelocityTask
+    lm_damped = False  # a velocity reference, no error to overshoot
 
     def __init__(self, task: BaseVelocityTask, robot: Robot) -> None:
         super().__init__(task)

@@ -131,6 +131,7 @@ class FrameTaskData(TaskData):
         self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
         self._frame[kernels.FRAME_LOCAL] = local
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
+        self.feedforward = task._settings[kernels.FRAME_WEIGHTED_FEEDFORWARD]  #: W xi* (TaskData.feedforward)
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:

@@ -94,20 +94,21 @@ class PositionTaskData(TaskData):
         self._frame[kernels.FRAME_LOCAL] = local
         self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
         self.error = np.zeros(3)  #: last error p* - p [m], world
+        self.feedforward = np.zeros(3)  #: W pdot* of the last tick (TaskData.feedforward)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         program.add(kernels.OP_POSITION_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
                     translation=translation, support=self._support, settings=self.task._settings, frame=self._frame,
                     error=self.error, stack=stack_t, start=start, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1],
-                    jacobian=self._jacobian)
+                    jacobian=self._jacobian, feedforward=self.feedforward)
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self.task._settings,
-                                   self._frame, dt, self.error, jacobian, target, self._jacobian)
+                                   self._frame, dt, self.error, jacobian, target, self._jacobian, self.feedforward)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self.name] = _norm(self.error)

@@ -88,6 +88,7 @@ class PostureTaskData(TaskData):
 
     diagonal_rows = True  # row i is W_i e_j for the i-th selected coordinate j
     task: PostureTask
+    lm_damped = False  # q moves exactly as the rows say: the linear model makes no overshoot
 
     def __init__(self, task: PostureTask, robot: Robot) -> None:
         super().__init__(task)

@@ -41,6 +41,16 @@ class TaskData:
     #: PostureTask): the row then adds to the diagonal of H only, which the lifted form of
     #: high-DOF QPs (:mod:`wbc.lifting`) keeps out of its auxiliary variables
     diagonal_rows: bool = False
+    #: True when the controller's error-scaled damping (``Controller.lm_damping``) applies to
+    #: this task: its target feeds back an error through a nonlinear map (a frame's pose, a
+    #: measure), whose linear model overshoots at the edge of the workspace. False when the
+    #: rows are exact (PostureTask: joint coordinates) or the target is a velocity reference,
+    #: not an error (BaseVelocityTask). Tasks with ``uses_preview`` are never damped
+    lm_damped: bool = True
+    #: the feed-forward part of the target rows, weighted as they are (``W xi``, dim), a view kept
+    #: current by the task; the error-scaled damping sees only the rest of ``W r``, the feedback
+    #: of the error. None: the whole target is feedback
+    feedforward: np.ndarray | None = None
 
     def __init__(self, task: Task) -> None:
         self.task, self.name = task, task.name
