@@ -25,6 +25,13 @@ WBC_PARENT = Path(wbc.__file__).resolve().parents[1]
 IMPORT_ROOT = [] if WBC_PARENT.name in ("site-packages", "dist-packages") else [str(WBC_PARENT)]
 
 
+
+def _mypy_cache(request: pytest.FixtureRequest, tmp_path: Path, name: str) -> Path:
+    """mypy's cache folder: in pytest's cache (kept between runs) when the cache plugin is on,
+    else a fresh one (``-p no:cacheprovider``: a cold, slower run)."""
+    cache = getattr(request.config, "cache", None)
+    return Path(cache.mkdir(name)) if cache is not None else tmp_path / name
+
 def run(command: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     return subprocess.run(command, cwd=cwd, capture_output=True, text=True, timeout=600)
 
@@ -77,9 +84,9 @@ NUMPY_STUBS_CHECKED = tuple(int(part) for part in np.__version__.split(".")[:2])
 
 @pytest.mark.slow
 @pytest.mark.skipif(not NUMPY_STUBS_CHECKED, reason=f"numpy {np.__version__}: wbc is typed against numpy >= 2.3")
-def test_mypy_on_the_package_is_clean(request):
+def test_mypy_on_the_package_is_clean(request, tmp_path):
     """``mypy`` from the repository root checks wbc with the [tool.mypy] configuration (strict)."""
-    cache = request.config.cache.mkdir("mypy-package")
+    cache = _mypy_cache(request, tmp_path, "mypy-package")
     result = run([sys.executable, "-m", "mypy", "--cache-dir", str(cache)], ROOT)
     assert result.returncode == 0 and "Success: no issues found" in result.stdout, result.stdout + result.stderr
 
@@ -124,7 +131,7 @@ def test_user_script_passes_mypy_strict(tmp_path, request):
     config = tmp_path / "mypy.ini"
     path = f"mypy_path = {IMPORT_ROOT[0]}\n" if IMPORT_ROOT else ""
     config.write_text(f"[mypy]\nstrict = True\npython_version = 3.10\n{path}\n[mypy-wbc.*]\nfollow_imports = silent\n")
-    cache = request.config.cache.mkdir("mypy-user-script")
+    cache = _mypy_cache(request, tmp_path, "mypy-user-script")
     result = run([sys.executable, "-m", "mypy", "--config-file", str(config), "--cache-dir", str(cache),
                   *map(str, scripts)], tmp_path)
     errors = [line for line in result.stdout.splitlines() if ": error:" in line]
