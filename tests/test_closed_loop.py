@@ -1,5 +1,7 @@
 """Closed-loop behaviour on the shipped scenarios and on focused set-ups."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -69,6 +71,14 @@ def test_position_limit_damper_holds_against_an_unreachable_target(youbot):
         q = youbot.integrate(q, controller.step(q), controller.dt)
         assert q[4] <= youbot.upper[4]
     assert youbot.upper[4] - q[4] < 1e-6
+
+
+def test_a_reference_without_its_task_is_refused_before_the_run():
+    """A Scenario built by hand with a reference but no reference_task: a clear wbc error naming
+    the missing field (it was an AttributeError on None in the first tick)."""
+    scenario = replace(load_scenario(TASKS / "youbot_reach.toml"), reference_task=None)
+    with pytest.raises(wbc.InvalidInputError, match="reference_task"):
+        run(scenario, duration=0.1)
 
 
 def test_base_velocity_task_tracks_feasible_twists_in_the_base_frame(youbot):

@@ -137,3 +137,6 @@ def test_coarsening_a_record_is_recording_it_coarser(circle):
         np.testing.assert_array_equal(getattr(coarse, name), getattr(kept, name), err_msg=name)
     np.testing.assert_array_equal(coarse.tick_time, bucket_max(full.tick_time, 8))
     assert full.coarsened(50) is full and kept.coarsened(3).stride == 24
+    for rows in (0, -3, 2.5):  # (0 divided by zero)
+        with pytest.raises(InvalidInputError, match="rows must be an int >= 1"):
+            full.coarsened(rows)

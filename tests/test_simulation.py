@@ -1,5 +1,7 @@
 """MuJoCo in the loop: velocity servos, measurement noise and a one-tick delay."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -61,3 +63,17 @@ def test_reach_converges_through_the_servos():
     for t, j in zip(*np.nonzero(outside > 0), strict=True):
         assert outside[t, j] <= scenario.dt * np.abs(result.v[max(t - 3, 0):t, j]).max(), (t, j)
     assert result.position_violation.max() < 1e-2
+
+
+def test_a_reference_task_without_a_reference_records_its_true_error_in_mujoco():
+    """A scenario whose reference task holds a fixed target (no reference motion): the MuJoCo
+    loop records the error of the true state to that target, as the kinematic loop records
+    the task's (it failed calling the missing reference)."""
+    scenario = load_scenario(TASKS / "youbot_reach.toml")
+    goal = scenario.reference(0.0)[0]
+    scenario.reference_task.set_target(goal)
+    scenario = replace(scenario, reference=None)
+    result = run(scenario, duration=0.3, simulation=MujocoSimulation(scenario.robot, scenario.dt))
+    tool = np.array([scenario.robot.frame_pose(q, "ee")[:3, 3] for q in result.q[:-1]])
+    np.testing.assert_allclose(result.position_error, np.linalg.norm(goal[:3, 3] - tool, axis=1), rtol=1e-12)
+    assert result.position_error[-1] < result.position_error[0] - 0.05  # and the loop drives towards it

@@ -11,12 +11,19 @@ import json
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import TextIO
+from types import ModuleType
+from typing import TYPE_CHECKING, Any, TextIO
 
 from . import __version__
 from .errors import WbcError
+
+if TYPE_CHECKING:  # (imported when a command needs them: `wbc solvers` loads no simulation or viewer)
+    from .closed_loop import RunResult
+    from .scenario import Scenario
+    from .simulation import MujocoSimulation
+    from .view import LiveView
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -45,14 +52,14 @@ def _run(args: argparse.Namespace) -> int:
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
             trace = manipulability_traces(runs)
-            summaries = [{"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
-                         | ({} if trace is None else trace.summary(k))
-                         for k, (scenario, result) in enumerate(runs)]
+            summaries: list[dict[str, float | str]] = [
+                {"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
+                | ({} if trace is None else trace.summary(k)) for k, (scenario, result) in enumerate(runs)]
             if args.json:
                 print(json.dumps(summaries, indent=2))
             else:
-                print("\n".join(format_summary(summary["scenario"], summary["solver"], summary)
-                                for summary in summaries))
+                print("\n".join(format_summary(scenario.name, result.solver, summary)
+                                for (scenario, result), summary in zip(runs, summaries, strict=True)))
             _write_outputs(args, runs, messages)
             if live is not None:
                 _replay(live, messages)
@@ -62,12 +69,12 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _loop(result) -> dict[str, str]:
+def _loop(result: RunResult) -> dict[str, str]:
     """How a run closed its loop, for its summary: "kinematic", or "mujoco" and the servo settings."""
     return {"loop": result.loop} | ({"loop_details": result.loop_details} if result.loop_details else {})
 
 
-def _write_outputs(args: argparse.Namespace, runs: list, messages: TextIO) -> None:
+def _write_outputs(args: argparse.Namespace, runs: Sequence[tuple[Scenario, RunResult]], messages: TextIO) -> None:
     """Write the ``--plot`` and ``--html`` files (their paths were checked before the runs),
     each atomically, and say where."""
     from .outputs import OutputError
@@ -90,7 +97,7 @@ def _write_outputs(args: argparse.Namespace, runs: list, messages: TextIO) -> No
 
 
 @contextlib.contextmanager
-def _live_view(args: argparse.Namespace, scenarios: list, out: TextIO) -> Iterator:
+def _live_view(args: argparse.Namespace, scenarios: Sequence[Scenario], out: TextIO) -> Iterator[LiveView | None]:
     """With ``--view``: a LiveView of the runs to come, its URL printed before they start
     (they are then streamed into it in real time); else None."""
     if args.view is None:
@@ -105,7 +112,7 @@ def _live_view(args: argparse.Namespace, scenarios: list, out: TextIO) -> Iterat
         yield live
 
 
-def _replay(live, out: TextIO) -> None:
+def _replay(live: LiveView, out: TextIO) -> None:
     """Serve the replay of the finished runs until Ctrl-C."""
     import threading
 
@@ -141,7 +148,7 @@ def _check_run_options(args: argparse.Namespace) -> None:
         _check_output("--html", args.html, HTML_FORMATS)
 
 
-def _check_duration(duration: float, scenarios: list) -> None:
+def _check_duration(duration: float, scenarios: Sequence[Scenario]) -> None:
     """``--duration`` gives every scenario 1 to MAX_TICKS ticks (the bound its own file is held to)."""
     from .closed_loop import tick_count
     from .scenario import MAX_TICKS
@@ -174,7 +181,7 @@ def _require(module: str, option: str, extra: str) -> None:
                                f'pip install "wbc[{extra}]"') from exc
 
 
-def _simulation(args: argparse.Namespace, scenario):
+def _simulation(args: argparse.Namespace, scenario: Scenario) -> MujocoSimulation | None:
     """The MuJoCo loop asked for by ``--sim mujoco``, or None for the kinematic loop."""
     if args.sim != "mujoco":
         return None
@@ -183,8 +190,9 @@ def _simulation(args: argparse.Namespace, scenario):
     return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise or 0.0, delay=args.delay or 0)
 
 
-def format_summary(name: str, solver: str, s: dict) -> str:
-    """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``)."""
+def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
+    """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``:
+    numbers, and strings for the loop and the manipulability's frame and rows)."""
     tracked = "orientation_error_rms_rad" in s
     lines = [
         f"scenario {name}  (solver {solver}, {_loop_text(s)})",
@@ -215,7 +223,7 @@ def format_summary(name: str, solver: str, s: dict) -> str:
     return "\n".join(lines)
 
 
-def _loop_text(s: dict) -> str:
+def _loop_text(s: Mapping[str, Any]) -> str:
     """How the run closed its loop, from its summary ("kinematic loop" when not said)."""
     if s.get("loop") == "mujoco":
         return f"MuJoCo loop: {s['loop_details']}" if s.get("loop_details") else "MuJoCo loop"
@@ -309,7 +317,7 @@ def _bench(args: argparse.Namespace) -> int:
     return module.main(args.options)
 
 
-def _import_suite(root: Path, suite: str):
+def _import_suite(root: Path, suite: str) -> ModuleType:
     """``benchmarks.<suite>`` of ``root``, whatever else a ``benchmarks`` on sys.path holds."""
     loaded = sys.modules.get("benchmarks")
     if loaded is not None and Path(getattr(loaded, "__file__", "") or "").resolve().parent != root / "benchmarks":
@@ -320,7 +328,7 @@ def _import_suite(root: Path, suite: str):
     return importlib.import_module(f"benchmarks.{suite}")
 
 
-def _count(least: int):
+def _count(least: int) -> Callable[[str], int]:
     """An argparse type: an integer >= ``least`` (argparse turns the ValueError into a usage error)."""
     def parse(text: str) -> int:
         value = int(text)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
 from .constraints import ManipulabilityBarrier
 from .controller import Controller
@@ -15,7 +16,9 @@ from .errors import InvalidInputError
 from .manipulability import manipulability
 from .robot import Robot
 from .scenario import Scenario
-from .tasks import FrameTask, ManipulabilityTask, PostureTask
+from .tasks import FrameTask, ManipulabilityTask, PositionTask, PostureTask, Task
+from .tasks.frame_task import FrameTaskData
+from .tasks.position_task import PositionTaskData
 
 if TYPE_CHECKING:
     from .simulation import MujocoSimulation
@@ -59,22 +62,22 @@ class RunResult:
     scenario: str
     solver: str
     dt: float
-    time: np.ndarray  #: (R,) [s] of each row's first tick
-    q: np.ndarray  #: (R+1, nq) configurations, q[0] = initial, q[R] = final
-    v: np.ndarray  #: (R, nv) commands
-    position_error: np.ndarray  #: (R,) [m] of the reference task, before each command
-    orientation_error: np.ndarray  #: (R,) [rad]
-    solve_time: np.ndarray  #: (R,) [s]
-    tick_time: np.ndarray  #: (R,) [s], whole Controller.step
-    position_violation: np.ndarray  #: (R+1,) max over joints of distance outside [lower, upper]
-    velocity_violation: np.ndarray  #: (R,) max over coordinates of |v| beyond its limit
-    velocity_ratio: np.ndarray  #: (R, nv) |v_i| / limit_i (base linear entries in the base frame)
+    time: NDArray[np.float64]  #: (R,) [s] of each row's first tick
+    q: NDArray[np.float64]  #: (R+1, nq) configurations, q[0] = initial, q[R] = final
+    v: NDArray[np.float64]  #: (R, nv) commands
+    position_error: NDArray[np.float64]  #: (R,) [m] of the reference task, before each command
+    orientation_error: NDArray[np.float64]  #: (R,) [rad]
+    solve_time: NDArray[np.float64]  #: (R,) [s]
+    tick_time: NDArray[np.float64]  #: (R,) [s], whole Controller.step
+    position_violation: NDArray[np.float64]  #: (R+1,) max over joints of distance outside [lower, upper]
+    velocity_violation: NDArray[np.float64]  #: (R,) max over coordinates of ``|v|`` beyond its limit
+    velocity_ratio: NDArray[np.float64]  #: (R, nv) ``|v_i| / limit_i`` (base linear entries in the base frame)
     statistics: RunStatistics  #: the summary numbers, over every tick
     fallback_ticks: int = 0  #: ticks whose command came from a fallback (last.success False)
-    base_path: np.ndarray | None = None  #: (R+1, 2) base (x, y) [m] of a mobile base
-    tool_path: np.ndarray | None = None  #: (R+1, 3) world position [m] of the reference task's frame
-    wheel_ratio: np.ndarray | None = None  #: (R, n_wheels) |u_i| / u_max, if the base has wheels
-    lateral_slip: np.ndarray | None = None  #: (R,) |base-frame v_y| [m/s] of a nonholonomic base
+    base_path: NDArray[np.float64] | None = None  #: (R+1, 2) base (x, y) [m] of a mobile base
+    tool_path: NDArray[np.float64] | None = None  #: (R+1, 3) world position [m] of the reference task's frame
+    wheel_ratio: NDArray[np.float64] | None = None  #: (R, n_wheels) ``|u_i| / u_max``, if the base has wheels
+    lateral_slip: NDArray[np.float64] | None = None  #: (R,) ``|base-frame v_y|`` [m/s] of a nonholonomic base
     #: whether the reference task weighs the orientation (a FrameTask with an orientation cost > 0);
     #: if not, ``orientation_error`` is not a tracking error (0, or an unweighted error)
     orientation_tracked: bool = True
@@ -90,7 +93,13 @@ class RunResult:
     def coarsened(self, rows: int) -> RunResult:
         """This run with at most ``rows`` rows: each ``k = ceil(R / rows)`` rows merged into one
         as :func:`run` merges ticks (the first row's q, v and paths, the peak of every other
-        series; ``stride`` multiplied by k). ``self`` if it has no more than ``rows`` rows."""
+        series; ``stride`` multiplied by k). ``self`` if it has no more than ``rows`` rows.
+
+        Raises:
+            InvalidInputError: ``rows`` is not an int >= 1.
+        """
+        if isinstance(rows, bool) or not isinstance(rows, int) or rows < 1:
+            raise InvalidInputError(f"rows must be an int >= 1, got {rows!r}")
         count = self.time.size
         k = -(-count // rows)
         if k <= 1:
@@ -98,7 +107,7 @@ class RunResult:
         starts = np.arange(0, count, k)
         kept = np.append(starts, count)  # and the final configuration
 
-        def peaks(series: np.ndarray) -> np.ndarray:
+        def peaks(series: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.maximum.reduceat(series, starts, axis=0)
 
         return replace(
@@ -142,7 +151,7 @@ class RunResult:
 
 
 #: ``on_tick(k, q)`` of :func:`run`: called after tick ``k - 1`` with the configuration ``q[k]``
-TickObserver = Callable[[int, np.ndarray], None]
+TickObserver = Callable[[int, NDArray[np.float64]], None]
 
 
 def tick_count(scenario: Scenario, duration: float | None = None) -> int:
@@ -166,6 +175,28 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     Memory is bounded: a run of more than ``max_rows`` ticks keeps one row per
     ``stride = ceil(ticks / max_rows)`` ticks (see :class:`RunResult`; ``None``: every tick),
     plus 16 bytes per tick for the exact latency percentiles of the summary.
+
+    Args:
+        scenario: what to run, from ``scenario.q0``; each tick ``scenario.reference`` (if any)
+            sets the target of ``scenario.reference_task``, whose errors are recorded.
+        solver: the QP solver (:func:`wbc.solvers.available_solvers`); None: the scenario's.
+        duration: [s] instead of the scenario's duration (rounded to whole ticks).
+        progress: show a progress bar on stderr.
+        controller: the controller to run (built from ``scenario``) instead of
+            ``scenario.make_controller(solver)``; ``solver`` is then not used.
+        simulation: close the loop through this MuJoCo simulation (reset to ``scenario.q0``).
+        on_tick: the observer described above.
+        max_rows: rows kept at most (an int >= 1), or None for one row per tick.
+
+    Returns:
+        The time series of the run (one row per ``stride`` ticks) and its summary numbers over
+        every tick (:attr:`RunResult.statistics`).
+
+    Raises:
+        InvalidInputError: ``duration`` is less than half a tick, ``max_rows`` is not an
+            int >= 1 or None, or ``scenario.reference`` is set without a ``reference_task`` to
+            move; or what :meth:`wbc.controller.Controller.step` raises (e.g. a task without a
+            target).
     """
     controller = controller or scenario.make_controller(solver)
     robot, dt = scenario.robot, scenario.dt
@@ -174,12 +205,15 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         raise InvalidInputError(f"a run needs at least one tick: {duration} s is less than half of dt = {dt} s")
     if max_rows is not None and (isinstance(max_rows, bool) or not isinstance(max_rows, int) or max_rows < 1):
         raise InvalidInputError(f"max_rows must be an int >= 1 or None, got {max_rows!r}")
+    task, reference = scenario.reference_task, scenario.reference
+    if reference is not None and task is None:
+        raise InvalidInputError(f"scenario {scenario.name!r} has a reference but no reference_task: set "
+                                "reference_task to the FrameTask or PositionTask whose target the reference moves")
     q = scenario.q0.copy()
     if simulation is not None:
         simulation.reset(q)
-    task, reference = scenario.reference_task, scenario.reference
     record = _Recorder(robot, None if task is None else task.frame, q, ticks, max_rows or ticks)
-    task_data = controller.data(task) if task is not None else None
+    task_data = None if task is None else _reference_data(controller, task)
     iterator: Iterable[int] = range(ticks)
     if progress:
         from tqdm import tqdm
@@ -187,12 +221,13 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
         iterator = tqdm(iterator, desc=scenario.name, unit="tick", mininterval=0.5, leave=False)
     for k in iterator:
         if reference is not None:
+            assert task is not None  # refused above
             task.set_target(*reference(k * dt))
         v = controller.step(q if simulation is None else simulation.measure())
         last = controller.last
         position_error = orientation_error = 0.0
-        if task is not None:
-            error = task_data.error if simulation is None else _true_error(robot, task, q, reference(k * dt)[0])
+        if task_data is not None:
+            error = task_data.error if simulation is None else _true_error(robot, task_data.task, q)
             position_error = float(np.linalg.norm(error[:3]))
             orientation_error = float(np.linalg.norm(error[3:]))  # 0 for a PositionTask
         if simulation is None:
@@ -207,13 +242,20 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     return record.result(scenario.name, controller.solver.name, dt, orientation_tracked(task), simulation)
 
 
+def _reference_data(controller: Controller, task: FrameTask | PositionTask) -> FrameTaskData | PositionTaskData:
+    """The controller's data of the reference task: the error of its last tick."""
+    data = controller.data(task)
+    assert isinstance(data, (FrameTaskData, PositionTaskData))  # what FrameTask / PositionTask.bind return
+    return data
+
+
 class _Recorder:
     """The record of a run as it goes: each tick into a buffer of ``chunk`` ticks; each full
     buffer is reduced to rows (one per ``stride`` ticks: the first tick's q and v, the
     largest value of every other series -- so the largest over the rows is the largest
     over every tick) and its squared errors are summed for the RMS."""
 
-    def __init__(self, robot: Robot, frame: str | None, q0: np.ndarray, ticks: int, max_rows: int) -> None:
+    def __init__(self, robot: Robot, frame: str | None, q0: NDArray[np.float64], ticks: int, max_rows: int) -> None:
         self.robot, self.frame, self.ticks = robot, frame, ticks
         self.stride = stride = -(-ticks // max_rows)
         rows = -(-ticks // stride)
@@ -243,7 +285,7 @@ class _Recorder:
         self.squares = np.zeros(2)  # sums of the squared position and orientation errors
         self.final_errors = np.zeros(2)
 
-    def tick(self, v: np.ndarray, q: np.ndarray, position_error: float, orientation_error: float,
+    def tick(self, v: NDArray[np.float64], q: NDArray[np.float64], position_error: float, orientation_error: float,
              solve_time: float, tick_time: float, fallback: bool) -> None:
         """One tick: command ``v`` (from the previous configuration) led to ``q``."""
         j, k = self.buffered, self.done + self.buffered
@@ -316,8 +358,9 @@ class _Recorder:
         loop, details = ("kinematic", "") if simulation is None else (
             "mujoco", f"velocity servos, noise {simulation.noise:g}, delay {simulation.delay} tick"
                       f"{'s' if simulation.delay != 1 else ''}")
+        rows = self.q.shape[0] - 1
         return RunResult(
-            scenario=scenario, solver=solver, dt=dt, time=np.arange(self.q.shape[0] - 1) * self.stride * dt,
+            scenario=scenario, solver=solver, dt=dt, time=np.arange(rows, dtype=np.float64) * self.stride * dt,
             q=self.q, v=self.v, position_error=self.position_error, orientation_error=self.orientation_error,
             solve_time=self.solve_time, tick_time=self.tick_time, position_violation=self.position_violation,
             velocity_violation=self.velocity_violation, velocity_ratio=self.velocity_ratio, statistics=statistics,
@@ -326,7 +369,7 @@ class _Recorder:
             orientation_tracked=tracked, stride=self.stride, loop=loop, loop_details=details)
 
 
-def orientation_tracked(task) -> bool:
+def orientation_tracked(task: Task | None) -> bool:
     """Whether a reference task weighs the orientation (a FrameTask with an orientation cost > 0)."""
     return isinstance(task, FrameTask) and bool(np.any(task.orientation_cost > 0))
 
@@ -339,7 +382,7 @@ class ManipulabilityTrace:
     rows: str
     min_value: float | None
     #: one (T+1,) array per run, m at each recorded configuration; None for a run of another robot
-    series: list[np.ndarray | None]
+    series: list[NDArray[np.float64] | None]
     guarded: list[bool]  #: per run, whether its scenario has a barrier with that floor on this frame and rows
     #: per run, the ticks per recorded row (RunResult.stride): m is evaluated at the rows' configurations
     strides: list[int] = field(default_factory=list)
@@ -349,13 +392,17 @@ class ManipulabilityTrace:
         the barrier if that run has it, and for a long run whose record keeps one configuration
         per ``stride`` ticks, that stride (m is then the smallest at those ticks); empty for a
         run of another robot."""
-        if self.series[run] is None:
+        series = self.series[run]
+        if series is None:
             return {}
-        floor = {"manipulability_floor": self.min_value} if self.guarded[run] else {}
+        summary: dict[str, float | str] = {"manipulability_frame": self.frame, "manipulability_rows": self.rows,
+                                           "manipulability_min": float(series.min())}
+        if self.guarded[run] and self.min_value is not None:  # (a guarded run has a floor)
+            summary["manipulability_floor"] = self.min_value
         stride = self.strides[run] if self.strides else 1
-        sampled = {"manipulability_sampled_every_ticks": stride} if stride > 1 else {}
-        return {"manipulability_frame": self.frame, "manipulability_rows": self.rows,
-                "manipulability_min": float(self.series[run].min())} | floor | sampled
+        if stride > 1:
+            summary["manipulability_sampled_every_ticks"] = stride
+        return summary
 
 
 def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> ManipulabilityTrace | None:
@@ -378,14 +425,14 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
     return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded, [result.stride for _, result in runs])
 
 
-def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[np.ndarray | None] | None:
+def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[NDArray[np.float64] | None] | None:
     """When some scenario has priority levels: the error ``|q* (-) q|`` of the first PostureTask
     of every run at each recorded configuration (one (T+1,) array per run, None for a run
     without one) -- how far the posture got in the null space, next to the same stack weighted;
     None when no scenario has levels."""
     if not any(scenario.levels for scenario, _ in runs):
         return None
-    series = []
+    series: list[NDArray[np.float64] | None] = []
     for scenario, result in runs:
         task = next((task for task in scenario.tasks if isinstance(task, PostureTask)), None)
         if task is None:
@@ -397,15 +444,17 @@ def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[np.ndarra
     return series
 
 
-def _true_error(robot, task, q: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """The reference task's error at the true configuration ``q`` (position; orientation)."""
+def _true_error(robot: Robot, task: FrameTask | PositionTask, q: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The error of the reference ``task`` at the true configuration ``q`` (position;
+    orientation), against the target of the tick."""
     pose = robot.frame_pose(q, task.frame)
+    target = task.target
     if target.shape == (3,):
         return target - pose[:3, 3]
     return np.concatenate([target[:3, 3] - pose[:3, 3], pin.log3(target[:3, :3] @ pose[:3, :3].T)])
 
 
-def wheel_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
+def wheel_ratio(robot: Robot, qs: NDArray[np.float64], vs: NDArray[np.float64]) -> NDArray[np.float64] | None:
     """(T, n_wheels) ``|u_i| / u_max`` of a wheeled base with a declared speed limit, else None."""
     wheels = robot.base.wheels
     if wheels is None or not np.isfinite(wheels.max_speed):
@@ -413,14 +462,14 @@ def wheel_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
     return np.abs(robot.base.twist(qs, vs) @ wheels.inverse_matrix().T) / wheels.max_speed
 
 
-def lateral_slip(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray | None:
+def lateral_slip(robot: Robot, qs: NDArray[np.float64], vs: NDArray[np.float64]) -> NDArray[np.float64] | None:
     """(T,) sideways base speed [m/s] of a nonholonomic base, else None."""
     if not robot.base.is_nonholonomic:
         return None
     return np.abs(robot.base.twist(qs, vs)[:, 1])
 
 
-def position_violation(robot, qs: np.ndarray) -> np.ndarray:
+def position_violation(robot: Robot, qs: NDArray[np.float64]) -> NDArray[np.float64]:
     """Per row of ``qs``: largest distance outside the position limits (0 inside)."""
     with np.errstate(invalid="ignore"):
         above = np.where(np.isfinite(robot.upper), qs - robot.upper, 0.0)
@@ -428,7 +477,7 @@ def position_violation(robot, qs: np.ndarray) -> np.ndarray:
     return np.max(np.maximum(np.maximum(above, below), 0.0), axis=1)
 
 
-def velocity_ratio(robot, qs: np.ndarray, vs: np.ndarray) -> np.ndarray:
+def velocity_ratio(robot: Robot, qs: NDArray[np.float64], vs: NDArray[np.float64]) -> NDArray[np.float64]:
     """``|v_i| / limit_i`` per tick; mobile-base linear speeds are taken in the base frame."""
     speeds = np.abs(vs)
     if robot.base.is_mobile:

@@ -20,7 +20,15 @@ HTML_FORMATS = {".html": "HTML page", ".htm": "HTML page"}
 def write_atomically(path: str | Path, write: Callable[[BinaryIO], object]) -> Path:
     """Create the folder of ``path`` if missing, call ``write`` with a binary stream on a
     temporary file next to ``path``, then rename it to ``path`` (:func:`os.replace`). On any
-    exception (Ctrl-C included) the temporary file is removed and ``path`` is untouched."""
+    exception (Ctrl-C included) the temporary file is removed and ``path`` is untouched.
+
+    Returns:
+        ``path``, as a :class:`~pathlib.Path`.
+
+    Raises:
+        OSError: the folder, the temporary file or the rename failed (e.g. no permission, the
+            disk is full); and whatever ``write`` raises, unchanged.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
@@ -51,7 +59,15 @@ def check_output(path_text: str, formats: Mapping[str, str]) -> Path:
     """``path_text`` as the path of a file that can be written in one of ``formats``
     (suffix -> description, e.g. ``{".png": "PNG image"}``): a file name with one of those
     suffixes, not a folder, in a folder that exists and is writable or can be created.
-    Nothing is created. Raises :class:`OutputError` saying what is wrong and what to give."""
+    Nothing is created.
+
+    Returns:
+        The path, as a :class:`~pathlib.Path`.
+
+    Raises:
+        OutputError: saying what is wrong and what to give: an empty name, a folder, a suffix
+            not in ``formats``, a folder that cannot be created or written in.
+    """
     if not path_text.strip():
         raise OutputError("needs a file name")
     path = Path(path_text)

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from .closed_loop import RunResult, manipulability_traces, posture_traces
 from .outputs import check_output, write_atomically
@@ -29,6 +30,7 @@ from .scenario import Scenario
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+    from matplotlib.typing import HashableList
 
 FLOOR_DECADES = 3  #: the error panels' log axes start this many decades below the median error
 WHEEL_NAMES = {4: ["FL", "FR", "RL", "RR"], 2: ["left", "right"]}  #: wheel order of wbc.base
@@ -97,7 +99,7 @@ class SpeedGroup:
     key: str  #: "base", "wheels", "chain" or "other"
     title: str
     labels: list[str]
-    ratio: np.ndarray  #: (rows, len(labels)) |speed| / limit
+    ratio: NDArray[np.float64]  #: (rows, len(labels)) ``|speed| / limit``
     unlimited: list[str]  #: joints of the group without a speed limit (not drawn)
 
 
@@ -131,7 +133,7 @@ def speed_groups(robot: Robot, result: RunResult, frame: str | None = None) -> l
     return groups
 
 
-def log_floor(series: Sequence[np.ndarray], decades: int = FLOOR_DECADES) -> float | None:
+def log_floor(series: Sequence[ArrayLike], decades: int = FLOOR_DECADES) -> float | None:
     """Lower limit of a log axis for ``series``: a power of ten ``decades`` below the median of
     their positive values, or the smallest of them if that is higher; None if none is positive.
     Values below it are drawn on it, so an exact 0 or a 1e-12 does not stretch the axis."""
@@ -151,9 +153,22 @@ def plot_run(scenario: Scenario, result: RunResult, path: str | Path) -> Path:
 def plot_runs(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path) -> Path:
     """Write the :func:`figure` of ``runs`` to ``path`` in the format its suffix names (one of
     :data:`PLOT_FORMATS`: .png, .pdf, .svg, ...), atomically: a temporary file in the same
-    folder, renamed to ``path`` once complete; a missing folder is created. Returns the path
-    (needs matplotlib: ``pip install wbc[plot]``). A path that cannot be written raises
-    :class:`~wbc.outputs.OutputError` before the figure is drawn."""
+    folder, renamed to ``path`` once complete; a missing folder is created (needs matplotlib:
+    ``pip install wbc[plot]``).
+
+    Args:
+        runs: ``(scenario, result)`` pairs (:func:`wbc.closed_loop.run`), overlaid.
+        path: the file to write.
+
+    Returns:
+        ``path``, as a :class:`~pathlib.Path`.
+
+    Raises:
+        OutputError: ``path`` cannot be written (:func:`wbc.outputs.check_output`); raised
+            before the figure is drawn.
+        OSError: writing failed (e.g. the disk is full); ``path`` is left as it was.
+        ValueError: ``runs`` is empty.
+    """
     import matplotlib
     import matplotlib.pyplot as plt
 
@@ -197,7 +212,7 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     error_keys = ["position"] + (["orientation"] if any(r.orientation_tracked for r in results) else [])
     speed_keys = [key for key in ("base", "wheels", "chain", "other") if any(g.key == key for gs in groups for g in gs)]
     speed_rows = [speed_keys] if len(speed_keys) < 4 else [speed_keys[:2], speed_keys[2:]]
-    layout = [_row(error_keys), *map(_row, speed_rows), _row(["latency", "paths"])]
+    layout: list[HashableList[str]] = [_row(error_keys), *map(_row, speed_rows), _row(["latency", "paths"])]
     layout += ([_row(["m"])] if trace else []) + ([_row(["posture"])] if postures else [])
     fig, axes = plt.subplot_mosaic(layout, figsize=(13, 3.8 * len(layout)), constrained_layout=True)
     colors = [plt.rcParams["axes.prop_cycle"].by_key()["color"][k % 10] for k in range(len(runs))]
@@ -297,7 +312,8 @@ def _ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-Line = tuple[str, np.ndarray, np.ndarray, "str | None"]  #: label, time [s], values, colour (None: the cycle's)
+#: a line of a speed panel: label, time [s], values, colour (None: the cycle's)
+Line = tuple[str, NDArray[np.float64], NDArray[np.float64], "str | None"]
 
 
 def _speed_panel(ax: Axes, in_panel: Sequence[tuple[RunResult, str, SpeedGroup]], several: bool) -> None:
@@ -394,7 +410,7 @@ def _ratio(value: float) -> str:
 def _merge_coinciding(lines: list[Line], tolerance: float, order: Sequence[str]) -> list[Line]:
     """``lines`` with those that stay within ``tolerance`` of an earlier one (same times) drawn
     once, at the larger of the two, labelled "first = second" in the order of ``order``."""
-    merged: list[tuple[list[str], np.ndarray, np.ndarray, str | None]] = []
+    merged: list[tuple[list[str], NDArray[np.float64], NDArray[np.float64], str | None]] = []
     for label, time, ratio, color in lines:
         for k, (kept_labels, kept_time, kept_ratio, kept_color) in enumerate(merged):
             if (kept_time.shape == time.shape and np.array_equal(kept_time, time)
@@ -464,13 +480,13 @@ def _long_latency_panel(ax: Axes, results: Sequence[RunResult], colors: Sequence
     ax.grid(True, which="both", alpha=0.3)
 
 
-def _row(keys: list[str]) -> list[str]:
+def _row(keys: list[str]) -> HashableList[str]:
     """One row of the mosaic: ``keys`` side by side, equally wide."""
     return [key for key in keys for _ in range(GRID_COLUMNS // len(keys))]
 
 
-def _error_panel(ax: Axes, title: str, ylabel: str, lines: list[tuple[np.ndarray, np.ndarray, str, str]],
-                 unit: str) -> None:
+def _error_panel(ax: Axes, title: str, ylabel: str,
+                 lines: list[tuple[NDArray[np.float64], NDArray[np.float64], str, str]], unit: str) -> None:
     """Log-scale error lines (time, error, colour, scenario), the axis starting at :func:`log_floor`."""
     ax.set(title=title, xlabel="time [s]", ylabel=ylabel, yscale="log")
     ax.grid(True, which="both", alpha=0.3)

@@ -19,7 +19,7 @@ from .validation import as_pose, as_positive, as_vector
 
 
 class ReferenceMotion(Protocol):
-    """What :class:`wbc.scenario.Scenario` and ``wbc.closed_loop.run`` call: ``reference(t)``
+    """What :class:`wbc.scenario.Scenario` and :func:`wbc.closed_loop.run` call: ``reference(t)``
     at time ``t`` [s] gives the target and its feed-forward rate, the arguments of the task's
     ``set_target`` (every class of this module, and :class:`wbc.trajectory.planner.PlannedReference`)."""
 

@@ -28,14 +28,16 @@ import warnings
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO, Literal
+from typing import BinaryIO, Literal, TypeVar
 
 import numpy as np
 import pinocchio as pin
 import viser
+from numpy.typing import ArrayLike, NDArray
 
 from .closed_loop import RunResult, TickObserver, orientation_tracked
 from .outputs import HTML_FORMATS, check_output, write_atomically
+from .references import ReferenceMotion
 from .robot import Robot
 from .scenario import Scenario
 
@@ -72,7 +74,7 @@ class Obstacle:
 
     kind: Literal["box", "sphere", "cylinder"]
     size: tuple[float, ...]
-    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+    pose: NDArray[np.float64] = field(default_factory=lambda: np.eye(4))
 
     def __post_init__(self) -> None:
         sizes = {"box": 3, "sphere": 1, "cylinder": 2}
@@ -99,11 +101,11 @@ class Shape:
 
     kind: Literal["box", "cylinder", "sphere", "mesh"]
     joint: int  #: Pinocchio joint index (0: the world)
-    placement: np.ndarray
+    placement: NDArray[np.float64]
     size: tuple[float, ...]
     colour: Colour
-    vertices: np.ndarray | None = None
-    faces: np.ndarray | None = None
+    vertices: NDArray[np.float64] | None = None  #: (n, 3) of a mesh [m], scaled
+    faces: NDArray[np.int64] | None = None  #: (m, 3) vertex indices of a mesh's triangles
 
 
 def robot_shapes(robot: Robot, colour: Colour = RUN_COLOURS[0][0]) -> list[Shape]:
@@ -115,7 +117,7 @@ def robot_shapes(robot: Robot, colour: Colour = RUN_COLOURS[0][0]) -> list[Shape
     data = model.createData()
     pin.forwardKinematics(model, data, robot.neutral())
     origins = [data.oMi[j].translation.copy() for j in range(model.njoints)]
-    ends: dict[int, list[np.ndarray]] = {j: [] for j in range(model.njoints)}
+    ends: dict[int, list[NDArray[np.float64]]] = {j: [] for j in range(model.njoints)}
     for j in range(1, model.njoints):
         ends[model.parents[j]].append(model.jointPlacements[j].translation.copy())
     for frame in model.frames:
@@ -127,7 +129,7 @@ def robot_shapes(robot: Robot, colour: Colour = RUN_COLOURS[0][0]) -> list[Shape
              for end in _unique(joint_ends) if np.linalg.norm(end) > 1e-6]
     radius = bone_radius(robot)
     shapes = list(visuals)
-    linked = set()
+    linked: set[int] = set()
     for joint, end in bones:
         shapes.append(Shape("cylinder", joint, _segment_placement(end), (radius, float(np.linalg.norm(end))), colour))
         linked.add(joint)
@@ -162,15 +164,15 @@ def bone_radius(robot: Robot) -> float:
     return 0.03 * float(reach)
 
 
-def _unique(points: list[np.ndarray]) -> list[np.ndarray]:
-    kept: list[np.ndarray] = []
+def _unique(points: list[NDArray[np.float64]]) -> list[NDArray[np.float64]]:
+    kept: list[NDArray[np.float64]] = []
     for point in points:
         if not any(np.linalg.norm(point - other) < 1e-6 for other in kept):
             kept.append(point)
     return kept
 
 
-def _segment_placement(end: np.ndarray) -> np.ndarray:
+def _segment_placement(end: NDArray[np.float64]) -> NDArray[np.float64]:
     """Placement of a cylinder from the origin to ``end``: centred, z along the segment."""
     z = end / np.linalg.norm(end)
     helper = np.array([1.0, 0.0, 0.0]) if abs(z[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
@@ -192,10 +194,9 @@ def _urdf_visuals(robot: Robot) -> list[Shape]:
     except (RuntimeError, ValueError, OSError) as exc:  # e.g. a mesh file not found
         warnings.warn(f"{robot.source}: visual geometry not loaded ({exc}); drawing the skeleton", stacklevel=2)
         return []
-    shapes = []
+    shapes: list[Shape] = []
     for item in geometry.geometryObjects:
-        colour = (tuple(int(round(255 * c)) for c in item.meshColor[:3]) if item.overrideMaterial
-                  else VISUAL_COLOUR)
+        colour = _colour(item.meshColor) if item.overrideMaterial else VISUAL_COLOUR
         placement, g, kind = item.placement.homogeneous, item.geometry, type(item.geometry).__name__
         if kind == "Box":
             shapes.append(Shape("box", item.parentJoint, placement, tuple(2 * g.halfSide), colour))
@@ -214,17 +215,25 @@ def _urdf_visuals(robot: Robot) -> list[Shape]:
     return shapes
 
 
-def _mesh_shape(item, colour: Colour) -> Shape:
+def _colour(rgba: ArrayLike) -> Colour:
+    """A URDF material's colour (RGB(A) in [0, 1]) in 0-255."""
+    red, green, blue = (int(round(255 * c)) for c in np.asarray(rgba, dtype=np.float64)[:3])
+    return red, green, blue
+
+
+def _mesh_shape(item: pin.GeometryObject, colour: Colour) -> Shape:
     import trimesh  # a dependency of viser
 
     mesh = trimesh.load(item.meshPath, force="mesh")
+    assert isinstance(mesh, trimesh.Trimesh)  # force="mesh": a scene is concatenated into one mesh
     return Shape("mesh", item.parentJoint, item.placement.homogeneous, tuple(item.meshScale), colour,
                  vertices=np.asarray(mesh.vertices) * np.asarray(item.meshScale), faces=np.asarray(mesh.faces))
 
 
-def _corners(shape: Shape) -> np.ndarray:
+def _corners(shape: Shape) -> NDArray[np.float64]:
     """(8, 3) corners of the box around ``shape`` in its own frame."""
     if shape.kind == "mesh":
+        assert shape.vertices is not None  # (a mesh's shape has them: _mesh_shape)
         low, high = shape.vertices.min(axis=0), shape.vertices.max(axis=0)
     else:
         if shape.kind == "box":
@@ -238,29 +247,30 @@ def _corners(shape: Shape) -> np.ndarray:
                      for i in (0, 1) for j in (0, 1) for k in (0, 1)])
 
 
-def _translation(p) -> np.ndarray:
+def _translation(p: ArrayLike) -> NDArray[np.float64]:
     transform = np.eye(4)
     transform[:3, 3] = p
     return transform
 
 
-def _wxyz(rotation: np.ndarray) -> np.ndarray:
+def _wxyz(rotation: NDArray[np.float64]) -> NDArray[np.float64]:
     x, y, z, w = pin.Quaternion(rotation).coeffs()
     return np.array([w, x, y, z])
 
 
-def _add_shape(scene, name: str, kind: str, size: tuple[float, ...], colour: Colour, placement: np.ndarray,
-               opacity: float | None = None, vertices: np.ndarray | None = None,
-               faces: np.ndarray | None = None) -> None:
-    pose = {"position": placement[:3, 3], "wxyz": _wxyz(placement[:3, :3])}
+def _add_shape(scene: viser.SceneApi, name: str, kind: str, size: tuple[float, ...], colour: Colour,
+               placement: NDArray[np.float64], opacity: float | None = None,
+               vertices: NDArray[np.float64] | None = None, faces: NDArray[np.int64] | None = None) -> None:
+    position, wxyz = placement[:3, 3], _wxyz(placement[:3, :3])
     if kind == "box":
-        scene.add_box(name, colour, size, opacity=opacity, **pose)
+        scene.add_box(name, colour, np.asarray(size), opacity=opacity, position=position, wxyz=wxyz)
     elif kind == "sphere":
-        scene.add_icosphere(name, size[0], colour, opacity=opacity, **pose)
+        scene.add_icosphere(name, size[0], colour, opacity=opacity, position=position, wxyz=wxyz)
     elif kind == "cylinder":
-        scene.add_cylinder(name, size[0], size[1], colour, opacity=opacity, **pose)
+        scene.add_cylinder(name, size[0], size[1], colour, opacity=opacity, position=position, wxyz=wxyz)
     else:
-        scene.add_mesh_simple(name, vertices, faces, color=colour, opacity=opacity, **pose)
+        assert vertices is not None and faces is not None  # (a mesh's shape has them: _mesh_shape)
+        scene.add_mesh_simple(name, vertices, faces, color=colour, opacity=opacity, position=position, wxyz=wxyz)
 
 
 class _RunTrack:
@@ -291,11 +301,11 @@ class _RunTrack:
         for n, shape in enumerate(shapes):
             _add_shape(server.scene, f"{self.root}/j{shape.joint}/s{n}", shape.kind, shape.size, shape.colour,
                        shape.placement, vertices=shape.vertices, faces=shape.faces)
-        targets = [self.target(k) for k in [*range(0, ticks, stride), ticks]]
-        self.reference_points = None
-        self.target_marker = None
-        if targets[0] is not None:
-            self.reference_points = points = np.array([t[:3, 3] if t.shape == (4, 4) else t for t in targets])
+        self.reference_points: NDArray[np.float64] | None = None  #: the reference's target points
+        self.target_marker: viser.FrameHandle | None = None  #: at the current target
+        if scenario.reference is not None:
+            self.reference_points = points = np.array([
+                _position(_target(scenario.reference, k * self.dt)) for k in [*range(0, ticks, stride), ticks]])
             server.scene.add_line_segments(f"{self.root}/reference", np.stack([points[:-1], points[1:]], axis=1),
                                            TARGET_COLOUR, thickness=0.3 * self.scale)
             self.target_marker = server.scene.add_frame(
@@ -303,7 +313,7 @@ class _RunTrack:
                 axes_radius=0.2 * self.scale)
             # larger than the tool's bone: a halo around a tool on target
             server.scene.add_icosphere(f"{self.root}/target/ball", 1.8 * self.scale, TARGET_COLOUR, opacity=0.6)
-        self.path_segments: list = []
+        self.path_segments: list[viser.LineSegmentsHandle] = []
         self.shown_segments = 0
         self.record(0, scenario.q0)
 
@@ -320,10 +330,10 @@ class _RunTrack:
         track._extend_path()
         return track
 
-    def record(self, k: int, q: np.ndarray) -> None:
+    def record(self, k: int, q: NDArray[np.float64]) -> None:
         """The run reached ``q`` = q[k] (``k`` counts up from 0, one tick at a time)."""
         self.q[k] = q
-        if self.tool_path is not None:  # as wbc.closed_loop.run records it
+        if self.tool_path is not None and self.tool_frame is not None:  # as wbc.closed_loop.run records it
             self.tool_path[k] = self.scenario.robot.frame_pose(self.q[k], self.tool_frame)[:3, 3]
         self.recorded = k
         self._extend_path()
@@ -341,10 +351,6 @@ class _RunTrack:
                 thickness=0.6 * self.scale, visible=False))
             start += self.stride
 
-    def target(self, k: int) -> np.ndarray | None:
-        """The reference task's target at tick ``k`` (4x4 or a point), None without a reference."""
-        reference = self.scenario.reference
-        return None if reference is None else np.array(reference(k * self.dt)[0])  # (a reused buffer)
 
     def tick(self, t: float) -> int:
         """The tick shown at time ``t`` [s]: the last one recorded for t past it."""
@@ -357,17 +363,18 @@ class _RunTrack:
         for j, frame in self.frames.items():
             placement = self.data.oMi[j]
             frame.position, frame.wxyz = placement.translation, _wxyz(placement.rotation)
-        if self.target_marker is not None:
-            target = self.target(k)
-            self.target_marker.position = target[:3, 3] if target.shape == (4, 4) else target
+        reference, marker = self.scenario.reference, self.target_marker
+        if reference is not None and marker is not None:  # (a reference has its marker)
+            target = _target(reference, k * self.dt)
+            marker.position = _position(target)
             if target.shape == (4, 4):
-                self.target_marker.wxyz = _wxyz(target[:3, :3])
+                marker.wxyz = _wxyz(target[:3, :3])
         shown = min(-(-k // self.stride), len(self.path_segments))  # segments that end at or before tick k
         for segment in self.path_segments[min(shown, self.shown_segments):max(shown, self.shown_segments)]:
             segment.visible = shown > self.shown_segments
         self.shown_segments = shown
 
-    def points(self) -> np.ndarray:
+    def points(self) -> NDArray[np.float64]:
         """World points the camera must see: the corners of the shapes' boxes at the start and
         at the last recorded tick, the tool path so far and the whole reference."""
         points = [] if self.tool_path is None else [self.tool_path[:self.recorded + 1]]
@@ -379,6 +386,17 @@ class _RunTrack:
                 pose = self.data.oMi[shape.joint].homogeneous @ shape.placement
                 points.append(_corners(shape) @ pose[:3, :3].T + pose[:3, 3])
         return np.vstack(points)
+
+
+def _target(reference: ReferenceMotion, t: float) -> NDArray[np.float64]:
+    """The target of ``reference`` at time ``t`` [s] (4x4 or a point), a copy (a reference may
+    return a buffer it reuses)."""
+    return np.array(reference(t)[0])
+
+
+def _position(target: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The position of a target (4x4 pose or a point)."""
+    return target[:3, 3] if target.shape == (4, 4) else target
 
 
 class Scene:
@@ -406,9 +424,9 @@ class Scene:
 
     def _frame_the_view(self, obstacles: Sequence[Obstacle]) -> None:
         """Ground grid under everything and a camera that sees it all."""
-        points = [track.points() for track in self.tracks]
-        points += [obstacle.pose[:3, 3] + np.array([[-1], [1]]) * max(obstacle.size) for obstacle in obstacles]
-        points = np.vstack(points) if points else np.zeros((1, 3))
+        seen = [track.points() for track in self.tracks]
+        seen += [obstacle.pose[:3, 3] + np.array([[-1], [1]]) * max(obstacle.size) for obstacle in obstacles]
+        points = np.vstack(seen) if seen else np.zeros((1, 3))
         low, high = points.min(axis=0), points.max(axis=0)
         centre, radius = (low + high) / 2, max(float(np.linalg.norm(high - low)) / 2, 0.3)
         self.top = np.array([centre[0], centre[1], high[2] + 0.1 * radius])  #: above it all: the note's place
@@ -486,10 +504,24 @@ def replay_html(runs: Sequence[Run], obstacles: Sequence[Obstacle] = (),
 
 def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstacle] = (),
                fps: float = FPS) -> Path:
-    """Write :func:`replay_html` to ``path`` (a name ending in .html or .htm) atomically: a
-    temporary file in the same folder, renamed to ``path`` once complete (a missing folder is
-    created). Returns the path; a path that cannot be written raises
-    :class:`~wbc.outputs.OutputError` before the page is built."""
+    """Write the :func:`replay_html` page of ``runs`` to ``path`` (a name ending in .html or
+    .htm) atomically: a temporary file in the same folder, renamed to ``path`` once complete (a
+    missing folder is created).
+
+    Args:
+        runs: ``(scenario, result)`` pairs (:func:`wbc.closed_loop.run`), on one timeline.
+        path: the page to write.
+        obstacles: static shapes drawn with the runs.
+        fps: frames per second of the replay.
+
+    Returns:
+        ``path``, as a :class:`~pathlib.Path`.
+
+    Raises:
+        OutputError: ``path`` cannot be written (:func:`wbc.outputs.check_output`); raised
+            before the page is built.
+        OSError: writing failed (e.g. the disk is full); ``path`` is left as it was.
+    """
     path = check_output(str(path), HTML_FORMATS)
     page = replay_html(runs, obstacles, fps)
 
@@ -500,6 +532,16 @@ def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstac
     return write_atomically(path, write)
 
 
+_Value = TypeVar("_Value")
+
+
+def _assign(handle: viser.GuiInputHandle[_Value], value: _Value) -> None:
+    """``handle.value = value``: viser's way to set an input (sent to every client). mypy
+    reads the property as read-only: viser defines its setter apart from its getter, and mypy
+    only pairs a setter that directly follows the getter (python/mypy#1465)."""
+    handle.value = value  # type: ignore[misc]  # (viser's setter, which mypy does not see: above)
+
+
 class LiveView:
     """Runs in a viser server at ``http://host:port``, with play/pause, a time slider and a
     speed setting in its panel.
@@ -508,7 +550,17 @@ class LiveView:
     ``(scenario, ticks)``: :meth:`follow` gives the ``on_tick`` observer of
     :func:`wbc.closed_loop.run` that streams one of those into the view while the controller
     runs, paced to real time (times the speed setting; "play" unticked pauses the run).
-    :meth:`serve` then plays everything on one timeline, looping, until stopped."""
+    :meth:`serve` then plays everything on one timeline, looping, until stopped.
+
+    Args:
+        runs: finished runs ``(scenario, result)`` and runs to come ``(scenario, ticks)``.
+        host: the address the server listens on.
+        port: its TCP port; the next free one if taken, any free one for 0.
+        obstacles: static shapes drawn with the runs.
+        fps: frames per second of the view's updates.
+
+    Use it as a context manager (or call :meth:`close`) to stop the server.
+    """
 
     def __init__(self, runs: Sequence[Run | PlannedRun], host: str = "127.0.0.1", port: int = 8080,
                  obstacles: Sequence[Obstacle] = (), fps: float = FPS):
@@ -527,6 +579,7 @@ class LiveView:
 
     @property
     def url(self) -> str:
+        """Where the view is served: ``http://host:port`` (the port the server got)."""
         return f"http://{self.server.get_host()}:{self.server.get_port()}"
 
     def follow(self, index: int, clock: Callable[[], float] = time.perf_counter,
@@ -535,7 +588,11 @@ class LiveView:
         ``(scenario, ticks)``) into the view: every configuration is recorded, and every
         1/fps s of the run's time the scene is shown at that time and the run is held until the
         same time has passed on ``clock`` (divided by the speed setting; not made up for when
-        the run falls behind real time). The other runs are shown at the same time."""
+        the run falls behind real time). The other runs are shown at the same time.
+
+        Raises:
+            ValueError: ``runs[index]`` is a finished run (given as ``(scenario, result)``).
+        """
         track = self.scene.tracks[index]
         if track.recorded:
             raise ValueError(f"run {index} of the view is a finished run: only a run given as (scenario, ticks) "
@@ -544,13 +601,13 @@ class LiveView:
         self.time.disabled = True  # the stream sets the time
         paced = {"time": 0.0, "wall": clock()}
 
-        def on_tick(k: int, q: np.ndarray) -> None:
+        def on_tick(k: int, q: NDArray[np.float64]) -> None:
             track.record(k, q)
             if k % track.stride and k != track.ticks:
                 return
             t = k * track.dt
             self.scene.show(t)
-            self.time.value = t
+            _assign(self.time, t)
             self.status.content = f"**live**: {name}, {t:.2f} / {end:.2f} s"
             while not self.playing.value:
                 sleep(1.0 / self.scene.fps)
@@ -572,20 +629,22 @@ class LiveView:
         while not stop.wait(1.0 / self.scene.fps):
             now = time.perf_counter()
             if self.time.value != written:  # the user moved the slider
-                t, self.playing.value = self.time.value, False
+                t = self.time.value
+                _assign(self.playing, False)
             elif self.playing.value:
                 t += (now - last) * float(self.speed.value)
                 t = 0.0 if t > self.scene.duration + 1.0 else t  # hold the end 1 s, then loop
             last = now
             self.scene.show(t)
-            self.time.value = min(t, self.scene.duration)
+            _assign(self.time, min(t, self.scene.duration))
             written = self.time.value
 
     def close(self) -> None:
+        """Stop the server."""
         _stop_server(self.server)
 
     def __enter__(self) -> LiveView:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
