@@ -147,9 +147,13 @@ def as_pose(value: ArrayLike, name: str) -> NDArray[np.float64]:
     if np.max(np.abs(pose[3] - (0.0, 0.0, 0.0, 1.0))) > 1e-12:
         raise InvalidInputError(f"{name}: last row must be [0, 0, 0, 1], got {pose[3]}")
     rotation = pose[:3, :3]
-    orthogonality = np.max(np.abs(rotation.T @ rotation - np.eye(3)))
-    if orthogonality > ROTATION_TOLERANCE or abs(np.linalg.det(rotation) - 1.0) > ROTATION_TOLERANCE:
-        raise InvalidInputError(
-            f"{name}: the 3x3 block is not a rotation matrix (|R^T R - I| = {orthogonality:.2e})"
-        )
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: the defect is inf, said below
+        orthogonality = np.max(np.abs(rotation.T @ rotation - np.eye(3)))
+    if not orthogonality <= ROTATION_TOLERANCE:
+        raise InvalidInputError(f"{name}: the 3x3 block is not a rotation matrix: its columns are not orthonormal "
+                                f"(|R^T R - I| = {orthogonality:.2e})")
+    determinant = np.linalg.det(rotation)
+    if abs(determinant - 1.0) > ROTATION_TOLERANCE:  # orthonormal, so det = -1
+        raise InvalidInputError(f"{name}: the 3x3 block has determinant {determinant:.6g}: a reflection, not a "
+                                "rotation matrix (det +1); flip the sign of one axis (column)")
     return pose
