@@ -27,7 +27,8 @@ from wbc.item import Item
 def _package_items() -> set[type]:
     """Every subclass of Item defined in the wbc package (all of its modules imported)."""
     for module in pkgutil.walk_packages(wbc.__path__, "wbc."):
-        importlib.import_module(module.name)
+        if not module.name.endswith(".__main__"):  # (python -m wbc: runs the command line)
+            importlib.import_module(module.name)
     found, pending = set(), [Item]
     while pending:
         for subclass in pending.pop().__subclasses__():
