@@ -67,8 +67,8 @@ class Item:
         owners = {id(value): name for name, value in state.items()
                   if isinstance(value, np.ndarray) and value.base is None}
         for name, value in state.items():
-            if isinstance(value, np.ndarray) and value.base is not None and id(value.base) in owners:
-                state[name] = ArrayView.of(value, owners[id(value.base)])
+            if isinstance(value, np.ndarray) and isinstance(value.base, np.ndarray) and id(value.base) in owners:
+                state[name] = ArrayView.of(value, value.base, owners[id(value.base)])
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
@@ -112,9 +112,8 @@ class ArrayView(NamedTuple):
     strides: tuple[int, ...]
 
     @classmethod
-    def of(cls, view: np.ndarray, owner: str) -> ArrayView:
-        """``view``'s place in its base, the attribute ``owner`` (a C-contiguous array)."""
-        base = view.base
+    def of(cls, view: np.ndarray, base: np.ndarray, owner: str) -> ArrayView:
+        """``view``'s place in its ``base``, the attribute ``owner`` (a C-contiguous array)."""
         if not base.flags.c_contiguous:
             raise InvalidInputError(f"cannot copy an item whose array {owner!r} is not C-contiguous and has views")
         offset = view.__array_interface__["data"][0] - base.__array_interface__["data"][0]
