@@ -30,7 +30,7 @@ class Item:
     tick is shared by them.
 
     **Copies.** ``copy.copy``, ``copy.deepcopy`` and pickling give a new item with the same
-    settings, independent of the original and used by no controller yet (:meth:`__getstate__`):
+    settings, independent of the original and used by no controller yet (``__getstate__``):
     its settings act in the controllers built with it, and changing them leaves the original
     alone. An attribute that is a view into another array attribute (the settings of
     :class:`~wbc.tasks.FrameTask` are views into the one vector its kernel reads) is a view

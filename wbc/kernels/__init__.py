@@ -26,7 +26,7 @@ warmup`` pays it up front); later loads read the machine code (~0.3 s). Where nu
 writable cache directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR``
 unset, the package's ``__pycache__`` and the user cache not writable), ``CACHE`` is False:
 the kernels compile in memory at every load, said once on stderr with the fix
-(:data:`wbc.kernels._cache.NO_CACHE_MESSAGE`).
+(``wbc.kernels._cache.NO_CACHE_MESSAGE``).
 
 **Cache rule.** numba keys a cached function on its *own* source file only: a callee in
 another topic module, or a constant of this file, is compiled into the caller's machine
