@@ -448,8 +448,7 @@ def test_huge_finite_inputs_are_answered_without_a_warning(youbot, huge, python_
         assert np.all(np.isfinite(v)) and youbot_within_hard_limits(youbot, HOME, v)
 
 
-# ProxQP is left out: on QPs of ~1e200 (a base 1e200 m away) its solve did not return in minutes
-@pytest.mark.parametrize("solver", [name for name in wbc.available_solvers() if name != "proxqp"])
+@pytest.mark.parametrize("solver", wbc.available_solvers())
 @pytest.mark.parametrize("model", ["youbot", "deluca_mm"])
 def test_a_configuration_of_1e200_warns_nothing_with_any_backend(model, solver):
     """The backends' answer checks (qpsolvers' residuals of x ~ 1e200 overflowed in quadprog's
