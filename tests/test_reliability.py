@@ -182,6 +182,19 @@ def test_bad_targets_of_every_task_are_rejected():
         wbc.PositionTask("ee", max_speed=0.0)
 
 
+def test_a_bad_rotation_is_refused_saying_what_is_wrong():
+    """A reflection (orthonormal columns, det -1) is refused as a reflection, not with the
+    orthogonality defect (~1e-17, which reads as if the matrix were fine)."""
+    reflection = np.eye(4)
+    reflection[:3, :3] = np.diag([1.0, 1.0, -1.0])
+    with pytest.raises(wbc.InvalidInputError, match=r"determinant -1: a reflection, not a rotation"):
+        wbc.FrameTask("ee").set_target(reflection)
+    sheared = np.eye(4)
+    sheared[0, 1] = 0.1
+    with pytest.raises(wbc.InvalidInputError, match=r"columns are not orthonormal \(\|R\^T R - I\| = 1.00e-01\)"):
+        wbc.FrameTask("ee").set_target(sheared)
+
+
 # --------------------------------------------------------------------------- properties
 YOUBOT = wbc.load_robot("youbot")
 DELUCA = wbc.load_robot("deluca_mm")

@@ -2,6 +2,8 @@
 fix it guards (answers checked against the QP, cost normalisation, the position damper
 outside a limit, ``reduced`` on holonomic bases, items shared between controllers)."""
 
+import warnings
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -416,3 +418,70 @@ def test_every_non_finite_coordinate_of_q_is_refused(youbot, bad, python_item):
                 _ = previous.task_errors
     np.testing.assert_allclose(controller.step(HOME), reference, atol=1e-12)
     assert controller.last.outcome is wbc.Outcome.OPTIMAL
+
+
+@pytest.mark.parametrize("huge", [1e308, -1e308, 1e200, 2e154])
+@pytest.mark.parametrize("python_item", [False, True])
+def test_huge_finite_inputs_are_answered_without_a_warning(youbot, huge, python_item):
+    """Nothing is printed by a tick: q = 1e308 (finite) is answered with a finite command and no
+    numpy warning (``q . q`` overflows from 1e154 on and numpy warned twice, in the controller's
+    and check_configuration's screens); so are a target of 1e308 (set_target's screen) and a base
+    twist of 1e308 weighted 1e6 (inf: a task computed in Python), and their task errors."""
+    task = wbc.PositionTask("ee", gain=0.5)
+    task.set_target(youbot.frame_pose(HOME, "ee")[:3, 3])
+    base = wbc.BaseVelocityTask(1.0)
+    extra = [ZeroRow()] if python_item else []
+    controller = wbc.Controller(youbot, [task, base, wbc.PostureTask(1e-3), *extra], [wbc.JointVelocityLimits()])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        commands = [controller.step(np.full(8, huge))]
+        _ = controller.last.task_errors
+        task.set_target(np.full(3, huge))
+        commands.append(controller.step(HOME))
+        _ = controller.last.task_errors
+        task.set_target(youbot.frame_pose(HOME, "ee")[:3, 3])
+        base.cost = 1e12
+        base.set_target(np.full(3, abs(huge)))  # weighted: inf for 1e308
+        commands.append(controller.step(HOME))
+        _ = controller.last.task_errors
+    for v in commands:
+        assert np.all(np.isfinite(v)) and youbot_within_hard_limits(youbot, HOME, v)
+
+
+@pytest.mark.parametrize("solver", wbc.available_solvers())
+@pytest.mark.parametrize("model", ["youbot", "deluca_mm"])
+def test_a_configuration_of_1e200_warns_nothing_with_any_backend(model, solver):
+    """The backends' answer checks (qpsolvers' residuals of x ~ 1e200 overflowed in quadprog's
+    check) and the elastic fallback (DAQP's regularised retry of an overflowed H warned on deluca)
+    say nothing either."""
+    robot = wbc.load_robot(model)
+    task = wbc.PositionTask(robot.end_effector, gain=0.5)
+    task.set_target(robot.frame_pose(robot.neutral(), robot.end_effector)[:3, 3])
+    constraints = [wbc.JointVelocityLimits(), wbc.JointPositionLimits()]
+    constraints += [wbc.NonholonomicBase()] if robot.base.is_nonholonomic else []
+    controller = wbc.Controller(robot, [task, wbc.PostureTask(1e-3)], constraints, solver=solver)
+    far = robot.neutral().copy()
+    far[0] = 1e200
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for q in (np.full(robot.nq, 1e200), far):
+            assert np.all(np.isfinite(controller.step(q)))
+            _ = controller.last.task_errors
+
+
+def test_the_finiteness_screen_is_exact_and_never_warns(rng):
+    """``x . w`` (wbc.validation.finite_weights) is finite iff every entry of x is, for every size
+    and magnitude up to the largest float, with no warning (nor an underflow error)."""
+    from wbc.validation import all_finite
+
+    largest = np.finfo(float).max
+    with warnings.catch_warnings(), np.errstate(over="raise", invalid="raise", divide="raise"):
+        warnings.simplefilter("error")
+        for size in range(0, 40):
+            for _ in range(50):
+                x = rng.choice([-1.0, 1.0], size) * 10.0 ** rng.uniform(-320, 308.25, size)
+                x[rng.random(size) < 0.2] = rng.choice([largest, -largest, 5e-324, 0.0])
+                assert all_finite(x)
+                if size:
+                    x[rng.integers(size)] = rng.choice([np.nan, np.inf, -np.inf])
+                    assert not all_finite(x)

@@ -47,7 +47,7 @@ from .robot import Robot
 from .settings import Setting
 from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
-from .validation import as_flag, as_items, as_nonnegative, as_positive
+from .validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -155,6 +155,7 @@ class Controller:
         self._tick = 0
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
+        self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
         self._allocate()
 
     # --------------------------------------------------------------- settings
@@ -379,7 +380,7 @@ class Controller:
         """
         start = time.perf_counter()
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
-                and (self._q_screened or math.isfinite(q.dot(q)))):  # fast path of check_configuration
+                and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
             q = self.robot.check_configuration(q)
         kin, dt, qp = self.kinematics, self._dt, self._qp_v
         kin.update(q, self._deferred_kinematics)
@@ -393,7 +394,7 @@ class Controller:
         if qp.n_eq:
             qp.sync_equalities()
         has_nan = self._program.run(dt)  # q screen, compiled items, normal equations, bounds, NaN screen
-        if has_nan and self._q_screened and not math.isfinite(q.dot(q)):
+        if has_nan and self._q_screened and not math.isfinite(q.dot(self._q_weights)):
             self._tick += 1  # this call overwrote the buffers the previous record reads lazily
             self.robot.check_configuration(q)  # raises, naming what is wrong with q
         if self._program_after_preview is not None:

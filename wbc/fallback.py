@@ -14,6 +14,7 @@ With ``strict=True`` a failure raises :class:`~wbc.errors.SolverError` instead.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -85,8 +86,10 @@ class Fallback:
                 return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
             if exitflag >= 1 and np.all(np.isfinite(x)):
                 break
-            if attempt == 0:  # once more, regularised (module docstring)
-                H = qp.H + ELASTIC_REGULARISATION * max(float(np.max(np.diag(qp.H))), 1e-300) * np.eye(qp.n)
+            curvature = float(np.max(np.diag(qp.H)))
+            if attempt or not math.isfinite(curvature):  # (an overflowed H: nothing to regularise)
+                break
+            H = qp.H + ELASTIC_REGULARISATION * max(curvature, 1e-300) * np.eye(qp.n)  # once more (docstring)
         elapsed = time.perf_counter() - start
         if exitflag < 1 or not np.all(np.isfinite(x)):
             return QPSolution(None, False, f"exitflag {exitflag}", elapsed)

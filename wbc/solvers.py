@@ -28,6 +28,7 @@ from .program import TickProgram
 from .qp import QP
 from .quiet import silenced
 from .solver_options import BUDGET_KEYS, validate_options
+from .validation import all_finite
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
@@ -85,11 +86,6 @@ class QPSolution(NamedTuple):
     #: relative violation of the QP's bounds and rows by x (:func:`wbc.kernels.qp_defect`)
     #: when the backend checked it itself (the native DAQP path); None: not checked yet
     defect: float | None = None
-
-
-def _finite(x: np.ndarray) -> bool:
-    """True when every entry of ``x`` is finite (one dot product; overflow falls back)."""
-    return math.isfinite(x.dot(x)) or bool(np.all(np.isfinite(x)))
 
 
 class QPSolver(ABC):
@@ -226,7 +222,7 @@ class QpsolversBackend(QPSolver):
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
         x = solution.x
-        if not solution.found or x is None or not _finite(np.asarray(x, dtype=np.float64)):
+        if not solution.found or x is None or not all_finite(np.asarray(x, dtype=np.float64)):
             self._previous = None
             return QPSolution(None, False, "not found", elapsed)
         x = np.array(x, dtype=np.float64)  # an owned, writable copy (PIQP's is read-only)
@@ -253,8 +249,9 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
     (qpsolvers then reports inf: nothing to check)."""
     x = solution.x
     assert x is not None  # the caller checked that the backend found one
-    scale = 1.0 + float(np.max(np.abs(qp.c))) + float(np.max(np.abs(qp.H @ x)))
-    dual, gap = solution.dual_residual(), solution.duality_gap()
+    with np.errstate(over="ignore", invalid="ignore"):  # (huge answers: inf, read as nothing to check)
+        scale = 1.0 + float(np.max(np.abs(qp.c))) + float(np.max(np.abs(qp.H @ x)))
+        dual, gap = solution.dual_residual(), solution.duality_gap()
     dual = dual / scale if math.isfinite(dual) else 0.0
     gap = gap / (scale * (1.0 + float(np.max(np.abs(x))))) if math.isfinite(gap) else 0.0
     return max(dual, gap)
@@ -408,7 +405,7 @@ class DaqpBackend(QPSolver):
             self._model = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
         elapsed = time.perf_counter() - start
-        if exitflag >= 1 and math.isfinite(x.dot(x)):  # NaN, inf or overflow: never returned
+        if exitflag >= 1 and all_finite(x):  # NaN or inf: never returned
             return QPSolution(x, True, "optimal", elapsed)
         self._model = None  # never warm start from a failed solve
         return QPSolution(None, False, daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}"), elapsed)

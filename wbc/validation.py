@@ -49,18 +49,43 @@ def _describe(value: object) -> str:
     return f"{type(value).__name__} {value!r}"[:80]
 
 
+def finite_weights(size: int) -> NDArray[np.float64]:
+    """Weights ``w`` (size) for the finiteness screen ``math.isfinite(x.dot(w))`` of a float64
+    vector ``x`` of ``size`` entries: true iff every entry is finite, and never a numpy warning.
+
+    ``w_i = 2^-k`` with ``2^k >= size``: scaling by a power of two is exact, and
+    ``|x . w| <= max |x_i|``, so the dot product cannot overflow (``x . x`` does from
+    ``|x| ~ 1e154`` on, which numpy reports as a RuntimeWarning); it is NaN or inf iff some
+    entry is. The same cost as ``x . x``. The arrays are shared: never write into them.
+    """
+    weights = _FINITE_WEIGHTS.get(size)
+    if weights is None:
+        weights = np.full(size, 2.0 ** -math.ceil(math.log2(max(size, 1))))
+        weights.flags.writeable = False
+        _FINITE_WEIGHTS[size] = weights
+    return weights
+
+
+_FINITE_WEIGHTS: dict[int, NDArray[np.float64]] = {}
+
+
+def all_finite(x: NDArray[np.float64]) -> bool:
+    """Whether every entry of the float64 vector ``x`` is finite (:func:`finite_weights`)."""
+    return math.isfinite(x.dot(finite_weights(x.size)))
+
+
 def as_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
     """Return ``value`` as a finite float64 vector of length ``size``.
 
     Fast path for the control loop: a float64 array of the right shape is checked
-    with one dot product (``x.x`` is NaN or inf iff some entry is, or on overflow,
-    which falls through to the element-wise check).
+    with one dot product that cannot overflow (:func:`finite_weights`).
     """
     if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (size,):
         array = value
     else:
         array = _real_array(value, (size,), name)
-    if not math.isfinite(array.dot(array)) and not np.all(np.isfinite(array)):
+    weights = _FINITE_WEIGHTS.get(size)  # (finite_weights(size), without the call on the control loop's path)
+    if not math.isfinite(array.dot(finite_weights(size) if weights is None else weights)):
         raise InvalidInputError(f"{name} contains NaN or inf: {array}")
     return array
 
@@ -147,9 +172,13 @@ def as_pose(value: ArrayLike, name: str) -> NDArray[np.float64]:
     if np.max(np.abs(pose[3] - (0.0, 0.0, 0.0, 1.0))) > 1e-12:
         raise InvalidInputError(f"{name}: last row must be [0, 0, 0, 1], got {pose[3]}")
     rotation = pose[:3, :3]
-    orthogonality = np.max(np.abs(rotation.T @ rotation - np.eye(3)))
-    if orthogonality > ROTATION_TOLERANCE or abs(np.linalg.det(rotation) - 1.0) > ROTATION_TOLERANCE:
-        raise InvalidInputError(
-            f"{name}: the 3x3 block is not a rotation matrix (|R^T R - I| = {orthogonality:.2e})"
-        )
+    with np.errstate(over="ignore", invalid="ignore"):  # huge entries: the defect is inf, said below
+        orthogonality = np.max(np.abs(rotation.T @ rotation - np.eye(3)))
+    if not orthogonality <= ROTATION_TOLERANCE:
+        raise InvalidInputError(f"{name}: the 3x3 block is not a rotation matrix: its columns are not orthonormal "
+                                f"(|R^T R - I| = {orthogonality:.2e})")
+    determinant = np.linalg.det(rotation)
+    if abs(determinant - 1.0) > ROTATION_TOLERANCE:  # orthonormal, so det = -1
+        raise InvalidInputError(f"{name}: the 3x3 block has determinant {determinant:.6g}: a reflection, not a "
+                                "rotation matrix (det +1); flip the sign of one axis (column)")
     return pose

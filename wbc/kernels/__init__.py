@@ -20,9 +20,13 @@ binds every compiled function into this namespace, so later ``kernels.x`` lookup
 plain attribute hits (the module ``__getattr__`` runs only before the first load).
 
 Each kernel has one explicit signature, so it compiles when its module is imported --
-never inside a control tick -- and is cached on disk (``cache=True``): only the first load
+never inside a control tick -- and is cached on disk (``cache=CACHE``): only the first load
 after an install pays the compilation (~20 s, announced by one line on stderr; ``wbc
-warmup`` pays it up front); later loads read the machine code (~0.3 s).
+warmup`` pays it up front); later loads read the machine code (~0.3 s). Where numba finds no
+writable cache directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR``
+unset, the package's ``__pycache__`` and the user cache not writable), ``CACHE`` is False:
+the kernels compile in memory at every load, said once on stderr with the fix
+(``wbc.kernels._cache.NO_CACHE_MESSAGE``).
 
 **Cache rule.** numba keys a cached function on its *own* source file only: a callee in
 another topic module, or a constant of this file, is compiled into the caller's machine
@@ -141,16 +145,18 @@ _loaded = False
 cache_directory: Path | None = None
 
 
-def prepare_cache() -> None:
+def prepare_cache() -> bool:
     """Apply the cache rule of this package's docstring once per process, before the first
-    topic module compiles (each topic module calls it first): stale entries are deleted, a
-    cold cache is announced by one line on stderr."""
+    topic module compiles (each topic module calls it first and passes the result as numba's
+    ``cache``): stale entries are deleted, a cold cache is announced by one line on stderr, and
+    so is the lack of a writable cache directory. Returns whether the kernels can be cached."""
     global _prepared, cache_directory
     if not _prepared:
         from . import _cache
 
         cache_directory = _cache.prepare(Path(__file__).parent, tuple(COMPILED))
         _prepared = True
+    return cache_directory is not None
 
 
 def load() -> None:

@@ -25,6 +25,9 @@ from typing import TextIO
 STAMP_FILE = "wbc-kernel-sources.sha256"
 COLD_MESSAGE = "wbc: compiling the numba kernels once after install (~20 s; cached afterwards)"
 CHANGED_MESSAGE = "wbc: the kernel sources or numba changed: recompiling the numba kernels (~20 s; cached afterwards)"
+NO_CACHE_MESSAGE = ("wbc: numba finds no writable cache directory (the package folder {folder} and the user cache are "
+                    "read-only): compiling the numba kernels in memory, ~20 s at every start; set NUMBA_CACHE_DIR to a "
+                    "writable directory to cache them")
 
 
 def source_stamp(folder: Path, numba_version: str) -> str:
@@ -121,11 +124,14 @@ def prepare(folder: Path, modules: Sequence[str], stream: TextIO | None = None) 
     """Before the modules ``modules`` of the package ``folder`` are imported (their kernels
     compile or load at import): drop stale cache entries (:func:`invalidate`) and, when
     something will be compiled, say so in one line on ``stream`` (default stderr). Returns
-    numba's cache directory for the package (None: numba cannot cache there)."""
+    numba's cache directory for the package; None, said on ``stream``, when numba has nowhere
+    to write one (the kernels must then be compiled with ``cache=False``: numba refuses
+    ``cache=CACHE`` there)."""
     import numba
 
     directory = cache_dir(folder / f"{modules[0]}.py")
     if directory is None:
+        print(NO_CACHE_MESSAGE.format(folder=folder), file=stream or sys.stderr, flush=True)
         return None
     changed = invalidate(directory, source_stamp(folder, numba.__version__), modules)
     if is_cold(directory, modules):

@@ -12,10 +12,10 @@ from numba import njit
 
 from . import CHAIN_PRISMATIC, prepare_cache
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 
-@njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=True, nogil=True)
+@njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
 def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray) -> None:
     """World placement and Jacobian column of every joint of ``chain`` at configuration ``q``.
 

@@ -14,12 +14,12 @@ from numba import njit
 
 from . import POSE_LAST_ROW, POSE_NOT_FINITE, POSE_NOT_ROTATION, POSE_OK, prepare_cache
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 # -------------------------------------------------------------------- SO(3)
 
 
-@njit("void(float64[:], float64[:])", cache=True, nogil=True)
+@njit("void(float64[:], float64[:])", cache=CACHE, nogil=True)
 def log3(R: np.ndarray, out: np.ndarray) -> None:
     """``out = log(R)``: the rotation vector (axis * angle, angle in [0, pi]) of the rotation
     ``R`` given row-major as 9 numbers.
@@ -60,7 +60,7 @@ def log3(R: np.ndarray, out: np.ndarray) -> None:
 # ------------------------------------------------------------- validation
 
 
-@njit("int64(float64[:, :], float64)", cache=True, nogil=True)
+@njit("int64(float64[:, :], float64)", cache=CACHE, nogil=True)
 def pose_defect(pose: np.ndarray, tolerance: float) -> int:
     """What is wrong with the 4x4 homogeneous transform ``pose``: POSE_OK, POSE_NOT_FINITE,
     POSE_LAST_ROW (not [0, 0, 0, 1] within 1e-12) or POSE_NOT_ROTATION
@@ -87,7 +87,7 @@ def pose_defect(pose: np.ndarray, tolerance: float) -> int:
 
 # ------------------------------------------------------------------- tasks
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=True,
+@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=CACHE,
       nogil=True)
 def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                    local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
@@ -115,7 +115,7 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
 
 
 
-@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=True, nogil=True)
+@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, nogil=True)
 def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """FrameTask target: R* and p* from ``pose``, ``W twist`` (``twist`` of length 6, or
     empty for none) into the settings vector (layout ``FRAME_*``) -- when ``pose`` passes
@@ -134,7 +134,7 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:])", cache=True, nogil=True)
+      "float64[:, :], float64[:])", cache=CACHE, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                     support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
                     jacobian: np.ndarray, target: np.ndarray) -> None:
@@ -175,7 +175,7 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=True, nogil=True)
+      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=CACHE, nogil=True)
 def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                        support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
                        jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray,

@@ -18,10 +18,10 @@ from . import prepare_cache
 from .assembly import normalise_cost
 from .manipulability import _jacobi_eigenvectors
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 
-@njit("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=True, nogil=True)
+@njit("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE, nogil=True)
 def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e: int, band: int) -> None:
     """Copy the bounds and rows of the QP in ``source`` (n variables, p inequality and e equality
     rows) into the QP in ``target`` (p + band inequality rows, then the same e equality rows):
@@ -41,7 +41,7 @@ def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e:
             target[dst + n + p + band + i] = source[src + n + p + i]
 
 
-@njit("void(float64[:, :], float64, float64)", cache=True, nogil=True)
+@njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
     """:func:`wbc.kernels.normalise_cost` of one level's ``[H; c]``; a level whose rows are all
     zero this tick (H = 0, hence c = 0) gets ``H = I``: every feasible point is optimal for it
@@ -55,7 +55,7 @@ def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> Non
         Hc[i, i] = 1.0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray, size: float,
               relative: float, data: np.ndarray, row: int, h: int) -> None:
     """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``,
@@ -79,7 +79,7 @@ def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upp
 
 
 @njit("void(float64[:, :], int64, int64, int64, int64, float64[:], float64[:], float64[:], float64, float64[::1], "
-      "int64, int64)", cache=True, nogil=True)
+      "int64, int64)", cache=CACHE, nogil=True)
 def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, last_preview: int, x: np.ndarray,
               lower: np.ndarray, upper: np.ndarray, relative: float, data: np.ndarray, row: int, h: int) -> None:
     """The band that holds a solved level's task values for the levels below it.
@@ -104,7 +104,7 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
         slot += 1
 
 
-@njit("void(float64[:, :], float64[:], float64, float64[:])", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
 def hierarchy_preview(stack_t: np.ndarray, ranges: np.ndarray, floor: float, preview: np.ndarray) -> None:
     """Holonomic relaxation of a hierarchy: its levels solved in order without constraints.
 

@@ -10,12 +10,12 @@ from numba import njit
 
 from . import prepare_cache
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 # ------------------------------------------------------------------- tasks
 
 
-@njit("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=True,
+@njit("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=CACHE,
       nogil=True)
 def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, dt: float,
                  error: np.ndarray, target: np.ndarray) -> None:
@@ -28,7 +28,7 @@ def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, sett
 
 
 @njit("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
-      cache=True, nogil=True)
+      cache=CACHE, nogil=True)
 def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, parameters: np.ndarray,
                  dt: float, error: np.ndarray, jacobian: np.ndarray, target: np.ndarray) -> None:
     """Row of :class:`~wbc.SteeringTask` from the holonomic ``preview`` velocity:
@@ -51,7 +51,7 @@ def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: in
 # ------------------------------------------------------------- constraints
 
 
-@njit("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=True, nogil=True)
+@njit("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=CACHE, nogil=True)
 def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
                           dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
     """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
@@ -66,7 +66,7 @@ def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: n
         upper[i] = scale * high
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=CACHE, nogil=True)
 def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray,
                  x: int, y: int) -> None:
     """Base-frame rows: columns ``x, y`` of ``G`` = ``cos(q[heading]) A + sin(q[heading]) B``."""

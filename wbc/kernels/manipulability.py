@@ -12,9 +12,9 @@ from numba import njit
 from . import GRAM_CONDITION, prepare_cache
 from .frames import frame_jacobian
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
-@njit("void(float64[:, :], float64[:, :])", cache=True, nogil=True)
+@njit("void(float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
 def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
     """Cyclic Jacobi on the symmetric ``A`` (overwritten, ends diagonal): eigenvectors into the
     columns of ``V``. Accurate to ~eps / (eigenvalue gap) in the vectors, like LAPACK, and
@@ -55,7 +55,7 @@ def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
                     V[k, p], V[k, r] = c * vkp - s * vkr, s * vkp + c * vkr
 
 
-@njit("float64(float64[:, :], float64[:, :], boolean, float64[:, :])", cache=True, nogil=True)
+@njit("float64(float64[:, :], float64[:, :], boolean, float64[:, :])", cache=CACHE, nogil=True)
 def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np.ndarray) -> float:
     """``G = sum_l c_l u_l v_l^T`` (``c_l``: product of the other singular values) near a
     singularity; returns ``m``. The singular vectors on the Gram side come from its
@@ -118,7 +118,7 @@ def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np
 
 
 @njit("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])",
-      cache=True, nogil=True)
+      cache=CACHE, nogil=True)
 def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, origin: np.ndarray,
                             support: np.ndarray, ancestor: np.ndarray, first_row: int, last_row: int,
                             gradient: np.ndarray) -> float:
@@ -225,7 +225,7 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], "
       "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)",
-      cache=True, nogil=True)
+      cache=CACHE, nogil=True)
 def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                 local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
                 origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, settings: np.ndarray,

@@ -28,7 +28,7 @@ from . import (
 )
 from .assembly import qp_defect
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 _I8P = ir.IntType(8).as_pointer()
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
@@ -78,7 +78,7 @@ def _now_ns(typingctx, function, clock_id):
 
 
 @njit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, int64, "
-      "int64, int64, int64)", cache=True, nogil=True)
+      "int64, int64, int64)", cache=CACHE, nogil=True)
 def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
                data: np.ndarray, x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
                steady_mask: int) -> None:

@@ -72,7 +72,7 @@ from .joints import heading_rows, position_limit_bounds, posture_rows, steering_
 from .manipulability import barrier_row
 from .native_qp import daqp_solve
 
-prepare_cache()  # before the first @njit below compiles: see wbc.kernels
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
 
 @intrinsic
 def _as_pointer(typingctx, address):
@@ -111,7 +111,7 @@ def _matrix(addresses: np.ndarray, index: int, rows: int, columns: int) -> np.nd
     return carray(_as_pointer(addresses[index]), (rows, columns))
 
 
-@njit("boolean(int64[::1], float64)", cache=True, nogil=True)
+@njit("boolean(int64[::1], float64)", cache=CACHE, nogil=True)
 def run_program(packed: np.ndarray, dt: float) -> bool:
     """Run the rows of a program in order; returns True when a HAS_NAN row found a NaN.
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -10,7 +12,7 @@ from ..kinematics import Kinematics
 from ..robot import Robot
 from ..settings import Cost
 from ..validation import as_vector
-from .task import Task, TaskData, _norm
+from .task import Task, TaskData
 
 
 class BaseVelocityTask(Task):
@@ -65,21 +67,21 @@ class BaseVelocityTaskData(TaskData):
         super().__init__(task)
         self._x, self._y, self._yaw = robot.base.indices
         self._cos_sin = (1.0, 0.0)
-        self._achieved = np.zeros(3)
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        yaw = kin.q[self._yaw]
-        cos, sin = np.cos(yaw), np.sin(yaw)
-        w = self.task._weights
+        # in Python floats: an overflow (a twist of 1e300 weighted 1e6) is inf, not a numpy warning
+        yaw = float(kin.q[self._yaw])
+        cos, sin = math.cos(yaw), math.sin(yaw)
+        (w_x, w_y, w_yaw), (t_x, t_y, t_yaw) = self.task._weights.tolist(), self.task._twist.tolist()
         jacobian.fill(0.0)
-        jacobian[0, self._x], jacobian[0, self._y] = w[0] * cos, w[0] * sin
-        jacobian[1, self._x], jacobian[1, self._y] = -w[1] * sin, w[1] * cos
-        jacobian[2, self._yaw] = w[2]
-        np.multiply(self.task._twist, w, out=target)
+        jacobian[0, self._x], jacobian[0, self._y] = w_x * cos, w_x * sin
+        jacobian[1, self._x], jacobian[1, self._y] = -w_y * sin, w_y * cos
+        jacobian[2, self._yaw] = w_yaw
+        target[0], target[1], target[2] = w_x * t_x, w_y * t_y, w_yaw * t_yaw
         self._cos_sin = (cos, sin)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         cos, sin = self._cos_sin
-        xdot, ydot, yawdot = v[self._x], v[self._y], v[self._yaw]
-        self._achieved[:] = (cos * xdot + sin * ydot, -sin * xdot + cos * ydot, yawdot)
-        errors[self.name] = _norm(self._achieved - self.task._twist)
+        xdot, ydot, yawdot = float(v[self._x]), float(v[self._y]), float(v[self._yaw])
+        t_x, t_y, t_yaw = self.task._twist.tolist()
+        errors[self.name] = math.hypot(cos * xdot + sin * ydot - t_x, -sin * xdot + cos * ydot - t_y, yawdot - t_yaw)

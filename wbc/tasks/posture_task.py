@@ -33,6 +33,9 @@ class PostureTask(Task):
             rarely wanted).
     """
 
+    #: the data of the controllers using the task, for set_target: a copy starts without them
+    _bindings = {**Task._bindings, "_data": weakref.WeakSet}
+
     def __init__(self, cost: ArrayLike, target: ArrayLike | None = None, gain: float = 1.0,
                  joints: Sequence[str] | None = None,
                  name: str | None = None) -> None:

@@ -123,5 +123,6 @@ class Task(Item, TaskData):
 
 
 def _norm(vector: np.ndarray) -> float:
-    """Euclidean norm of a small vector (cheaper than np.linalg.norm on the hot path)."""
-    return math.sqrt(float(vector @ vector))
+    """Euclidean norm of a small vector: never overflows, hence never warns (``v @ v`` does past
+    1e154), and ~25x cheaper than ``sqrt(v @ v)`` for 3 entries (numpy 2.4)."""
+    return math.hypot(*vector.tolist())
