@@ -38,7 +38,7 @@ from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
 from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
