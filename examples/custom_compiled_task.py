@@ -5,7 +5,7 @@ Row i: ``w_i (v_i - gain/dt (m_i - q_i))`` with ``m_i`` the middle of joint i's 
 ``w_i = sqrt(cost) / (1 - s_i^2)``, ``s_i = (q_i - m_i) / half_range_i`` (clipped to 0.99):
 a soft joint-limit avoidance that costs little in mid-range.
 
-The arithmetic is one ``@njit`` kernel, declared as a :class:`wbc.compiled_op.CompiledOp`
+The arithmetic is one ``@njit`` kernel, declared as a :class:`wbc.runtime.compiled_op.CompiledOp`
 (its operands, their shapes, the conditions on its ints) so that it runs *inside* the
 controller's tick program, in the same native call as wbc's own items: the data's
 ``add_ops`` registers it with the task's settings and the controller's buffers (checked
@@ -22,9 +22,9 @@ import numpy as np
 from numba import njit
 
 import wbc
-from wbc.compiled_op import CompiledOp
 from wbc.kinematics import Kinematics
-from wbc.program import TickProgram
+from wbc.runtime.compiled_op import CompiledOp
+from wbc.runtime.program import TickProgram
 from wbc.settings import Operand
 from wbc.tasks.task import TaskData
 from wbc.validation import as_gain, as_nonnegative

@@ -13,9 +13,10 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc import daqp_abi, kernels
+from wbc import daqp_abi
 from wbc.daqp_native import NativeWorkspace
 from wbc.qp import QP
+from wbc.runtime import kernels
 from wbc.scenario import load_scenario
 from wbc.solvers import DaqpBackend
 

@@ -54,8 +54,8 @@ def test_compiled_ops_are_checked_against_their_declaration():
     import pytest
 
     import wbc
-    from wbc.compiled_op import CompiledOp
-    from wbc.program import TickProgram
+    from wbc.runtime.compiled_op import CompiledOp
+    from wbc.runtime.program import TickProgram
 
     module = runpy.run_path(str(EXAMPLES / "custom_compiled_task.py"))
     op, program = module["CENTERING"], TickProgram()

@@ -10,10 +10,10 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc import kernels
 from wbc.constraints.constraint import ConstraintData
 from wbc.kinematics import Kinematics
-from wbc.program import TickProgram
+from wbc.runtime import kernels
+from wbc.runtime.program import TickProgram
 from wbc.scenario import load_scenario
 from wbc.tasks.frame_task import FrameTaskData
 from wbc.tasks.task import TaskData
@@ -206,7 +206,7 @@ def test_a_specification_that_overrides_its_datas_methods_is_refused(youbot):
 def test_inherited_ops_never_replace_an_overridden_compute():
     """The rule behind the subclass test above, for constraints and preview tasks too."""
     from wbc.constraints.joint_position_limits import JointPositionLimitsData
-    from wbc.program import ops_follow_compute
+    from wbc.runtime.program import ops_follow_compute
     from wbc.tasks.steering_task import SteeringTaskData
 
     class LimitsData(JointPositionLimitsData):

@@ -2,7 +2,7 @@
 
 ``import wbc`` (and ``wbc.singularity``, ``wbc.trajectory``, ``wbc solvers``, ``wbc --help``)
 must not import numba; building a controller loads the kernels. numba keys a cached function
-on its own source file only, so :mod:`wbc.kernels._cache` deletes the package's entries when
+on its own source file only, so :mod:`wbc.runtime.kernels._cache` deletes the package's entries when
 any kernel source changes: checked here on a small package with a cross-file call, whose
 stale cache numba alone would load.
 """
@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from conftest import NEUTRAL
-from wbc import kernels
-from wbc.kernels import _cache
+from wbc.runtime import kernels
+from wbc.runtime.kernels import _cache
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,7 @@ def test_import_does_not_import_numba():
     result = _python("""
         import sys
         import wbc, wbc.singularity, wbc.trajectory
-        from wbc import kernels
+        from wbc.runtime import kernels
         assert kernels.FRAME_GAIN == 24 and kernels.OP_FRAME_TASK == 1  # the layouts need no numba
         print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite")))
     """)

@@ -242,6 +242,6 @@ def test_the_stationarity_certificate_is_zero_at_the_optimum_only(chain32):
     lam = np.zeros(n + k)  # no bound or inequality active; the equality multipliers are not read
     x = np.concatenate([v, U @ v])
     scratch = np.zeros(2 * nv)
-    assert wbc.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) < 1e-12
+    assert wbc.runtime.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) < 1e-12
     x[:nv] += 1e-4 * np.sign(np.arange(nv) % 3 - 1.0)
-    assert wbc.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) > 1e-5
+    assert wbc.runtime.kernels.lifted_stationarity(lifted.data, x, lam, scratch, nv, k, 0, 0) > 1e-5

@@ -1,4 +1,4 @@
-"""The compiled forward kinematics (wbc.kinematics native mode, wbc.kernels.forward_kinematics)
+"""The compiled forward kinematics (wbc.kinematics native mode, wbc.runtime.kernels.forward_kinematics)
 against Pinocchio: joint placements and Jacobians, and the commands of whole controllers."""
 
 import numpy as np

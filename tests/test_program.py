@@ -1,4 +1,4 @@
-"""The op schemas (wbc.kernels.ops) are the one place an op's operand order is written:
+"""The op schemas (wbc.runtime.kernels.ops) are the one place an op's operand order is written:
 the interpreter must read each row as its schema says, and TickProgram.add must refuse
 anything else when the controller is built."""
 
@@ -9,9 +9,9 @@ import re
 import numpy as np
 import pytest
 
-from wbc import kernels
-from wbc.kernels import ops, tick
-from wbc.program import TickProgram
+from wbc.runtime import kernels
+from wbc.runtime.kernels import ops, tick
+from wbc.runtime.program import TickProgram
 
 CONSTANTS = {name: getattr(kernels, name) for name in ("FRAME_SETTINGS", "FRAME_DATA", "POSITION_SETTINGS",
                                                        "DAQP_PROBLEM_WORDS", "DAQP_WORKSPACE_WORDS",

@@ -24,7 +24,7 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, TASKS
-from wbc.kernels import _cache
+from wbc.runtime.kernels import _cache
 
 PACKAGE = Path(wbc.__file__).resolve().parent
 READY = "wbc-test: read-only sandbox ready"

@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc import kernels
 from wbc.diagnostics import StaleDiagnosticsError
+from wbc.runtime import kernels
 from wbc.solvers import QPSolution, QPSolver
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])

@@ -5,16 +5,16 @@ opinion). *Hard* bounds (speed limits) are intersected; *soft* bounds (position 
 intersected among themselves -- where they exclude each other, both are set to the midpoint
 of the conflict -- and then clipped into the hard ones, so conflicting limits never make the
 QP infeasible: a joint outside its range returns at top speed. The merge is one compiled op
-of the tick program (:func:`wbc.kernels.merge_bounds`).
+of the tick program (:func:`wbc.runtime.kernels.merge_bounds`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
-from .program import TickProgram
 from .qp import QP
+from .runtime import kernels
+from .runtime.program import TickProgram
 
 
 class BoundPolicy:

@@ -251,7 +251,7 @@ def _warmup(args: argparse.Namespace) -> int:
     """Load the compiled kernels -- compiling them if the cache is cold -- and say how long it took."""
     import time
 
-    from . import kernels
+    from .runtime import kernels
 
     start = time.perf_counter()
     kernels.load()

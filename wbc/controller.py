@@ -7,7 +7,7 @@ controller is built, by named pieces:
   ``sqrt(damping) I``, then the preview tasks' rows) and where each constraint writes;
 * the **bound policy** (:class:`wbc.bounds.BoundPolicy`): hard bounds intersected, soft
   ones clipped into them;
-* the **program** (:class:`wbc.program.TickProgram`): one native call for every compiled
+* the **program** (:class:`wbc.runtime.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
   the cost normalisation, the NaN screen and -- with DAQP on its native path
   (:mod:`wbc.daqp_native`) -- the solve and the check of its answer; at high DOF the QP
@@ -29,7 +29,6 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import kernels
 from .constraints.constraint import Constraint, ConstraintData
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .errors import InvalidInputError
@@ -40,16 +39,17 @@ from .layout import ConstraintLayout, TaskStack
 from .lifting import LiftedQP, dense_rows, worth_lifting
 from .lm_damping import LMDamping
 from .outcome import Outcome
-from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
 from .robot import Robot
+from .runtime import kernels
+from .runtime.program import TickProgram, ops_follow_compute
 from .settings import Setting
 from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
 from .validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 
-#: smallest damping relative to the largest curvature of the cost (:func:`wbc.kernels.normalise_cost`):
+#: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
 DAMPING_FLOOR = 1e-10
 #: default of ``Controller.lm_damping``: twice the smallest value that removed the full-speed
@@ -289,7 +289,7 @@ class Controller:
         raise InvalidInputError(f"{item!r} is not used by this controller")
 
     def _build_program(self) -> None:
-        """The compiled part of the tick (wbc.program): the ops of every task and constraint
+        """The compiled part of the tick (wbc.runtime.program): the ops of every task and constraint
         that has them, the normal equations, the holonomic preview, the bound merge, the cost
         normalisation and the NaN screen -- one native call. Items without ops compute in
         Python before it; preview tasks without ops (custom ones) compute between two parts
@@ -461,7 +461,7 @@ class Controller:
 
     def _rejected(self, solution: QPSolution, defect: float) -> QPSolution:
         """A backend's answer that violates a bound or row of the QP it solved by ``defect`` >
-        :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.kernels.qp_defect`): a failure, so the
+        :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.runtime.kernels.qp_defect`): a failure, so the
         fallback chain answers, and the backend's warm start is dropped."""
         self.solver.reset()
         return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",

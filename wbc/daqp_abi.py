@@ -3,7 +3,7 @@ points, and a probe that checks them on the installed build.
 
 The ``daqp`` extension module exports DAQP's C functions (``setup_daqp``,
 ``daqp_update_ldp``, ``daqp_solve``, ...). Calling them from compiled code (one native
-call per tick, :mod:`wbc.kernels.native_qp`) needs their structure layouts, which this
+call per tick, :mod:`wbc.runtime.kernels.native_qp`) needs their structure layouts, which this
 module writes down from DAQP 0.11's headers (``csrc/include/types.h``, ``api.h``,
 ``constants.h``). A layout is an ABI promise of one release, so it is *checked, not
 trusted*: :func:`native` runs :func:`probe` once per process -- the installed version
@@ -186,15 +186,15 @@ def _probe_failure() -> str | None:
 def probe(library: Library) -> str | None:
     """Check the layouts of this module on the installed DAQP; None when they hold.
 
-    The sizes and offsets the compiled kernels assume (the ``DAQP_*`` constants of :mod:`wbc.kernels`) must be those
-    of the structures here. Then it sets up ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``,
+    The sizes and offsets the compiled kernels assume (the ``DAQP_*`` constants of
+    :mod:`wbc.runtime.kernels`) must be those of the structures here. Then it sets up ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``,
     ``|x| <= 10`` through :class:`wbc.daqp_native.NativeWorkspace` and checks what ``setup_daqp`` wrote at
     the offsets of :class:`Workspace` (dimensions, problem and settings pointers) and the
     answer of one compiled solve: x = (0, 1) (the projection of (1, 2) onto the row).
     """
-    from . import kernels
     from .daqp_native import NativeWorkspace
     from .qp import QP
+    from .runtime import kernels
 
     layout = {"problem words": (words(Problem), kernels.DAQP_PROBLEM_WORDS),
               "workspace words": (words(Workspace), kernels.DAQP_WORKSPACE_WORDS),
@@ -202,7 +202,7 @@ def probe(library: Library) -> str | None:
               "result exit flag": (Result.exitflag.offset // 4, kernels.DAQP_RESULT_EXITFLAG),
               "result iterations": (Result.iter.offset // 4, kernels.DAQP_RESULT_ITERATIONS)}
     for name, (here, compiled) in layout.items():
-        if here != compiled:  # a constant of wbc.kernels out of step with the layouts above
+        if here != compiled:  # a constant of wbc.runtime.kernels out of step with the layouts above
             return f"the compiled kernels assume {name} = {compiled}, the DAQP layout has {here}"
     qp = QP(2, 1, 0)
     qp.H[...] = np.eye(2)

@@ -1,9 +1,9 @@
 """One DAQP workspace on one QP's buffers, solved by compiled code (no Python binding).
 
 DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.QP`: H, c, [G; A], upper,
-lower), so a tick hands it nothing: :func:`wbc.kernels.native_qp.daqp_solve` re-forms the
+lower), so a tick hands it nothing: :func:`wbc.runtime.kernels.native_qp.daqp_solve` re-forms the
 factorisation (``daqp_update_ldp``), solves (``daqp_solve``), checks the answer against the
-QP's bounds and rows (:func:`wbc.kernels.qp_defect`) and times itself -- as an op of the
+QP's bounds and rows (:func:`wbc.runtime.kernels.qp_defect`) and times itself -- as an op of the
 tick program (:meth:`NativeWorkspace.add_op`, the whole tick one native call) or alone
 (:meth:`NativeWorkspace.solve`).
 
@@ -25,16 +25,12 @@ from typing import Any
 
 import numpy as np
 
-from . import daqp_abi, kernels
+from . import daqp_abi
 from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
-from .kernels import (
-    DAQP_CONTROL_ITERATIONS,
-    DAQP_CONTROL_MASK,
-    DAQP_CONTROL_OUTCOME,
-    DAQP_CONTROL_SIZE,
-)
-from .program import TickProgram
 from .qp import QP
+from .runtime import kernels
+from .runtime.kernels import DAQP_CONTROL_ITERATIONS, DAQP_CONTROL_MASK, DAQP_CONTROL_OUTCOME, DAQP_CONTROL_SIZE
+from .runtime.program import TickProgram
 
 
 class NativeWorkspace:
@@ -109,7 +105,7 @@ class NativeWorkspace:
         problem.A = A.ctypes.data if A.size else None
 
     def operands(self) -> dict[str, Any]:
-        """The operands of the compiled solve (:data:`wbc.kernels.ops.OP_SPECS`, DAQP_SOLVE)."""
+        """The operands of the compiled solve (:data:`wbc.runtime.kernels.ops.OP_SPECS`, DAQP_SOLVE)."""
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
                     control=self.control, data=self.qp.data, x=self.x, n=self.qp.n, size=self.qp.data.size,

@@ -20,14 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from . import kernels
 from .errors import SolverError
 from .outcome import Outcome
 from .qp import QP
+from .runtime import kernels
 from .solvers import QPSolution
 
 #: largest relative violation of its own constraints accepted in an answer
-#: (:func:`wbc.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
+#: (:func:`wbc.runtime.kernels.constraint_defect`); the backends' default tolerances are ~1e-9
 ANSWER_TOLERANCE = 1e-6
 
 #: the regularisation of the elastic solve's second try (relative to the largest diagonal of H)

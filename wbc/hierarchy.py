@@ -41,7 +41,7 @@ the command, as in one level. A level above it has a cost that is flat along its
 its task values -- undetermined. Backends that factorise H (DAQP, quadprog, and any backend not
 in :data:`SEMIDEFINITE_SOLVERS`) get the regularisation floor of every QP there
 (:data:`wbc.controller.DAMPING_FLOOR` = 1e-10 of the level's largest curvature,
-:func:`wbc.kernels.normalise_cost`): it moves the level's task values by ``1e-10 / c``
+:func:`wbc.runtime.kernels.normalise_cost`): it moves the level's task values by ``1e-10 / c``
 relative along a direction of relative curvature c (< 1e-7 in the tests against the
 pseudo-inverse). The others take a semidefinite H and get the level as it is: exact.
 
@@ -72,7 +72,7 @@ of the tests and scenarios (DAQP did call a level infeasible under a fully deter
 answer sat on a velocity bound: a fuzz case, answered by the level above).
 
 **Steering preview.** Tasks that need the holonomic preview (SteeringTask) get the cascade of the
-hierarchy without constraints (:func:`wbc.kernels.hierarchy_preview`: the classical null-space
+hierarchy without constraints (:func:`wbc.runtime.kernels.hierarchy_preview`: the classical null-space
 projection of the levels' ordinary rows, the damping at the last level).
 """
 
@@ -84,16 +84,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from . import kernels
 from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
-from .kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .layout import TaskBlock, TaskStack
 from .lm_damping import LMDamping
 from .outcome import Outcome
-from .program import TickProgram, ops_follow_compute
 from .qp import QP
 from .reduction import InputReduction
+from .runtime import kernels
+from .runtime.kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
+from .runtime.program import TickProgram, ops_follow_compute
 from .solvers import DaqpBackend, QPSolution, QPSolver
 from .tasks.task import Task, TaskData
 from .validation import as_items

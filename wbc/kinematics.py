@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from . import kernels
 from .errors import ModelError
 from .robot import Robot
+from .runtime import kernels
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .program import TickProgram
+    from .runtime.program import TickProgram
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -31,7 +31,7 @@ class Kinematics:
     Conventions as in :mod:`wbc.robot`.
 
     **Native mode** (every joint 1-DOF revolute or prismatic, :func:`native_chain`; all
-    shipped robots): the compiled :func:`wbc.kernels.forward_kinematics` computes the joint
+    shipped robots): the compiled :func:`wbc.runtime.kernels.forward_kinematics` computes the joint
     placements and Jacobians into this object's buffers (the layouts of Pinocchio's
     ``data.oMi`` and ``data.J``, which the kernels read), and Pinocchio's own ``data`` is
     brought up to date only when something reads it (:attr:`data`, :meth:`frame_placement`,
@@ -274,7 +274,7 @@ _AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
 def native_chain(model: pin.Model) -> np.ndarray | None:
-    """The chain description of :func:`wbc.kernels.forward_kinematics` (one row per joint,
+    """The chain description of :func:`wbc.runtime.kernels.forward_kinematics` (one row per joint,
     ``CHAIN_COLUMNS``), or None when a joint is not 1-DOF revolute / prismatic about a fixed
     axis (Pinocchio's RX/RY/RZ/PX/PY/PZ and their unaligned forms)."""
     chain = np.zeros((model.njoints, kernels.CHAIN_COLUMNS))

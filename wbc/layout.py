@@ -18,7 +18,7 @@ class TaskStack:
 
     Rows: the ordinary tasks, then ``sqrt(damping) I`` (target 0), then the tasks that need
     the holonomic preview (SteeringTask). With A the first two blocks, ``A^T [W J] = [H; r^T J]``
-    gives H and -c in one pass (:func:`wbc.kernels.normal_equations`), written straight into the
+    gives H and -c in one pass (:func:`wbc.runtime.kernels.normal_equations`), written straight into the
     QP buffer. Stored transposed (C-contiguous ``A^T``), so that every column of A the kernel sums
     over is contiguous. Each task writes its static rows once here (``write_static``).
     """

@@ -9,7 +9,7 @@ dense rows ``U`` (targets ``t``) gives the same minimiser over v from::
     min 1/2 v^T D v + d^T v + 1/2 |w|^2 - t^T w   s.t.  U v - w = 0,  the controller's limits,
 
 whose Hessian ``diag(D, I)`` DAQP inverts in O(nv) and whose k equality rows cost O(k nv)
-to form (:func:`wbc.kernels.lift_qp`). The controller uses it (:data:`LIFT_MIN_DOF`,
+to form (:func:`wbc.runtime.kernels.lift_qp`). The controller uses it (:data:`LIFT_MIN_DOF`,
 :func:`worth_lifting`) with DAQP's native path, when no Python step needs H itself (the
 input reduction, the steering preview). ``controller.qp`` is then this QP over ``(v, w)``;
 the command is its first nv entries.
@@ -19,8 +19,8 @@ through its dual, whose conditioning is not the v-problem's: with costs and damp
 (e.g. a posture weight 1e12 next to coordinates held only by the damping floor) DAQP was seen
 to stop on the lifted QP 0.2 rad/s from the optimum, or at its iteration limit, where the dense
 QP of the same tick is solved exactly. So every lifted answer is certified in the tick
-program (:data:`~wbc.kernels.OP_LIFT_CHECK`): its stationarity *in v*
-(:func:`wbc.kernels.lifted_stationarity`, relative) joins its defect, both held to
+program (:data:`~wbc.runtime.kernels.OP_LIFT_CHECK`): its stationarity *in v*
+(:func:`wbc.runtime.kernels.lifted_stationarity`, relative) joins its defect, both held to
 :data:`wbc.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
 followed, in the same tick, by the dense QP (:meth:`LiftedQP.fill_dense`) solved by the same
 backend -- the answer then costs a normal-equations pass and a second solve; only if that
@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import kernels
 from .layout import TaskStack
-from .program import TickProgram
 from .qp import QP
+from .runtime import kernels
+from .runtime.program import TickProgram
 
 if TYPE_CHECKING:
     from .daqp_native import NativeWorkspace

@@ -1,7 +1,7 @@
 """The error-scaled (Levenberg-Marquardt) damping of the tasks, ``Controller.lm_damping``.
 
 Each task t whose data has ``lm_damped`` has ``mu_t = lm_damping |dt (W r - W xi)_t| max_j
-|(W J)_t e_j|`` (:func:`wbc.kernels.lm_curvature`; ``W xi`` the task's weighted feed-forward,
+|(W J)_t e_j|`` (:func:`wbc.runtime.kernels.lm_curvature`; ``W xi`` the task's weighted feed-forward,
 ``TaskData.feedforward``), and the damping of its level is raised to ``mu = sum_t mu_t``. The
 tick program sums the ``mu_t`` of a level (one LM_TASK op per task, after the tasks' rows are
 written) and then either writes ``sqrt(max(damping, mu)) I`` into the damping rows of a single
@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
 from .layout import TaskBlock
-from .program import TickProgram
+from .runtime import kernels
+from .runtime.program import TickProgram
 
 
 class LMDamping:

@@ -15,7 +15,7 @@ the SVD): with ``J = U diag(s) V^T`` and ``ds_l = u_l^T dJ v_l``,
     dm/dq_i = < G , dJ/dq_i >_F ,   G = U diag(c) V^T ,   c_l = prod_{p != l} s_p
 
 and ``dJ/dq_i`` from motion cross products of the joint Jacobian columns (compiled, chains
-of 1-DOF joints: :func:`wbc.kernels.manipulability_gradient`) or from the kinematic
+of 1-DOF joints: :func:`wbc.runtime.kernels.manipulability_gradient`) or from the kinematic
 Hessian (:meth:`Kinematics.frame_hessian`: Pinocchio's where its binding has one, else the
 same tensor from the frame Jacobian; joints with a constant motion subspace).
 Where ``J`` has full rank, ``G = m (J^+)^T`` and the formula is the familiar
@@ -39,10 +39,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgesvd, dposv
 
-from . import kernels
 from .errors import InvalidInputError
 from .kinematics import Kinematics, frame_in_joint
 from .robot import Robot
+from .runtime import kernels
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
@@ -67,7 +67,7 @@ class Manipulability:
     and :attr:`gradient` (size nv, overwritten in place).
 
     When every joint between the root and the frame has one DOF (all shipped models), the
-    whole evaluation is one compiled call (:func:`wbc.kernels.manipulability_gradient`,
+    whole evaluation is one compiled call (:func:`wbc.runtime.kernels.manipulability_gradient`,
     ``dJ/dq`` from the joint Jacobians); otherwise the derivative comes from the kinematic
     Hessian (:meth:`wbc.kinematics.Kinematics.frame_hessian`).
     """

@@ -21,12 +21,13 @@ import qpsolvers
 import scipy.sparse as sp
 from numpy.typing import NDArray
 
-from . import daqp_abi, kernels
+from . import daqp_abi
 from .daqp_native import NativeWorkspace
 from .errors import UnknownSolverError
-from .program import TickProgram
 from .qp import QP
 from .quiet import silenced
+from .runtime import kernels
+from .runtime.program import TickProgram
 from .solver_options import BUDGET_KEYS, validate_options
 from .validation import all_finite
 
@@ -53,7 +54,7 @@ DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
     # (H up to 1e11 : 1e-3, zero diagonals, duplicated rows through one vertex, cost
     # ratios 1e12..1e-12); a set of those runs in a child process in tests/test_solvers.py.
     # Whatever the costs, the controller hands every backend H scaled to max diag 1 with the
-    # damping floored at 1e-10 of it (wbc.kernels.normalise_cost): positive definite and well
+    # damping floored at 1e-10 of it (wbc.runtime.kernels.normalise_cost): positive definite and well
     # scaled, which is what HiGHS's own regularisation would otherwise provide
     "highs": {"primal_feasibility_tolerance": 1e-10, "dual_feasibility_tolerance": 1e-10,
               "qp_regularization_value": 0.0, "qp_iteration_limit": 10_000, "time_limit": 0.1},
@@ -83,7 +84,7 @@ class QPSolution(NamedTuple):
     success: bool
     status: str
     solve_time: float  #: wall time inside the backend [s]
-    #: relative violation of the QP's bounds and rows by x (:func:`wbc.kernels.qp_defect`)
+    #: relative violation of the QP's bounds and rows by x (:func:`wbc.runtime.kernels.qp_defect`)
     #: when the backend checked it itself (the native DAQP path); None: not checked yet
     defect: float | None = None
 

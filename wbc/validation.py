@@ -12,8 +12,8 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from . import kernels
 from .errors import InvalidInputError
+from .runtime import kernels
 
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
 _FLOAT64 = np.dtype(np.float64)
@@ -161,7 +161,7 @@ def as_pose(value: ArrayLike, name: str) -> NDArray[np.float64]:
     """Return a 4x4 homogeneous transform, checking finiteness and that R is a rotation.
 
     Fast path for the control loop: a float64 (4, 4) array is checked by one compiled call
-    (:func:`wbc.kernels.pose_defect`); the messages come from the checks below.
+    (:func:`wbc.runtime.kernels.pose_defect`); the messages come from the checks below.
     """
     if (type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (4, 4)
             and kernels.pose_defect(value, ROTATION_TOLERANCE) == kernels.POSE_OK):

@@ -41,10 +41,10 @@ for _module in pkgutil.walk_packages(wbc.__path__, "wbc."):
         importlib.import_module(_module.name)
 # The compiled kernels are numba dispatchers, which autodoc does not read as functions: the
 # documentation sees their Python functions (this process never runs a kernel).
-wbc.kernels.load()
-_python_functions = {id(getattr(wbc.kernels, name)): getattr(wbc.kernels, name).py_func
-                     for names in wbc.kernels.COMPILED.values() for name in names}
-for _module in [module for name, module in sys.modules.items() if name.startswith("wbc.kernels")]:
+wbc.runtime.kernels.load()
+_python_functions = {id(getattr(wbc.runtime.kernels, name)): getattr(wbc.runtime.kernels, name).py_func
+                     for names in wbc.runtime.kernels.COMPILED.values() for name in names}
+for _module in [module for name, module in sys.modules.items() if name.startswith("wbc.runtime.kernels")]:
     for _name, _value in list(vars(_module).items()):
         if id(_value) in _python_functions:
             setattr(_module, _name, _python_functions[id(_value)])

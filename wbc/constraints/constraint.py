@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from ..item import Item
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime.program import TickProgram
 
 
 @dataclass

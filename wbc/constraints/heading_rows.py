@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import kernels
 from ..kinematics import Kinematics
-from ..program import TickProgram
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 
 
 class HeadingRows:
     """Columns ``(x, y)`` of some rows ``G`` of the form ``cos(heading) A + sin(heading) B``.
 
     Base-frame limits (speed, wheel speeds) act on ``R(heading)^T (xdot, ydot)``, so their
-    rows are linear in ``(cos, sin)`` (:func:`wbc.kernels.heading_rows`).
+    rows are linear in ``(cos, sin)`` (:func:`wbc.runtime.kernels.heading_rows`).
 
     Args:
         cos_part: ``A``, (rows, 2): the rows' ``(x, y)`` columns at heading 0.

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import kernels
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..settings import Operand
 from ..validation import as_gain
 from .constraint import Constraint, ConstraintData, ConstraintRows

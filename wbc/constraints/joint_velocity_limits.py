@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, Rows, row_selection
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..settings import Operand
 from ..validation import as_gain, as_positive
 from .constraint import Constraint, ConstraintData, ConstraintRows

@@ -6,8 +6,8 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 

@@ -7,8 +7,8 @@ import numpy as np
 from ..base import BaseKind
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime.program import TickProgram
 from ..validation import as_positive
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows

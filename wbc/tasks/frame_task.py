@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..settings import Cost, Operand
 from ..validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
 from .task import Task, TaskData, _norm
@@ -57,7 +57,7 @@ class FrameTask(Task):
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        # every setting the compiled kernel reads, in one vector (layout: wbc.kernels.FRAME_*),
+        # every setting the compiled kernel reads, in one vector (layout: wbc.runtime.kernels.FRAME_*),
         # shared by the controllers using the task
         self._settings = np.zeros(kernels.FRAME_SETTINGS)
         self._target_rotation = self._settings[kernels.FRAME_TARGET_ROTATION].reshape(3, 3)

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics, frame_in_joint
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..settings import Cost, Operand
 from ..validation import as_gain, as_speed_limit, as_vector
 from .task import Task, TaskData, _norm
@@ -40,7 +40,7 @@ class PositionTask(Task):
                  name: str | None = None) -> None:
         self.frame = frame
         super().__init__(name)
-        # every setting the compiled kernel reads, in one vector (layout: wbc.kernels.POSITION_*),
+        # every setting the compiled kernel reads, in one vector (layout: wbc.runtime.kernels.POSITION_*),
         # shared by the controllers using the task
         self._settings = np.zeros(kernels.POSITION_SETTINGS)
         self._weights = self._settings[kernels.POSITION_WEIGHTS]

@@ -9,11 +9,11 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..validation import as_gain, as_vector, as_weights
 from .task import Task, TaskData, _norm
 

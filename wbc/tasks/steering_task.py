@@ -6,11 +6,11 @@ import math
 
 import numpy as np
 
-from .. import kernels
 from ..errors import InvalidInputError
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..settings import Operand
 from ..validation import as_gain, as_positive
 from .task import Task, TaskData

@@ -20,8 +20,8 @@ import numpy as np
 
 from ..item import Item
 from ..kinematics import Kinematics
-from ..program import TickProgram
 from ..robot import Robot
+from ..runtime.program import TickProgram
 
 
 class TaskData:

@@ -10,7 +10,7 @@ from numba import njit
 
 from . import prepare_cache
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 # ------------------------------------------------------------------- tasks
 

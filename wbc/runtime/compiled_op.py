@@ -1,9 +1,9 @@
 """Third-party compiled ops: a kernel written outside wbc that runs inside the tick program.
 
-wbc's own compiled items are rows of the tick program (:mod:`wbc.program`), all run by one
+wbc's own compiled items are rows of the tick program (:mod:`wbc.runtime.program`), all run by one
 native call. A :class:`CompiledOp` lets any package add rows of its own to that call
 without touching wbc's files: it declares its operands once, like wbc's own ops
-(:class:`wbc.kernels.ops.OpSpec`: names, shapes over the op's int operands, conditions), and
+(:class:`wbc.runtime.kernels.ops.OpSpec`: names, shapes over the op's int operands, conditions), and
 gives an ``@njit`` kernel that takes them in that order followed by ``dt``::
 
     @njit
@@ -17,7 +17,7 @@ gives an ``@njit`` kernel that takes them in that order followed by ``dt``::
     # in TaskData.add_ops:  program.add(CENTERING, q=kin.q, ..., start=start, ...); return True
 
 Array operands are C-contiguous float64, or int64 when declared ``(name, shape, "int64")``.
-:meth:`wbc.program.TickProgram.add` checks them against the declaration when the controller
+:meth:`wbc.runtime.program.TickProgram.add` checks them against the declaration when the controller
 is built, exactly as for wbc's ops, so a wrong operand raises there and never reaches the
 kernel. The op is compiled here into a C callback (a numba ``cfunc`` generated from the
 declaration, which unpacks the operands and calls the kernel); the program calls it

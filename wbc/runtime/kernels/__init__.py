@@ -26,14 +26,14 @@ warmup`` pays it up front); later loads read the machine code (~0.3 s). Where nu
 writable cache directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR``
 unset, the package's ``__pycache__`` and the user cache not writable), ``CACHE`` is False:
 the kernels compile in memory at every load, said once on stderr with the fix
-(``wbc.kernels._cache.NO_CACHE_MESSAGE``).
+(``wbc.runtime.kernels._cache.NO_CACHE_MESSAGE``).
 
 **Cache rule.** numba keys a cached function on its *own* source file only: a callee in
 another topic module, or a constant of this file, is compiled into the caller's machine
 code without taking part in the key, so editing it would leave the caller's cached code
 stale (tested). Before any topic module compiles, :func:`prepare_cache` therefore hashes
 every ``*.py`` file of this package (and the numba version), compares the hash with the
-one recorded in numba's cache directory for the package (:func:`wbc.kernels._cache.cache_dir`)
+one recorded in numba's cache directory for the package (:func:`wbc.runtime.kernels._cache.cache_dir`)
 and, when they differ, deletes all of the package's cache entries: a change to any kernel
 file recompiles every kernel. Kernel code belongs in this package only (a jitted function
 elsewhere that calls these kernels is not covered by the rule).
@@ -84,7 +84,7 @@ GRAM_CONDITION = 1e-8
 (OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
  OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE,
  OP_LIFT) = range(1, 15)
-#: a third-party op (wbc.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
+#: a third-party op (wbc.runtime.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
 OP_EXTERNAL = 100
 #: forward kinematics of a chain of 1-DOF joints (wbc.kinematics' native mode)
 OP_FORWARD_KINEMATICS = 15

@@ -1,6 +1,6 @@
 """Forward kinematics of chains of 1-DOF joints (revolute, prismatic, any axis): the joint
 placements and joint Jacobians of :class:`wbc.kinematics.Kinematics` in its native mode,
-in the layouts the other kernels read (Pinocchio's, see ``CHAIN_*`` in :mod:`wbc.kernels`).
+in the layouts the other kernels read (Pinocchio's, see ``CHAIN_*`` in :mod:`wbc.runtime.kernels`).
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from numba import njit
 
 from . import CHAIN_PRISMATIC, prepare_cache
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 
 @njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)

@@ -2,12 +2,12 @@
 
 Each entry of :data:`OP_SPECS` lists an op's operands in row order: an *int* operand
 (``None`` shape) or an *array* operand with its shape, whose entries are ints or
-expressions over the op's int operands (``"nv + 1"``). :meth:`wbc.program.TickProgram.add`
+expressions over the op's int operands (``"nv + 1"``). :meth:`wbc.runtime.program.TickProgram.add`
 takes the operands by name, checks every array against its declared shape (float64,
 C-contiguous) and every ``checks`` expression (e.g. that a block of rows lies inside the
 stack), and packs the row in this order -- so a misnamed, misshapen or out-of-range operand
 raises when the controller is built, never corrupts memory at tick time. The interpreter
-(:func:`wbc.kernels.tick.run_program`) reads the rows in the same order; ``tests/
+(:func:`wbc.runtime.kernels.tick.run_program`) reads the rows in the same order; ``tests/
 test_program.py`` checks that every spec matches its decoder's positions and sizes.
 """
 
@@ -63,7 +63,7 @@ class OpSpec(NamedTuple):
 
 _STACK = ("stack", ("nv + 1", "rows"))  # the controller's task stack A^T ((nv + 1) x rows)
 
-#: the schema of every op of wbc's tick program, by opcode (checked by :meth:`wbc.program.TickProgram.add`)
+#: the schema of every op of wbc's tick program, by opcode (checked by :meth:`wbc.runtime.program.TickProgram.add`)
 OP_SPECS: dict[int, OpSpec] = {
     OP_FRAME_TASK: OpSpec("FRAME_TASK", (
         ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),

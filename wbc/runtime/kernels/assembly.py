@@ -11,7 +11,7 @@ from numba import njit
 
 from . import prepare_cache
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 @njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=CACHE, nogil=True)
 def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:

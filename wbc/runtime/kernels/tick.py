@@ -1,10 +1,10 @@
 """The tick program: one compiled call runs every compiled part of a tick.
 
-Its operands are registered once (wbc.program.TickProgram) as C-contiguous float64 arrays
+Its operands are registered once (wbc.runtime.program.TickProgram) as C-contiguous float64 arrays
 and handed over by address: entering a numba function costs ~0.1 us per array argument,
 a dozen arrays would cost more than the arithmetic. Each program row is
 [opcode, operands...] (array indices and sizes); the opcodes are the ``OP_*`` constants
-of :mod:`wbc.kernels`, the layouts those of the kernels of the topic modules.
+of :mod:`wbc.runtime.kernels`, the layouts those of the kernels of the topic modules.
 """
 
 from __future__ import annotations
@@ -72,7 +72,7 @@ from .joints import heading_rows, position_limit_bounds, posture_rows, steering_
 from .manipulability import barrier_row
 from .native_qp import daqp_solve
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 @intrinsic
 def _as_pointer(typingctx, address):

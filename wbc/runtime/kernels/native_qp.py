@@ -28,7 +28,7 @@ from . import (
 )
 from .assembly import qp_defect
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 _I8P = ir.IntType(8).as_pointer()
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
@@ -87,7 +87,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
 
     ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
     fresh buffers, ``daqp_solve`` writes x (``result`` points to ``x``); the answer is then
-    checked: its defect (:func:`wbc.kernels.qp_defect`, relative violation of the bounds and
+    checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative violation of the bounds and
     rows) is written, inf when x is not finite. The next tick's mask is ``steady_mask``.
     """
     start = _now_ns(clock_gettime, clock_id)

@@ -12,7 +12,7 @@ from numba import njit
 from . import GRAM_CONDITION, prepare_cache
 from .frames import frame_jacobian
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 @njit("void(float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
 def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:

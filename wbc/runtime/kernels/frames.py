@@ -2,7 +2,7 @@
 
 Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
 rotation matrices row-major 3x3; layouts: the ``FRAME_*``, ``POSITION_*`` and ``POSE_*``
-constants of :mod:`wbc.kernels`.
+constants of :mod:`wbc.runtime.kernels`.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from numba import njit
 
 from . import POSE_LAST_ROW, POSE_NOT_FINITE, POSE_NOT_ROTATION, POSE_OK, prepare_cache
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 # -------------------------------------------------------------------- SO(3)
 

@@ -1,13 +1,13 @@
 """The compiled part of a control tick: a list of kernel calls run by one native call.
 
-Tasks and constraints that have a kernel (:mod:`wbc.kernels`) register their rows here
+Tasks and constraints that have a kernel (:mod:`wbc.runtime.kernels`) register their rows here
 once, when the controller is built (``TaskData.add_ops`` / ``ConstraintData.add_ops``);
 the controller appends the assembly (normal equations, bound clip, cost normalisation, NaN
-screen). Each tick then costs one call of :func:`wbc.kernels.run_program` for all of it.
+screen). Each tick then costs one call of :func:`wbc.runtime.kernels.run_program` for all of it.
 
 Operands are passed by address. Memory safety rests on two rules, both enforced here when
 an op is added: every array operand is checked against the op's declared schema
-(:data:`wbc.kernels.ops.OP_SPECS`: name, float64, C-contiguous, exact shape in terms of the
+(:data:`wbc.runtime.kernels.ops.OP_SPECS`: name, float64, C-contiguous, exact shape in terms of the
 op's int operands, range conditions on those ints), and the program keeps a reference to
 every array it was given, so none is freed or reallocated while the program can run
 (views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``;
@@ -33,7 +33,7 @@ _WIDTH = 1 + max(len(spec.operands) for spec in OP_SPECS.values())  # opcode + t
 
 
 class TickProgram:
-    """Rows ``[opcode, operands...]`` over registered arrays (see :func:`wbc.kernels.run_program`)."""
+    """Rows ``[opcode, operands...]`` over registered arrays (see :func:`wbc.runtime.kernels.run_program`)."""
 
     def __init__(self) -> None:
         self._arrays: list[np.ndarray] = []
@@ -61,8 +61,8 @@ class TickProgram:
         return len(self._arrays) - 1
 
     def add(self, opcode: int | CompiledOp, **operands: Any) -> None:
-        """Append one op, its operands given by name: one of wbc's (:data:`wbc.kernels.ops.OP_SPECS`)
-        or a third-party :class:`wbc.compiled_op.CompiledOp`.
+        """Append one op, its operands given by name: one of wbc's (:data:`wbc.runtime.kernels.ops.OP_SPECS`)
+        or a third-party :class:`wbc.runtime.compiled_op.CompiledOp`.
 
         Raises TypeError for a missing or unknown operand, an array that is not C-contiguous
         float64 (or the declared dtype) of the declared shape, or int operands that break the

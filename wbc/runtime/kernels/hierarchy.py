@@ -18,7 +18,7 @@ from . import prepare_cache
 from .assembly import normalise_cost
 from .manipulability import _jacobi_eigenvectors
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.kernels)
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 
 @njit("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE, nogil=True)
@@ -43,7 +43,7 @@ def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e:
 
 @njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
-    """:func:`wbc.kernels.normalise_cost` of one level's ``[H; c]``; a level whose rows are all
+    """:func:`wbc.runtime.kernels.normalise_cost` of one level's ``[H; c]``; a level whose rows are all
     zero this tick (H = 0, hence c = 0) gets ``H = I``: every feasible point is optimal for it
     and the solver takes the smallest."""
     normalise_cost(Hc, damping, damping_floor)
