@@ -239,7 +239,7 @@ def make_units(test_set: WbcQpbenchmark, seed: int, back_to_back: bool = True,
 
 def run_unit(unit: Unit) -> UnitResult:
     """qpbenchmark's pass, then the back-to-back pass, on the unit's problems (here or on a worker)."""
-    for name in unit.test_set.solvers:  # each backend's first use in this process, silenced (wbc.quiet)
+    for name in unit.test_set.solvers:  # each backend's first use in this process, silenced (wbc.core.quiet)
         make_solver(name)
     df, extras = run_qpbenchmark(unit.test_set)
     rows = make_rows(df, extras, unit.test_set)

@@ -22,12 +22,12 @@ import numpy as np
 from numba import njit
 
 import wbc
+from wbc.core.settings import Operand
+from wbc.core.validation import as_gain, as_nonnegative
 from wbc.kinematics import Kinematics
 from wbc.runtime.compiled_op import CompiledOp
 from wbc.runtime.program import TickProgram
-from wbc.settings import Operand
 from wbc.tasks.task import TaskData
-from wbc.validation import as_gain, as_nonnegative
 
 
 @njit(nogil=True)

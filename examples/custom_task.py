@@ -15,10 +15,10 @@ import math
 import numpy as np
 
 import wbc
+from wbc.core.settings import Setting
+from wbc.core.validation import as_gain, as_nonnegative, as_number
 from wbc.kinematics import Kinematics
-from wbc.settings import Setting
 from wbc.tasks.task import TaskData
-from wbc.validation import as_gain, as_nonnegative, as_number
 
 
 class HeightTask(wbc.Task):

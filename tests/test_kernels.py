@@ -257,8 +257,8 @@ def test_program_operands_must_be_contiguous_float64():
 
 def test_pose_check_agrees_with_the_plain_checks(rng):
     """The compiled fast path of as_pose accepts exactly what the numpy checks accept."""
-    from wbc.errors import InvalidInputError
-    from wbc.validation import ROTATION_TOLERANCE
+    from wbc.core.errors import InvalidInputError
+    from wbc.core.validation import ROTATION_TOLERANCE
 
     def plain_ok(pose):
         if not np.all(np.isfinite(pose)) or np.max(np.abs(pose[3] - [0, 0, 0, 1])) > 1e-12:
@@ -283,7 +283,7 @@ def test_pose_check_agrees_with_the_plain_checks(rng):
         assert (kernels.pose_defect(pose, ROTATION_TOLERANCE) == kernels.POSE_OK) == plain_ok(pose)
         if not plain_ok(pose):
             with pytest.raises(InvalidInputError):
-                wbc.validation.as_pose(pose, "pose")
+                wbc.core.validation.as_pose(pose, "pose")
 
 
 @pytest.mark.parametrize("compiled", [True, False])

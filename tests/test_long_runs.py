@@ -9,7 +9,7 @@ import pytest
 
 from conftest import TASKS
 from wbc.closed_loop import run
-from wbc.errors import InvalidInputError
+from wbc.core.errors import InvalidInputError
 from wbc.scenario import load_scenario
 
 POSTURE_ONLY = ('[robot]\nname = "youbot"\ninitial_configuration = [0, 0, 0, 0, 0.5, 1.0, 1.2, 0]\n'

@@ -12,7 +12,7 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, ROOT, TASKS
-from wbc.errors import ModelError, ScenarioError
+from wbc.core.errors import ModelError, ScenarioError
 from wbc.scenario import load_scenario
 
 CIRCLE = (TASKS / "youbot_circle.toml").read_text()

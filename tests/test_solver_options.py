@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import wbc
-from wbc.errors import InvalidInputError, WbcError
+from wbc.core.errors import InvalidInputError, WbcError
 from wbc.qp import QP
 from wbc.solver_options import BUDGET_KEYS, InvalidSolverOptionError, valid_options
 from wbc.solvers import make_solver

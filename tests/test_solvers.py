@@ -139,7 +139,7 @@ for _ in range(20):
 def test_a_fresh_process_prints_nothing_with_any_backend(name):
     """From ``import wbc`` to the last tick, nothing reaches fd 1 or 2 in a new process, where a
     backend's first use happens (highspy 1.16 prints a banner on stdout at its first Highs()):
-    wbc runs that first use silenced when the backend is built (wbc.quiet)."""
+    wbc runs that first use silenced when the backend is built (wbc.core.quiet)."""
     # the kernels compiled beforehand: a cold numba cache is announced on stderr (once after an install)
     subprocess.run([sys.executable, "-c", "from wbc.cli import main; main(['warmup'])"], capture_output=True,
                    check=True, timeout=600)

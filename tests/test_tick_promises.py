@@ -470,9 +470,9 @@ def test_a_configuration_of_1e200_warns_nothing_with_any_backend(model, solver):
 
 
 def test_the_finiteness_screen_is_exact_and_never_warns(rng):
-    """``x . w`` (wbc.validation.finite_weights) is finite iff every entry of x is, for every size
+    """``x . w`` (wbc.core.validation.finite_weights) is finite iff every entry of x is, for every size
     and magnitude up to the largest float, with no warning (nor an underflow error)."""
-    from wbc.validation import all_finite
+    from wbc.core.validation import all_finite
 
     largest = np.finfo(float).max
     with warnings.catch_warnings(), np.errstate(over="raise", invalid="raise", divide="raise"):

@@ -6,7 +6,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from wbc.errors import InvalidInputError
+from wbc.core.errors import InvalidInputError
 from wbc.singularity import singularity_measure
 from wbc.trajectory import (
     ArcPath,

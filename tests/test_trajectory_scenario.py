@@ -13,7 +13,7 @@ import pytest
 from conftest import TASKS
 from wbc.cli import main
 from wbc.closed_loop import run
-from wbc.errors import PlanningError, ScenarioError
+from wbc.core.errors import PlanningError, ScenarioError
 from wbc.scenario import load_scenario
 from wbc.singularity import singularity_measure
 from wbc.trajectory import JointTrajectory, LinePath, branch_switches, plan

@@ -20,8 +20,7 @@ from .constraints import (
     WheelSpeedLimits,
 )
 from .controller import Controller
-from .diagnostics import TickDiagnostics
-from .errors import (
+from .core.errors import (
     InvalidInputError,
     ModelError,
     PlanningError,
@@ -31,8 +30,9 @@ from .errors import (
     UnknownSolverError,
     WbcError,
 )
+from .core.outcome import Outcome
+from .diagnostics import TickDiagnostics
 from .manipulability import Manipulability, manipulability, manipulability_gradient
-from .outcome import Outcome
 from .qp import QP
 from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers

@@ -17,7 +17,7 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any, TextIO
 
 from . import __version__
-from .errors import WbcError
+from .core.errors import WbcError
 
 if TYPE_CHECKING:  # (imported when a command needs them: `wbc solvers` loads no simulation or viewer)
     from .closed_loop import RunResult

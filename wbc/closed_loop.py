@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from .constraints import ManipulabilityBarrier
 from .controller import Controller
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
 from .manipulability import manipulability
 from .robot import Robot
 from .scenario import Scenario

@@ -15,7 +15,7 @@ controller is built, by named pieces:
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
 * the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
-  :class:`wbc.outcome.Outcome`;
+  :class:`wbc.core.outcome.Outcome`;
 * with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.hierarchy`.
 """
 
@@ -30,24 +30,24 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .constraints.constraint import Constraint, ConstraintData
+from .core.errors import InvalidInputError
+from .core.outcome import Outcome
+from .core.settings import Setting
+from .core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
-from .errors import InvalidInputError
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
 from .kinematics import Kinematics
 from .layout import ConstraintLayout, TaskStack
 from .lifting import LiftedQP, dense_rows, worth_lifting
 from .lm_damping import LMDamping
-from .outcome import Outcome
 from .qp import QP
 from .reduction import InputReduction
 from .robot import Robot
 from .runtime import kernels
 from .runtime.program import TickProgram, ops_follow_compute
-from .settings import Setting
 from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from .tasks.task import Task, TaskData
-from .validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -76,7 +76,7 @@ class Controller:
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have
             ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
-        strict: raise :class:`~wbc.errors.SolverError` when the QP cannot be solved, instead
+        strict: raise :class:`~wbc.core.errors.SolverError` when the QP cannot be solved, instead
             of the fallback below.
 
     Raises:
@@ -168,7 +168,7 @@ class Controller:
         """The diagnostics record of the latest :meth:`step`.
 
         Raises:
-            NoTickYetError: before the first :meth:`step` (a :class:`~wbc.errors.WbcError` and an
+            NoTickYetError: before the first :meth:`step` (a :class:`~wbc.core.errors.WbcError` and an
                 ``AttributeError``: ``getattr(controller, "last", None)`` is None until then).
         """
         if self._last is None:

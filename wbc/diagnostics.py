@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import WbcError
+from .core.errors import WbcError
+from .core.outcome import Outcome
 from .hierarchy import level_errors, level_optima
-from .outcome import Outcome
 
 if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller
@@ -33,7 +33,7 @@ class TickDiagnostics:
 
     Always available (set during the tick):
 
-    * ``tick`` -- tick counter; ``solver``; ``outcome`` -- :class:`wbc.outcome.Outcome` (which link
+    * ``tick`` -- tick counter; ``solver``; ``outcome`` -- :class:`wbc.core.outcome.Outcome` (which link
       of the fallback chain answered); ``status`` -- ``"optimal"``, or what went wrong and which
       fallback produced the command, in words (see :class:`Controller`); ``success`` -- True when
       the command is the (checked) solution of the full QP (``outcome is Outcome.OPTIMAL``);

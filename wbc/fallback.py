@@ -9,7 +9,7 @@
 2. If that fails too, or the QP data holds NaN, the command is ``v = 0``, which satisfies
    every shipped hard limit (speed, wheel and no-slip limits).
 
-With ``strict=True`` a failure raises :class:`~wbc.errors.SolverError` instead.
+With ``strict=True`` a failure raises :class:`~wbc.core.errors.SolverError` instead.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SolverError
-from .outcome import Outcome
+from .core.errors import SolverError
+from .core.outcome import Outcome
 from .qp import QP
 from .runtime import kernels
 from .solvers import QPSolution

@@ -84,11 +84,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
+from .core.outcome import Outcome
+from .core.validation import as_items
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .layout import TaskBlock, TaskStack
 from .lm_damping import LMDamping
-from .outcome import Outcome
 from .qp import QP
 from .reduction import InputReduction
 from .runtime import kernels
@@ -96,7 +97,6 @@ from .runtime.kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .runtime.program import TickProgram, ops_follow_compute
 from .solvers import DaqpBackend, QPSolution, QPSolver
 from .tasks.task import Task, TaskData
-from .validation import as_items
 
 if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller

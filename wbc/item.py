@@ -9,7 +9,7 @@ from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
 from .robot import Robot
 
 

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .errors import ModelError
+from .core.errors import ModelError
 from .robot import Robot
 from .runtime import kernels
 

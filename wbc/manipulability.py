@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgesvd, dposv
 
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
 from .kinematics import Kinematics, frame_in_joint
 from .robot import Robot
 from .runtime import kernels

@@ -11,7 +11,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
-from .errors import WbcError
+from .core.errors import WbcError
 
 #: what ``--html`` (:func:`wbc.view.write_html`) writes, by suffix
 HTML_FORMATS = {".html": "HTML page", ".htm": "HTML page"}

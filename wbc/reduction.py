@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
 from .qp import QP
 
 

@@ -14,8 +14,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from .errors import InvalidInputError
-from .validation import as_pose, as_positive, as_vector
+from .core.errors import InvalidInputError
+from .core.validation import as_pose, as_positive, as_vector
 
 
 class ReferenceMotion(Protocol):

@@ -28,9 +28,9 @@ from pydantic import Field, ValidationError
 
 from . import shipped
 from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
-from .errors import InvalidInputError, ModelError, UnknownFrameError
-from .schema import Positive, Table, explain, read_toml, suggest
-from .validation import as_positive, as_vector
+from .core.errors import InvalidInputError, ModelError, UnknownFrameError
+from .core.schema import Positive, Table, explain, read_toml, suggest
+from .core.validation import as_positive, as_vector
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 

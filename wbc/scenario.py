@@ -1,9 +1,9 @@
 """Declarative scenarios (``tasks/*.toml``): robot, task stack, constraints, solver, reference.
 
 Schema (see ``tasks/youbot_circle.toml`` for a commented example); every key is checked,
-strictly, by the pydantic models below (:mod:`wbc.schema`): unknown sections or keys,
+strictly, by the pydantic models below (:mod:`wbc.core.schema`): unknown sections or keys,
 wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are a
-:class:`~wbc.errors.ScenarioError` naming the file, the key and the fix::
+:class:`~wbc.core.errors.ScenarioError` naming the file, the key and the fix::
 
     name = "..."      optional, default: the file name
     description = "..."  optional: what the scenario shows, one line (``wbc scenarios`` lists it)
@@ -52,10 +52,10 @@ from . import shipped
 from . import tasks as task_module
 from .constraints import Constraint
 from .controller import DEFAULT_LM_DAMPING, Controller
-from .errors import ScenarioError, WbcError
+from .core.errors import ScenarioError, WbcError
+from .core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
 from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
 from .robot import Robot, load_robot
-from .schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
 from .tasks import FrameTask, PositionTask, PostureTask, Task
 from .trajectory.scenario_spec import plan_from_spec
 

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Literal
 
-from .errors import WbcError
+from .core.errors import WbcError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -30,7 +30,7 @@ _SOURCE_FOLDER: dict[str, str] = {"models": "models", "scenarios": "tasks"}
 
 def folder(kind: Kind) -> Path:
     """The folder of the shipped ``kind`` of files: the installed package data, else the
-    source tree's folder. Raises :class:`~wbc.errors.WbcError` when neither exists (a broken
+    source tree's folder. Raises :class:`~wbc.core.errors.WbcError` when neither exists (a broken
     install)."""
     installed = _PACKAGE / kind
     if installed.is_dir():

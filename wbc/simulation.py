@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ModelError
+from .core.errors import ModelError
+from .core.validation import as_positive
 from .robot import Robot, model_path
-from .validation import as_positive
 
 
 class MujocoSimulation:

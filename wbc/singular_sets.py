@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import ModelError
+from .core.errors import ModelError
 from .robot import Robot
 
 Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]

@@ -22,11 +22,11 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .errors import InvalidInputError
+from .core.errors import InvalidInputError
+from .core.validation import as_positive
 from .robot import Robot
 from .scorbot import scorbot_dh_angles, scorbot_measured_angles
 from .singular_sets import SingularCondition, SingularSystem, registered_models, singular_systems
-from .validation import as_positive
 
 RESIDUAL_TOLERANCE = 1e-9  # |residual| <= this counts as on a set (residuals are dimensionless)
 RANK_TOLERANCE = 1e-10  # singular values of J_s below this times the largest one count as zero

@@ -22,14 +22,14 @@ import scipy.sparse as sp
 from numpy.typing import NDArray
 
 from . import daqp_abi
+from .core.errors import UnknownSolverError
+from .core.quiet import silenced
+from .core.validation import all_finite
 from .daqp_native import NativeWorkspace
-from .errors import UnknownSolverError
 from .qp import QP
-from .quiet import silenced
 from .runtime import kernels
 from .runtime.program import TickProgram
 from .solver_options import BUDGET_KEYS, validate_options
-from .validation import all_finite
 
 #: per-backend settings passed to qpsolvers unless the user overrides them
 DEFAULT_SETTINGS: dict[str, dict[str, Any]] = {
@@ -181,7 +181,7 @@ class QpsolversBackend(QPSolver):
             self._first_use()
 
     def _first_use(self) -> None:
-        """Solve a small QP with fds 1 and 2 silenced (:func:`wbc.quiet.silenced`): whatever the
+        """Solve a small QP with fds 1 and 2 silenced (:func:`wbc.core.quiet.silenced`): whatever the
         backend prints the first time it runs in a process (highspy >= 1.16: a banner on
         stdout) is swallowed here, when the controller is built, never inside a tick."""
         qp = QP(2, 1, 1)

@@ -34,7 +34,7 @@ sys.path.insert(0, str(ROOT))  # the source tree's wbc (the installed one, when 
 
 import wbc  # noqa: E402 -- after the path
 
-# Every module imported before autodoc reads any: documenting a pydantic model (wbc.schema.Table)
+# Every module imported before autodoc reads any: documenting a pydantic model (wbc.core.schema.Table)
 # rewrites its __annotations__, after which the models that subclass it could not be built.
 for _module in pkgutil.walk_packages(wbc.__path__, "wbc."):
     if not _module.name.endswith("__main__"):  # (python -m wbc: running it is the command)

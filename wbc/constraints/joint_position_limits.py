@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..core.settings import Operand
+from ..core.validation import as_gain
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from ..settings import Operand
-from ..validation import as_gain
 from .constraint import Constraint, ConstraintData, ConstraintRows
 
 

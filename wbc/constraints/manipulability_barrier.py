@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.settings import Operand
+from ..core.validation import as_gain, as_positive
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, Rows, row_selection
 from ..robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from ..settings import Operand
-from ..validation import as_gain, as_positive
 from .constraint import Constraint, ConstraintData, ConstraintRows
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..runtime.program import TickProgram

@@ -5,11 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..base import BaseKind
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.validation import as_positive
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..runtime.program import TickProgram
-from ..validation import as_positive
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 

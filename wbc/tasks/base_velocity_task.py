@@ -7,11 +7,11 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.settings import Cost
+from ..core.validation import as_vector
 from ..kinematics import Kinematics
 from ..robot import Robot
-from ..settings import Cost
-from ..validation import as_vector
 from .task import Task, TaskData
 
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.settings import Cost, Operand
+from ..core.validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
 from ..kinematics import Kinematics, frame_in_joint
 from ..robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from ..settings import Cost, Operand
-from ..validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
 from .task import Task, TaskData, _norm
 
 _NO_TWIST = np.zeros(0)

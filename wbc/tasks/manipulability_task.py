@@ -6,12 +6,12 @@ import math
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.settings import Setting
+from ..core.validation import as_gain, as_nonnegative, as_positive
 from ..kinematics import Kinematics
 from ..manipulability import Manipulability, Rows, row_selection
 from ..robot import Robot
-from ..settings import Setting
-from ..validation import as_gain, as_nonnegative, as_positive
 from .task import Task, TaskData
 
 

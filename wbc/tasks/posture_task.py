@@ -9,12 +9,12 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.validation import as_gain, as_vector, as_weights
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from ..validation import as_gain, as_vector, as_weights
 from .task import Task, TaskData, _norm
 
 

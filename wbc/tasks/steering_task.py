@@ -6,13 +6,13 @@ import math
 
 import numpy as np
 
-from ..errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..core.settings import Operand
+from ..core.validation import as_gain, as_positive
 from ..kinematics import Kinematics
 from ..robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from ..settings import Operand
-from ..validation import as_gain, as_positive
 from .task import Task, TaskData
 
 

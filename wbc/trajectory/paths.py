@@ -23,8 +23,8 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from ..errors import InvalidInputError
-from ..validation import as_pose, as_positive, as_vector
+from ..core.errors import InvalidInputError
+from ..core.validation import as_pose, as_positive, as_vector
 from .quintic import Quintic
 
 RADIUS_TOLERANCE = 1e-6  #: relative mismatch of ``|O P1|`` and ``|O P2|`` accepted for an arc

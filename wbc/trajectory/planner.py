@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import InvalidInputError, PlanningError
+from ..core.errors import InvalidInputError, PlanningError
+from ..core.validation import as_positive
 from ..robot import Robot
 from ..singularity import singularity_measure
-from ..validation import as_positive
 from .flips import WristFlip, branch_switches, wrist_flips
 from .paths import Path, SubPath, TimedPath
 from .quintic import REST_TO_REST_PEAK_SPEED, Quintic

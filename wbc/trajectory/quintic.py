@@ -27,8 +27,8 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import InvalidInputError
-from ..validation import as_positive
+from ..core.errors import InvalidInputError
+from ..core.validation import as_positive
 
 REST_TO_REST_PEAK_SPEED = 15.0 / 8.0  #: max ds/du of the rest-to-rest quintic
 REST_TO_REST_PEAK_ACCELERATION = 10.0 / np.sqrt(3.0)  #: max d2s/du2 of the rest-to-rest quintic

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ..errors import PlanningError
+from ..core.errors import PlanningError
 from ..robot import Robot
 from ..singularity import singularity_measure
 from .ik import solve_ik

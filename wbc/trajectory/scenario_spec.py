@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ScenarioError
+from ..core.errors import ScenarioError
 from ..robot import Robot
 from .paths import ArcPath, LinePath, Path
 from .planner import MARGIN, Plan, plan

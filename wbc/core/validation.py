@@ -1,6 +1,6 @@
 """Checks at the API boundary: everything that enters wbc is validated here, once.
 
-All checks raise :class:`~wbc.errors.InvalidInputError` with a message that names
+All checks raise :class:`~wbc.core.errors.InvalidInputError` with a message that names
 the offending argument, before any kinematics or solver code runs.
 """
 
@@ -12,8 +12,8 @@ from typing import TypeVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..runtime import kernels
 from .errors import InvalidInputError
-from .runtime import kernels
 
 ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
 _FLOAT64 = np.dtype(np.float64)

@@ -6,7 +6,7 @@ Three descriptors, for the three places a setting can live:
 * :class:`Operand` -- one slot of an operand array that a compiled op reads;
 * :class:`Cost` -- a cost stored as its square root (row weights) in a slice of such an array.
 
-Each validates on assignment (``check(value, name)``, from :mod:`wbc.validation`) and the new
+Each validates on assignment (``check(value, name)``, from :mod:`wbc.core.validation`) and the new
 value acts from the next tick on, in every controller using the item; :class:`wbc.item.Item`
 lets these (and properties with setters) be assigned after a controller uses the item.
 """
