@@ -34,8 +34,8 @@ import pinocchio as pin
 
 import wbc
 from wbc.constraints.constraint import Constraint, ConstraintRows
-from wbc.kinematics import Kinematics
-from wbc.robot import Robot
+from wbc.model.kinematics import Kinematics
+from wbc.model.robot import Robot
 from wbc.scenario import Scenario
 from wbc.tasks import FrameTask, PostureTask
 from wbc.tasks.frame_task import FrameTaskData

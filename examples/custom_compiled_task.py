@@ -24,7 +24,7 @@ from numba import njit
 import wbc
 from wbc.core.settings import Operand
 from wbc.core.validation import as_gain, as_nonnegative
-from wbc.kinematics import Kinematics
+from wbc.model.kinematics import Kinematics
 from wbc.runtime.compiled_op import CompiledOp
 from wbc.runtime.program import TickProgram
 from wbc.tasks.task import TaskData

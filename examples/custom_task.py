@@ -17,7 +17,7 @@ import numpy as np
 import wbc
 from wbc.core.settings import Setting
 from wbc.core.validation import as_gain, as_nonnegative, as_number
-from wbc.kinematics import Kinematics
+from wbc.model.kinematics import Kinematics
 from wbc.tasks.task import TaskData
 
 

@@ -11,15 +11,15 @@ import pytest
 import wbc
 from conftest import TASKS
 from wbc.constraints.constraint import ConstraintData
-from wbc.kinematics import Kinematics
+from wbc.model.kinematics import Kinematics
 from wbc.runtime import kernels
 from wbc.runtime.program import TickProgram
 from wbc.scenario import load_scenario
 from wbc.tasks.frame_task import FrameTaskData
 from wbc.tasks.task import TaskData
 
-importlib.import_module("wbc.manipulability")
-manipulability_module = sys.modules["wbc.manipulability"]  # wbc.manipulability is the function
+importlib.import_module("wbc.model.manipulability")
+manipulability_module = sys.modules["wbc.model.manipulability"]  # wbc.manipulability is the function
 
 MODELS = [("youbot", "ee"), ("deluca_mm", "wrist_center"), ("scorbot_er4pc", "ee"), ("puma560", "wrist_center")]
 

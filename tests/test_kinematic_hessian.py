@@ -8,15 +8,15 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from wbc import kinematics
-from wbc.kinematics import (
+from wbc.model import kinematics
+from wbc.model.kinematics import (
     HESSIAN_JOINTS,
     Kinematics,
     contract_jacobian_derivative,
     hessian_ancestry,
     jacobian_derivative,
 )
-from wbc.manipulability import manipulability, manipulability_gradient
+from wbc.model.manipulability import manipulability, manipulability_gradient
 
 FD_STEP = 1e-6
 DT = 0.01

@@ -113,7 +113,7 @@ def test_a_run_needs_a_tick_and_a_row(circle):
 def test_the_manipulability_of_a_decimated_run_says_it_is_sampled():
     from wbc.cli import format_summary
     from wbc.closed_loop import manipulability_traces
-    from wbc.manipulability import manipulability
+    from wbc.model.manipulability import manipulability
 
     scenario = load_scenario(TASKS / "youbot_stretch.toml")
     full, kept = run(scenario, duration=0.5), run(scenario, duration=0.5, max_rows=10)  # 50 ticks, stride 5

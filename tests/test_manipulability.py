@@ -8,8 +8,8 @@ import pytest
 import wbc
 from conftest import random_youbot_configurations
 from test_youbot_model import kapustina_position_jacobian
-from wbc.kinematics import Kinematics
-from wbc.manipulability import ROWS, Manipulability, manipulability, manipulability_gradient
+from wbc.model.kinematics import Kinematics
+from wbc.model.manipulability import ROWS, Manipulability, manipulability, manipulability_gradient
 
 FD_STEP = 1e-6
 SAMPLES = 20

@@ -6,7 +6,7 @@ import pytest
 
 import wbc
 from test_manipulability import fd_gradient, shipped_end_effectors
-from wbc.manipulability import manipulability, manipulability_gradient
+from wbc.model.manipulability import manipulability, manipulability_gradient
 
 DT = 0.01
 

@@ -13,7 +13,7 @@ import pytest
 from conftest import ROOT, TASKS
 from wbc.cli import main
 from wbc.closed_loop import run, velocity_ratio
-from wbc.manipulability import manipulability
+from wbc.model.manipulability import manipulability
 from wbc.plotting import manipulability_traces
 from wbc.references import Line
 from wbc.scenario import load_scenario

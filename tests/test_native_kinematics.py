@@ -1,4 +1,4 @@
-"""The compiled forward kinematics (wbc.kinematics native mode, wbc.runtime.kernels.forward_kinematics)
+"""The compiled forward kinematics (wbc.model.kinematics native mode, wbc.runtime.kernels.forward_kinematics)
 against Pinocchio: joint placements and Jacobians, and the commands of whole controllers."""
 
 import numpy as np
@@ -7,8 +7,8 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc import kinematics
-from wbc.kinematics import Kinematics, native_chain
+from wbc.model import kinematics
+from wbc.model.kinematics import Kinematics, native_chain
 from wbc.scenario import load_scenario
 
 MIXED = """<robot name="mixed">
@@ -29,7 +29,7 @@ MIXED = """<robot name="mixed">
 def robots(tmp_path_factory):
     path = tmp_path_factory.mktemp("mixed") / "mixed.urdf"
     path.write_text(MIXED)
-    return [wbc.load_robot(name) for name in wbc.robot.shipped_models()] + [wbc.load_robot(path)]
+    return [wbc.load_robot(name) for name in wbc.model.robot.shipped_models()] + [wbc.load_robot(path)]
 
 
 def test_placements_and_jacobians_are_pinocchios(robots, rng):

@@ -14,7 +14,7 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, ROOT
-from wbc import shipped
+from wbc.model import shipped
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -31,7 +31,7 @@ SNIPPET = textwrap.dedent("""
     import wbc
     robot = wbc.load_robot("youbot")
     q = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
-    print(wbc.__file__, robot.frame_pose(q, "ee").shape == (4, 4), len(wbc.shipped.scenario_names()), sep="|")
+    print(wbc.__file__, robot.frame_pose(q, "ee").shape == (4, 4), len(wbc.model.shipped.scenario_names()), sep="|")
 """)
 
 

@@ -13,7 +13,7 @@ from wbc.scenario import load_scenario
 plt = pytest.importorskip("matplotlib.pyplot")
 
 YOUBOT_ARM = ["arm_joint_1", "arm_joint_2", "arm_joint_3", "arm_joint_4", "arm_joint_5"]
-MECANUM_ORDER = ["FL", "FR", "RL", "RR"]  # wbc.base.MecanumWheels
+MECANUM_ORDER = ["FL", "FR", "RL", "RR"]  # wbc.model.mobile_base.MecanumWheels
 YOUBOT_LINEAR_LIMIT, YOUBOT_WHEEL_LIMIT = 0.8, 16.842105263157894  # models/youbot/youbot.toml [m/s], [rad/s]
 
 

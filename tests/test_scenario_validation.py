@@ -285,7 +285,7 @@ def test_a_urdf_without_joints_is_a_model_error(tmp_path):
 def test_a_robot_too_large_for_pinocchios_data_is_refused_before_it_is_built(tmp_path):
     """Pinocchio's Data takes O(nv^3) memory (~4 GB at 400 joints); a 1000-joint chain was killed
     at 24 GB. The limit is checked on the parsed model, before any Data exists."""
-    from wbc.robot import MAX_VELOCITY_DOF
+    from wbc.model.robot import MAX_VELOCITY_DOF
 
     links = "".join(f'<link name="l{i}"/>' for i in range(MAX_VELOCITY_DOF + 2))
     joints = "".join(f'<joint name="j{i}" type="revolute"><parent link="l{i}"/><child link="l{i + 1}"/>'

@@ -5,11 +5,10 @@ Data flows one way each tick::
     Robot (model)  ->  Kinematics (computed once)  ->  tasks + constraints
                    ->  QP (preallocated)  ->  solver  ->  command v + Controller.last
 
-Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base`
+Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wbc.model.mobile_base`
 (base pose and base-frame twists).
 """
 
-from .base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .constraints import (
     Constraint,
     JointPositionLimits,
@@ -32,9 +31,10 @@ from .core.errors import (
 )
 from .core.outcome import Outcome
 from .diagnostics import TickDiagnostics
-from .manipulability import Manipulability, manipulability, manipulability_gradient
+from .model.manipulability import Manipulability, manipulability, manipulability_gradient
+from .model.mobile_base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .model.robot import Robot, load_robot, model_path, shipped_models
 from .qp import QP
-from .robot import Robot, load_robot, model_path, shipped_models
 from .solvers import available_solvers
 from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
 

@@ -238,7 +238,7 @@ def _solvers(args: argparse.Namespace) -> int:
 
 
 def _scenarios(args: argparse.Namespace) -> int:
-    from . import shipped
+    from .model import shipped
 
     names = shipped.scenario_names()
     width = max(map(len, names))
@@ -265,7 +265,7 @@ def _warmup(args: argparse.Namespace) -> int:
 def _singularities(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .robot import load_robot
+    from .model.robot import load_robot
     from .singularity import singular_systems, verify
 
     robot = load_robot(args.model)

@@ -13,8 +13,8 @@ from numpy.typing import NDArray
 from .constraints import ManipulabilityBarrier
 from .controller import Controller
 from .core.errors import InvalidInputError
-from .manipulability import manipulability
-from .robot import Robot
+from .model.manipulability import manipulability
+from .model.robot import Robot
 from .scenario import Scenario
 from .tasks import FrameTask, ManipulabilityTask, PositionTask, PostureTask, Task
 from .tasks.frame_task import FrameTaskData

@@ -37,13 +37,13 @@ from .core.validation import as_flag, as_items, as_nonnegative, as_positive, fin
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
-from .kinematics import Kinematics
 from .layout import ConstraintLayout, TaskStack
 from .lifting import LiftedQP, dense_rows, worth_lifting
 from .lm_damping import LMDamping
+from .model.kinematics import Kinematics
+from .model.robot import Robot
 from .qp import QP
 from .reduction import InputReduction
-from .robot import Robot
 from .runtime import kernels
 from .runtime.program import TickProgram, ops_follow_compute
 from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver

@@ -10,7 +10,7 @@ from typing import Any, ClassVar, NamedTuple
 import numpy as np
 
 from .core.errors import InvalidInputError
-from .robot import Robot
+from .model.robot import Robot
 
 
 class Item:

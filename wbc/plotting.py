@@ -23,8 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from .closed_loop import RunResult, manipulability_traces, posture_traces
+from .model.robot import Robot
 from .outputs import check_output, write_atomically
-from .robot import Robot
 from .scenario import Scenario
 
 if TYPE_CHECKING:
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from matplotlib.typing import HashableList
 
 FLOOR_DECADES = 3  #: the error panels' log axes start this many decades below the median error
-WHEEL_NAMES = {4: ["FL", "FR", "RL", "RR"], 2: ["left", "right"]}  #: wheel order of wbc.base
+WHEEL_NAMES = {4: ["FL", "FR", "RL", "RR"], 2: ["left", "right"]}  #: wheel order of wbc.model.mobile_base
 GRID_COLUMNS = 6  #: the figure's grid: 1, 2 or 3 panels per row (four speed panels: two rows)
 MAX_LINES = 6  #: joints drawn by name in a speed panel (the closest to their limits)
 NEGLIGIBLE = 0.01  #: a speed panel whose every ratio stays below this says "barely moves"

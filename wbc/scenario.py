@@ -48,14 +48,14 @@ from numpy.typing import ArrayLike, NDArray
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from . import constraints as constraint_module
-from . import shipped
 from . import tasks as task_module
 from .constraints import Constraint
 from .controller import DEFAULT_LM_DAMPING, Controller
 from .core.errors import ScenarioError, WbcError
 from .core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
+from .model import shipped
+from .model.robot import Robot, load_robot
 from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
-from .robot import Robot, load_robot
 from .tasks import FrameTask, PositionTask, PostureTask, Task
 from .trajectory.scenario_spec import plan_from_spec
 
@@ -225,7 +225,7 @@ class Scenario:
 def scenario_file(name_or_path: str | Path) -> Path:
     """The file of a scenario given by path, or by the name of a shipped scenario
     (``"youbot_circle"``: a string without a folder or a suffix that names no existing file;
-    :func:`wbc.shipped.scenario_names` lists them)."""
+    :func:`wbc.model.shipped.scenario_names` lists them)."""
     path = Path(name_or_path)
     if isinstance(name_or_path, str) and path.name == name_or_path and not path.suffix and not path.exists():
         if name_or_path in shipped.scenario_names():

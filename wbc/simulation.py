@@ -13,7 +13,7 @@ import numpy as np
 
 from .core.errors import ModelError
 from .core.validation import as_positive
-from .robot import Robot, model_path
+from .model.robot import Robot, model_path
 
 
 class MujocoSimulation:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .core.errors import ModelError
-from .robot import Robot
+from .model.robot import Robot
 
 Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 Projection = Callable[[NDArray[np.float64]], NDArray[np.float64] | None]

@@ -1,7 +1,7 @@
 """Singularities: certified analytic conditions and numeric rank tools (docs/singularities.md).
 
 All numeric tools work on the frame Jacobian the controller uses: 6 x n, world-aligned
-axes at the frame origin, rows (linear [m/s]; angular [rad/s]) -- see :mod:`wbc.robot` --
+axes at the frame origin, rows (linear [m/s]; angular [rad/s]) -- see :mod:`wbc.model.robot` --
 restricted to the columns of the moving joints. Rank does not depend on that choice of
 axes or reference point on the same body: changing them multiplies J by an invertible
 6 x 6 adjoint.
@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .core.errors import InvalidInputError
 from .core.validation import as_positive
-from .robot import Robot
+from .model.robot import Robot
 from .scorbot import scorbot_dh_angles, scorbot_measured_angles
 from .singular_sets import SingularCondition, SingularSystem, registered_models, singular_systems
 

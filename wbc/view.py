@@ -36,9 +36,9 @@ import viser
 from numpy.typing import ArrayLike, NDArray
 
 from .closed_loop import RunResult, TickObserver, orientation_tracked
+from .model.robot import Robot
 from .outputs import HTML_FORMATS, check_output, write_atomically
 from .references import ReferenceMotion
-from .robot import Robot
 from .scenario import Scenario
 
 Colour = tuple[int, int, int]

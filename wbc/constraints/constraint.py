@@ -20,8 +20,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..item import Item
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime.program import TickProgram
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import Kinematics
+from ..model.kinematics import Kinematics
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 

@@ -6,8 +6,8 @@ import numpy as np
 
 from ..core.settings import Operand
 from ..core.validation import as_gain
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows

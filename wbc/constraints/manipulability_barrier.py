@@ -7,16 +7,16 @@ import numpy as np
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
 from ..core.validation import as_gain, as_positive
-from ..kinematics import Kinematics
-from ..manipulability import Manipulability, Rows, row_selection
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.manipulability import Manipulability, Rows, row_selection
+from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
 
 
 class ManipulabilityBarrier(Constraint):
-    """One inequality row that keeps ``m(q) >= m_min`` (see :mod:`wbc.manipulability`)::
+    """One inequality row that keeps ``m(q) >= m_min`` (see :mod:`wbc.model.manipulability`)::
 
         grad m(q) . v  >=  -gain (m(q) - m_min) / dt      written as   -grad m . v <= gain (m - m_min) / dt
 

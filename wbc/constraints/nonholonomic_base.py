@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..core.errors import InvalidInputError
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base import BaseKind
 from ..core.errors import InvalidInputError
 from ..core.validation import as_positive
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.mobile_base import BaseKind
+from ..model.robot import Robot
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
@@ -18,7 +18,7 @@ class WheelSpeedLimits(Constraint):
     """``|u_i| <= u_max`` for the wheel speeds ``u = H0 B(heading) v`` of the base.
 
     ``B`` rotates the world base rates into the base-frame twist ``(v_x, v_y, omega)``
-    (see :mod:`wbc.base`) and ``H0`` is the wheel model's inverse kinematics
+    (see :mod:`wbc.model.mobile_base`) and ``H0`` is the wheel model's inverse kinematics
     (:meth:`MecanumWheels.inverse_matrix`, :meth:`DifferentialWheels.inverse_matrix`).
     Each wheel gives two rows, ``+-H0_i B v <= u_max``.
 

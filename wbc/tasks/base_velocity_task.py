@@ -10,8 +10,8 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.errors import InvalidInputError
 from ..core.settings import Cost
 from ..core.validation import as_vector
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from .task import Task, TaskData
 
 

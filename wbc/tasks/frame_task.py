@@ -8,8 +8,8 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.errors import InvalidInputError
 from ..core.settings import Cost, Operand
 from ..core.validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
-from ..kinematics import Kinematics, frame_in_joint
-from ..robot import Robot
+from ..model.kinematics import Kinematics, frame_in_joint
+from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .task import Task, TaskData, _norm

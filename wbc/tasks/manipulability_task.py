@@ -9,14 +9,14 @@ import numpy as np
 from ..core.errors import InvalidInputError
 from ..core.settings import Setting
 from ..core.validation import as_gain, as_nonnegative, as_positive
-from ..kinematics import Kinematics
-from ..manipulability import Manipulability, Rows, row_selection
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.manipulability import Manipulability, Rows, row_selection
+from ..model.robot import Robot
 from .task import Task, TaskData
 
 
 class ManipulabilityTask(Task):
-    """Pull the manipulability ``m`` of a frame (see :mod:`wbc.manipulability`) toward ``m*``.
+    """Pull the manipulability ``m`` of a frame (see :mod:`wbc.model.manipulability`) toward ``m*``.
 
     The task works on ``ln m``, so it is free of the units of ``m`` and pushes harder the
     closer the robot is to a singularity (``grad ln m = grad m / m`` grows as ``m -> 0``).

@@ -11,8 +11,8 @@ from numpy.typing import ArrayLike
 
 from ..core.errors import InvalidInputError
 from ..core.validation import as_gain, as_vector, as_weights
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .task import Task, TaskData, _norm

@@ -9,8 +9,8 @@ import numpy as np
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
 from ..core.validation import as_gain, as_positive
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .task import Task, TaskData

@@ -19,8 +19,8 @@ import math
 import numpy as np
 
 from ..item import Item
-from ..kinematics import Kinematics
-from ..robot import Robot
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
 from ..runtime.program import TickProgram
 
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InvalidInputError
-from ..robot import Robot
+from ..model.robot import Robot
 from .sampling import JointTrajectory
 
 

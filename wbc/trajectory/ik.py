@@ -21,7 +21,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike
 
 from ..core.validation import as_pose, as_positive
-from ..robot import Robot
+from ..model.robot import Robot
 
 TOLERANCE = 1e-10  #: [m] and [rad]: converged when both error norms are below this
 DAMPING = 1e-4  #: lambda [in J's units]: regularises near singular poses

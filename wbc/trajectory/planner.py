@@ -41,7 +41,7 @@ from numpy.typing import ArrayLike
 
 from ..core.errors import InvalidInputError, PlanningError
 from ..core.validation import as_positive
-from ..robot import Robot
+from ..model.robot import Robot
 from ..singularity import singularity_measure
 from .flips import WristFlip, branch_switches, wrist_flips
 from .paths import Path, SubPath, TimedPath

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ..core.errors import PlanningError
-from ..robot import Robot
+from ..model.robot import Robot
 from ..singularity import singularity_measure
 from .ik import solve_ik
 from .paths import TimedPath

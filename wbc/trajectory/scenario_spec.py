@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..core.errors import ScenarioError
-from ..robot import Robot
+from ..model.robot import Robot
 from .paths import ArcPath, LinePath, Path
 from .planner import MARGIN, Plan, plan
 

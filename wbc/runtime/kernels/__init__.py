@@ -4,7 +4,7 @@ In CPython every numpy call on a small array costs 0.25-1 us, whatever it comput
 QP of one youBot tick needs ~40 of them. The kernels do the arithmetic of the hottest
 tasks and constraints, and of the QP assembly, in one native call each (~0.2 us to
 enter). Pinocchio still computes the kinematics: the kernels read its joint placements
-and joint Jacobians in place (see :class:`wbc.kinematics.Kinematics`).
+and joint Jacobians in place (see :class:`wbc.model.kinematics.Kinematics`).
 
 This package module holds only pure Python: the layouts the kernels share with the tasks
 (``FRAME_*``, ``POSITION_*``, ``POSE_*``), the opcodes of the tick program (``OP_*``) and
@@ -14,7 +14,7 @@ steering, position-limit and heading rows), :mod:`.manipulability`, :mod:`.assem
 (normal equations, preview solve, bound clip, cost normalisation, NaN screen, answer
 check), :mod:`.hierarchy` (the levels of strict priorities) and :mod:`.tick` (the
 program interpreter) -- imported by :func:`load` on the first access of a
-compiled function (``kernels.run_program``; :class:`~wbc.kinematics.Kinematics`
+compiled function (``kernels.run_program``; :class:`~wbc.model.kinematics.Kinematics`
 calls :func:`load`, so building a controller does), never by ``import wbc``. :func:`load`
 binds every compiled function into this namespace, so later ``kernels.x`` lookups are
 plain attribute hits (the module ``__getattr__`` runs only before the first load).
@@ -38,7 +38,7 @@ and, when they differ, deletes all of the package's cache entries: a change to a
 file recompiles every kernel. Kernel code belongs in this package only (a jitted function
 elsewhere that calls these kernels is not covered by the rule).
 
-Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
+Conventions: as in :mod:`wbc.model.robot` -- world-aligned axes, twists (linear; angular),
 rotation matrices row-major 3x3.
 """
 
@@ -86,7 +86,7 @@ GRAM_CONDITION = 1e-8
  OP_LIFT) = range(1, 15)
 #: a third-party op (wbc.runtime.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
 OP_EXTERNAL = 100
-#: forward kinematics of a chain of 1-DOF joints (wbc.kinematics' native mode)
+#: forward kinematics of a chain of 1-DOF joints (wbc.model.kinematics' native mode)
 OP_FORWARD_KINEMATICS = 15
 #: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)

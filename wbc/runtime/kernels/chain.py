@@ -1,5 +1,5 @@
 """Forward kinematics of chains of 1-DOF joints (revolute, prismatic, any axis): the joint
-placements and joint Jacobians of :class:`wbc.kinematics.Kinematics` in its native mode,
+placements and joint Jacobians of :class:`wbc.model.kinematics.Kinematics` in its native mode,
 in the layouts the other kernels read (Pinocchio's, see ``CHAIN_*`` in :mod:`wbc.runtime.kernels`).
 """
 

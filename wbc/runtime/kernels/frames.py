@@ -1,6 +1,6 @@
 """SO(3), pose validation, frame Jacobians and the rows of FrameTask / PositionTask.
 
-Conventions: as in :mod:`wbc.robot` -- world-aligned axes, twists (linear; angular),
+Conventions: as in :mod:`wbc.model.robot` -- world-aligned axes, twists (linear; angular),
 rotation matrices row-major 3x3; layouts: the ``FRAME_*``, ``POSITION_*`` and ``POSE_*``
 constants of :mod:`wbc.runtime.kernels`.
 """

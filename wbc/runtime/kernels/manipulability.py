@@ -1,5 +1,5 @@
 """Yoshikawa manipulability: its analytic gradient and the ManipulabilityBarrier row
-(math in docs/manipulability.md and :mod:`wbc.manipulability`).
+(math in docs/manipulability.md and :mod:`wbc.model.manipulability`).
 """
 
 from __future__ import annotations
@@ -127,7 +127,7 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
 
     ``dm/dq_i = <G, dJ/dq_i>`` with ``G = m (J J^T)^-1 J`` (wide) / ``m J (J^T J)^-1`` (tall)
     while the Gram matrix is well conditioned (Cholesky), else ``G = U diag(c) V^T`` from the
-    SVD, ``c_l`` the product of the other singular values (see :mod:`wbc.manipulability`).
+    SVD, ``c_l`` the product of the other singular values (see :mod:`wbc.model.manipulability`).
 
     Row selections are ``0:6``, ``0:3`` or ``3:6``. ``dJ/dq_i`` for a chain of 1-DOF joints, from the joint
     columns ``S_k = (v_k; w_k)`` (spatial, world origin): moving ``q_i`` moves the subtree of joint i rigidly, so

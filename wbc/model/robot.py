@@ -26,11 +26,11 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, ValidationError
 
+from ..core.errors import InvalidInputError, ModelError, UnknownFrameError
+from ..core.schema import Positive, Table, explain, read_toml, suggest
+from ..core.validation import as_positive, as_vector
 from . import shipped
-from .base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
-from .core.errors import InvalidInputError, ModelError, UnknownFrameError
-from .core.schema import Positive, Table, explain, read_toml, suggest
-from .core.validation import as_positive, as_vector
+from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -47,7 +47,7 @@ class Robot:
     Build it with :func:`load_robot`. Attributes:
 
     * ``model`` -- the ``pinocchio.Model`` (read it, do not mutate it);
-    * ``base`` -- the :class:`~wbc.base.MobileBase`;
+    * ``base`` -- the :class:`~wbc.model.mobile_base.MobileBase`;
     * ``lower``, ``upper`` -- position limits (size nq, ``+-inf`` where unbounded);
     * ``velocity_limit`` -- symmetric speed limits (size nv) [rad/s or m/s]; for a
       mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``.
@@ -233,8 +233,8 @@ class Robot:
     def wheel_speeds(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
         """Wheel angular rates [rad/s] realising ``v`` (mecanum: 4, differential drive: 2).
 
-        Order and sign conventions: :class:`~wbc.base.MecanumWheels`,
-        :class:`~wbc.base.DifferentialWheels`.
+        Order and sign conventions: :class:`~wbc.model.mobile_base.MecanumWheels`,
+        :class:`~wbc.model.mobile_base.DifferentialWheels`.
 
         Raises:
             InvalidInputError: the model declares no wheel geometry, or a malformed ``q`` or ``v``.
@@ -295,7 +295,7 @@ class Robot:
 
 # ---------------------------------------------------------------------------- loading
 def shipped_models() -> list[str]:
-    """Names of the robots shipped with wbc (the folders of ``models/``, :mod:`wbc.shipped`)."""
+    """Names of the robots shipped with wbc (the folders of ``models/``, :mod:`wbc.model.shipped`)."""
     root = shipped.folder("models")
     return sorted(p.name for p in root.iterdir() if p.is_dir() and (p / f"{p.name}.toml").is_file())
 

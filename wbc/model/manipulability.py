@@ -26,8 +26,8 @@ arbitrary. The derivative is taken along the tangent directions
 of ``q`` (``pin.integrate``), so ``dm/dt = grad m . v`` for any joint type,
 prismatic and planar-base joints included.
 
-Note: ``wbc.manipulability`` is the function; import the module's other names with
-``from wbc.manipulability import Manipulability``.
+Note: ``wbc.manipulability`` is the function (exported from :mod:`wbc`); import this module's other names with
+``from wbc.model.manipulability import Manipulability``.
 """
 
 from __future__ import annotations
@@ -39,10 +39,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.linalg.lapack import dgesvd, dposv
 
-from .core.errors import InvalidInputError
+from ..core.errors import InvalidInputError
+from ..runtime import kernels
 from .kinematics import Kinematics, frame_in_joint
 from .robot import Robot
-from .runtime import kernels
 
 ROWS = {"all": slice(0, 6), "position": slice(0, 3), "orientation": slice(3, 6)}
 """Row selections of a 6 x nv Jacobian (rows are (linear; angular))."""
@@ -62,14 +62,14 @@ def row_selection(rows: str) -> slice:
 class Manipulability:
     """Manipulability ``m`` and its gradient for one frame and row selection.
 
-    :meth:`compute` reads an already updated :class:`~wbc.kinematics.Kinematics`
+    :meth:`compute` reads an already updated :class:`~wbc.model.kinematics.Kinematics`
     (the controller's, on the hot path) and leaves the results in :attr:`value`
     and :attr:`gradient` (size nv, overwritten in place).
 
     When every joint between the root and the frame has one DOF (all shipped models), the
     whole evaluation is one compiled call (:func:`wbc.runtime.kernels.manipulability_gradient`,
     ``dJ/dq`` from the joint Jacobians); otherwise the derivative comes from the kinematic
-    Hessian (:meth:`wbc.kinematics.Kinematics.frame_hessian`).
+    Hessian (:meth:`wbc.model.kinematics.Kinematics.frame_hessian`).
     """
 
     def __init__(self, robot: Robot, frame: str, rows: Rows = "all") -> None:

@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pinocchio as pin
 
-from .core.errors import ModelError
+from ..core.errors import ModelError
+from ..runtime import kernels
 from .robot import Robot
-from .runtime import kernels
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .runtime.program import TickProgram
+    from ..runtime.program import TickProgram
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -28,7 +28,7 @@ class Kinematics:
     :meth:`update` computes the joint placements and joint Jacobians once per tick; frame
     placements and Jacobians are then read without recomputing the chain. Kinematic
     Hessians are computed on the first :meth:`frame_hessian` call of a tick only.
-    Conventions as in :mod:`wbc.robot`.
+    Conventions as in :mod:`wbc.model.robot`.
 
     **Native mode** (every joint 1-DOF revolute or prismatic, :func:`native_chain`; all
     shipped robots): the compiled :func:`wbc.runtime.kernels.forward_kinematics` computes the joint

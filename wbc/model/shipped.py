@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 from typing import Literal
 
-from .core.errors import WbcError
+from ..core.errors import WbcError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -23,7 +23,7 @@ else:  # pragma: no cover
 
 Kind = Literal["models", "scenarios"]
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]  # wbc/ (this file is wbc/model/shipped.py)
 #: where each kind lives in a source tree (the installed name is the kind itself)
 _SOURCE_FOLDER: dict[str, str] = {"models": "models", "scenarios": "tasks"}
 
