@@ -19,7 +19,7 @@ Layout (format version :data:`VERSION`) in ``<out>/v<VERSION>/``::
                      (bounds, then rows, active at x_ref), ref_residuals (T,3) primal/dual/gap of
                      x_ref, q (T,nq), time (T,)
 
-The QP is ``min 1/2 x'Hx + c'x  s.t.  G x <= h, A x = b, lb <= x <= ub`` (``wbc.qp.QP``).
+The QP is ``min 1/2 x'Hx + c'x  s.t.  G x <= h, A x = b, lb <= x <= ub`` (``wbc.qp.problem.QP``).
 :func:`load` reads it back; :meth:`ScenarioQPs.problem` gives a ``qpsolvers.Problem``.
 """
 

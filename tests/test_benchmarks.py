@@ -78,7 +78,7 @@ def test_shifted_geometric_mean():
 # ------------------------------------------------------------ qpbenchmark test set
 def test_conversion_to_qpbenchmark_keeps_wbc_qp(small_dataset):
     """lb/ub, G x <= h, A x = b describe the same feasible set and optimum as wbc's [I; C] layout."""
-    from wbc.qp import QP
+    from wbc.qp.problem import QP
     from wbc.solvers import make_solver
 
     out, _, _ = small_dataset

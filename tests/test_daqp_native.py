@@ -15,7 +15,7 @@ import wbc
 from conftest import TASKS
 from wbc import daqp_abi
 from wbc.daqp_native import NativeWorkspace
-from wbc.qp import QP
+from wbc.qp.problem import QP
 from wbc.runtime import kernels
 from wbc.scenario import load_scenario
 from wbc.solvers import DaqpBackend

@@ -63,7 +63,7 @@ import wbc
 
 def _chain24() -> wbc.Robot:
     """A 24-DOF mobile chain (benchmarks.scaling's): its controllers solve the lifted QP
-    (wbc.lifting) whenever at most 12 task rows are dense."""
+    (wbc.qp.lifting) whenever at most 12 task rows are dense."""
     from conftest import ROOT
 
     if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed

@@ -5,7 +5,7 @@ import pytest
 
 import wbc
 from wbc.core.errors import InvalidInputError, WbcError
-from wbc.qp import QP
+from wbc.qp.problem import QP
 from wbc.solver_options import BUDGET_KEYS, InvalidSolverOptionError, valid_options
 from wbc.solvers import make_solver
 

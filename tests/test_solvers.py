@@ -8,7 +8,7 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, TASKS
-from wbc.qp import QP
+from wbc.qp.problem import QP
 from wbc.scenario import load_scenario
 from wbc.solvers import make_solver
 
@@ -154,7 +154,7 @@ import subprocess
 import sys
 
 import numpy as np
-from wbc.qp import QP
+from wbc.qp.problem import QP
 from wbc.solvers import make_solver
 
 solver = make_solver(sys.argv[1])

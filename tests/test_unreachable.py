@@ -352,7 +352,7 @@ def test_a_hierarchy_damps_each_level_with_its_own_tasks(youbot):
 
 
 def test_the_lifted_qp_of_a_high_dof_robot_is_damped_alike(tmp_path):
-    """32 DOF (the lifted QP of wbc.lifting, H never formed): the command is the written-out
+    """32 DOF (the lifted QP of wbc.qp.lifting, H never formed): the command is the written-out
     dense QP's optimum with the FrameTask's term in the damping."""
     path = tmp_path / "chain32.urdf"
     path.write_text(chain_urdf(32))

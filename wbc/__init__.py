@@ -34,7 +34,7 @@ from .diagnostics import TickDiagnostics
 from .model.manipulability import Manipulability, manipulability, manipulability_gradient
 from .model.mobile_base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .model.robot import Robot, load_robot, model_path, shipped_models
-from .qp import QP
+from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
 

@@ -3,17 +3,17 @@
 The whole tick is :meth:`Controller.step`; everything it uses is allocated once, when the
 controller is built, by named pieces:
 
-* the **layout** (:mod:`wbc.layout`): the task stack ``[W J | W r]`` (the tasks' rows, then
+* the **layout** (:mod:`wbc.qp.layout`): the task stack ``[W J | W r]`` (the tasks' rows, then
   ``sqrt(damping) I``, then the preview tasks' rows) and where each constraint writes;
-* the **bound policy** (:class:`wbc.bounds.BoundPolicy`): hard bounds intersected, soft
+* the **bound policy** (:class:`wbc.qp.bounds.BoundPolicy`): hard bounds intersected, soft
   ones clipped into them;
 * the **program** (:class:`wbc.runtime.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
   the cost normalisation, the NaN screen and -- with DAQP on its native path
   (:mod:`wbc.daqp_native`) -- the solve and the check of its answer; at high DOF the QP
-  is assembled in its lifted form (:mod:`wbc.lifting`: the dense task rows as variables);
+  is assembled in its lifted form (:mod:`wbc.qp.lifting`: the dense task rows as variables);
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
-  **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
+  **input reduction** (:class:`wbc.qp.reduction.InputReduction`, ``reduced=True``);
 * the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
   :class:`wbc.core.outcome.Outcome`;
 * with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.hierarchy`.
@@ -37,13 +37,13 @@ from .core.validation import as_flag, as_items, as_nonnegative, as_positive, fin
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
-from .layout import ConstraintLayout, TaskStack
-from .lifting import LiftedQP, dense_rows, worth_lifting
 from .lm_damping import LMDamping
 from .model.kinematics import Kinematics
 from .model.robot import Robot
-from .qp import QP
-from .reduction import InputReduction
+from .qp.layout import ConstraintLayout, TaskStack
+from .qp.lifting import LiftedQP, dense_rows, worth_lifting
+from .qp.problem import QP
+from .qp.reduction import InputReduction
 from .runtime import kernels
 from .runtime.program import TickProgram, ops_follow_compute
 from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
@@ -310,7 +310,7 @@ class Controller:
             self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
             self._finish_program(program, rest)
             return
-        # high DOF with native DAQP: the dense task rows as variables (wbc.lifting), H never formed
+        # high DOF with native DAQP: the dense task rows as variables (wbc.qp.lifting), H never formed
         self._lifted = None
         if not self.reduced and not self._preview_blocks and getattr(self.solver, "native", False):
             diagonal = dense_rows(self._task_stack, nv)
@@ -439,7 +439,7 @@ class Controller:
         else:
             solution = self._solver.collect() if self._solve_in_program else self._solver.solve(qp)
             solution = self._checked(solution, qp)
-            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.lifting)
+            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.qp.lifting)
                 spent = solution.solve_time
                 qp = self._lifted.fill_dense(self._stack_t, self._n_plain, self._cost_scaling)
                 solution = self._checked(self._solver.solve(qp), qp)

@@ -194,7 +194,7 @@ def probe(library: Library) -> str | None:
     compiled solve: x = (0, 1) (the projection of (1, 2) onto the row).
     """
     from .daqp_native import NativeWorkspace
-    from .qp import QP
+    from .qp.problem import QP
     from .runtime import kernels
 
     layout = {"problem words": (words(Problem), kernels.DAQP_PROBLEM_WORDS),

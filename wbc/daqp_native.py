@@ -1,6 +1,6 @@
 """One DAQP workspace on one QP's buffers, solved by compiled code (no Python binding).
 
-DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.QP`: H, c, [G; A], upper,
+DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.problem.QP`: H, c, [G; A], upper,
 lower), so a tick hands it nothing: :func:`wbc.runtime.kernels.native_qp.daqp_solve` re-forms the
 factorisation (``daqp_update_ldp``), solves (``daqp_solve``), checks the answer against the
 QP's bounds and rows (:func:`wbc.runtime.kernels.qp_defect`) and times itself -- as an op of the
@@ -27,7 +27,7 @@ import numpy as np
 
 from . import daqp_abi
 from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
-from .qp import QP
+from .qp.problem import QP
 from .runtime import kernels
 from .runtime.kernels import DAQP_CONTROL_ITERATIONS, DAQP_CONTROL_MASK, DAQP_CONTROL_OUTCOME, DAQP_CONTROL_SIZE
 from .runtime.program import TickProgram

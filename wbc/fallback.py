@@ -22,7 +22,7 @@ import numpy as np
 
 from .core.errors import SolverError
 from .core.outcome import Outcome
-from .qp import QP
+from .qp.problem import QP
 from .runtime import kernels
 from .solvers import QPSolution
 

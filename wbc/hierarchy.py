@@ -3,7 +3,7 @@
 A list of lists is a priority order, highest first; a flat list is one level (the weighted QP of
 :mod:`wbc.controller`, unchanged). Level k is the least-squares term ``|A_k v - b_k|^2`` of its
 tasks, weighted among themselves as in one level: its rows ``A = [W J | W r]`` are rows of the
-controller's one task stack (:class:`wbc.layout.TaskStack`, tasks ordered by level). The levels
+controller's one task stack (:class:`wbc.qp.layout.TaskStack`, tasks ordered by level). The levels
 are solved in order -- a *cascade* -- each as a QP with every constraint of the controller::
 
     level k:  min |A_k v - b_k|^2  (+ damping |v|^2 at the last level)
@@ -88,10 +88,10 @@ from .core.errors import InvalidInputError
 from .core.outcome import Outcome
 from .core.validation import as_items
 from .fallback import ANSWER_TOLERANCE, Fallback
-from .layout import TaskBlock, TaskStack
 from .lm_damping import LMDamping
-from .qp import QP
-from .reduction import InputReduction
+from .qp.layout import TaskBlock, TaskStack
+from .qp.problem import QP
+from .qp.reduction import InputReduction
 from .runtime import kernels
 from .runtime.kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
 from .runtime.program import TickProgram, ops_follow_compute

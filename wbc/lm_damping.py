@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import TaskBlock
+from .qp.layout import TaskBlock
 from .runtime import kernels
 from .runtime.program import TickProgram
 

@@ -2,7 +2,7 @@
 
 Every solver that qpsolvers finds installed works by name through
 :class:`QpsolversBackend`. ``"daqp"`` additionally has a direct backend that hands
-the preallocated buffers of :class:`~wbc.qp.QP` to DAQP without any copy.
+the preallocated buffers of :class:`~wbc.qp.problem.QP` to DAQP without any copy.
 
 Default settings aim at control-grade accuracy (primal/dual residuals ~1e-9) so
 that all backends return the same command; override them with ``options``.
@@ -26,7 +26,7 @@ from .core.errors import UnknownSolverError
 from .core.quiet import silenced
 from .core.validation import all_finite
 from .daqp_native import NativeWorkspace
-from .qp import QP
+from .qp.problem import QP
 from .runtime import kernels
 from .runtime.program import TickProgram
 from .solver_options import BUDGET_KEYS, validate_options

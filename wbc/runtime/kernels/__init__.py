@@ -90,7 +90,7 @@ OP_EXTERNAL = 100
 OP_FORWARD_KINEMATICS = 15
 #: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
-#: the optimality certificate of a lifted QP's answer (wbc.lifting)
+#: the optimality certificate of a lifted QP's answer (wbc.qp.lifting)
 OP_LIFT_CHECK = 20
 #: the error-scaled (Levenberg-Marquardt) damping of the tasks (Controller.lm_damping): each task's
 #: mu summed per level, then written into the damping rows of one weighted level, or added to the

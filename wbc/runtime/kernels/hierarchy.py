@@ -4,7 +4,7 @@ are solved, the band rows that hold their task values (:func:`band_rows`); a lev
 normalised like the one-level QP (:func:`normalise_level`); and the holonomic preview of a
 hierarchy is its cascade without constraints (:func:`hierarchy_preview`).
 
-QP layouts are those of :class:`wbc.qp.QP` (one flat buffer: H, c, C, upper, lower).
+QP layouts are those of :class:`wbc.qp.problem.QP` (one flat buffer: H, c, C, upper, lower).
 """
 
 from __future__ import annotations

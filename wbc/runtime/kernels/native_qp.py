@@ -83,7 +83,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
                data: np.ndarray, x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
                steady_mask: int) -> None:
     """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
-    flat buffer, :class:`wbc.qp.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
+    flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
 
     ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
     fresh buffers, ``daqp_solve`` writes x (``result`` points to ``x``); the answer is then

@@ -33,13 +33,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from .layout import TaskStack
-from .qp import QP
-from .runtime import kernels
-from .runtime.program import TickProgram
+from .problem import QP
 
 if TYPE_CHECKING:
-    from .daqp_native import NativeWorkspace
+    from ..daqp_native import NativeWorkspace
 
 #: smallest number of velocity coordinates at which the lifted form is used: below it the
 #: dense QP is as fast (measured: benchmarks/README.md, "Scaling")
