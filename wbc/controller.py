@@ -10,7 +10,7 @@ controller is built, by named pieces:
 * the **program** (:class:`wbc.runtime.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
   the cost normalisation, the NaN screen and -- with DAQP on its native path
-  (:mod:`wbc.daqp_native`) -- the solve and the check of its answer; at high DOF the QP
+  (:mod:`wbc.solvers.daqp.native`) -- the solve and the check of its answer; at high DOF the QP
   is assembled in its lifted form (:mod:`wbc.qp.lifting`: the dense task rows as variables);
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.qp.reduction.InputReduction`, ``reduced=True``);
@@ -71,7 +71,7 @@ class Controller:
         dt: control period [s]; per-tick gains and dampers refer to it.
         damping: Tikhonov term ``damping * |v|^2`` [cost] / [unit/s]^2, keeps H positive definite.
         lm_damping: scale (>= 0, dimensionless) of the error-scaled damping below; 0 turns it off.
-        solver_options: settings passed to the backend (override :data:`wbc.solvers.DEFAULT_SETTINGS`).
+        solver_options: settings passed to the backend (override :data:`wbc.solvers.solver.DEFAULT_SETTINGS`).
         reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have

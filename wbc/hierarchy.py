@@ -28,7 +28,7 @@ level infeasible (its own answer is feasible for the next), and linearly depende
 tasks of one level asking for the same thing) need no rank decision. ``v_j`` is projected onto
 the bounds before ``y_a`` is taken, so an answer a hair outside a bound does not move the band
 off it. A backend may stop outside a band row by its own primal tolerance, like outside any row:
-DAQP's in the levels (:data:`wbc.solvers.LEVEL_PRIMAL_TOL`, DAQP's default 1e-6 in its scaled
+DAQP's in the levels (:data:`wbc.solvers.daqp.backend.LEVEL_PRIMAL_TOL`, DAQP's default 1e-6 in its scaled
 rows, though a single-level controller uses 1e-9; measured up to 8e-7 relative) is then the
 effective relaxation, within the answer check of every tick
 (:data:`wbc.fallback.ANSWER_TOLERANCE`). A tighter one (``solver_options={"primal_tol": 1e-9}``)
@@ -51,7 +51,7 @@ trusted (a target out of reach), and the band then holds the damped task values.
 with the level's error, so it does not change the cascade at a fixed point. The steering
 preview of a hierarchy (below) leaves it out.
 
-**Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.daqp_native`)
+**Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.solvers.daqp.native`)
 the whole cascade -- each level's QP, solve, answer check and band -- runs inside the tick
 program, one warm-started DAQP workspace per level; otherwise (other backends, DAQP's binding,
 the reduced form of a nonholonomic base) the program builds every level's QP and the levels are
@@ -100,7 +100,7 @@ from .tasks.task import Task, TaskData
 
 if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller
-    from .daqp_native import NativeWorkspace
+    from .solvers.daqp.native import NativeWorkspace
 
 #: relative half-width of the band that holds a level's task values below it (see the module docstring)
 BAND = 1e-9
@@ -412,7 +412,7 @@ class Hierarchy:
 
 def _native_status(exitflag: int, defect: float) -> str:
     """Why a native DAQP solve's answer was not taken (the texts of :class:`wbc.solvers.DaqpBackend`)."""
-    from . import daqp_abi
+    from .solvers.daqp import abi as daqp_abi
 
     if exitflag < 1:
         return daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}")

@@ -39,7 +39,7 @@ from .layout import TaskStack
 from .problem import QP
 
 if TYPE_CHECKING:
-    from ..daqp_native import NativeWorkspace
+    from ..solvers.daqp.native import NativeWorkspace
 
 #: smallest number of velocity coordinates at which the lifted form is used: below it the
 #: dense QP is as fast (measured: benchmarks/README.md, "Scaling")

@@ -106,11 +106,11 @@ CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 
 # ------------------------------------------------------------ native DAQP
 
-#: float64 words of DAQP's C structures (checked against wbc.daqp_abi's ctypes layouts by its probe)
+#: float64 words of DAQP's C structures (checked against wbc.solvers.daqp.abi's ctypes layouts by its probe)
 DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
 #: int32 indices of DAQPResult's exitflag and iter (checked likewise)
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
-#: layout of the control vector of the compiled DAQP solve (wbc.daqp_native): the update mask
+#: layout of the control vector of the compiled DAQP solve (wbc.solvers.daqp.native): the update mask
 #: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
 #: answer), the solve time [s] and DAQP's iterations out
 DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS = range(5)

@@ -1,10 +1,10 @@
-"""DAQP called through its C API from compiled code (see :mod:`wbc.daqp_native`).
+"""DAQP called through its C API from compiled code (see :mod:`wbc.solvers.daqp.native`).
 
 The C functions are called through their addresses, passed in as int operands
-(:class:`wbc.daqp_abi.Entry`), by three small intrinsics that emit an indirect call: the
+(:class:`wbc.solvers.daqp.abi.Entry`), by three small intrinsics that emit an indirect call: the
 machine code then holds no address of this process, so numba can cache it like every
 other kernel. Pointers travel as int64 (the x86-64 and AArch64 ABIs pass both in the same
-registers); the structures are float64 arrays that wbc owns (``wbc.daqp_abi.struct_in``).
+registers); the structures are float64 arrays that wbc owns (``wbc.solvers.daqp.abi.struct_in``).
 """
 
 from __future__ import annotations
