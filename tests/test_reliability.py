@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 import wbc
 from wbc.constraints.constraint import Constraint
-from wbc.diagnostics import StaleDiagnosticsError
+from wbc.control.diagnostics import StaleDiagnosticsError
 from wbc.tasks.task import Task
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])

@@ -11,7 +11,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from .constraints import ManipulabilityBarrier
-from .controller import Controller
+from .control.controller import Controller
 from .core.errors import InvalidInputError
 from .model.manipulability import manipulability
 from .model.robot import Robot
@@ -195,7 +195,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     Raises:
         InvalidInputError: ``duration`` is less than half a tick, ``max_rows`` is not an
             int >= 1 or None, or ``scenario.reference`` is set without a ``reference_task`` to
-            move; or what :meth:`wbc.controller.Controller.step` raises (e.g. a task without a
+            move; or what :meth:`wbc.control.controller.Controller.step` raises (e.g. a task without a
             target).
     """
     controller = controller or scenario.make_controller(solver)

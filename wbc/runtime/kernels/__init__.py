@@ -88,7 +88,7 @@ GRAM_CONDITION = 1e-8
 OP_EXTERNAL = 100
 #: forward kinematics of a chain of 1-DOF joints (wbc.model.kinematics' native mode)
 OP_FORWARD_KINEMATICS = 15
-#: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
+#: strict task priorities (wbc.control.hierarchy, kernels in .hierarchy)
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
 #: the optimality certificate of a lifted QP's answer (wbc.qp.lifting)
 OP_LIFT_CHECK = 20

@@ -1,4 +1,4 @@
-"""Kernels of strict task priorities (:mod:`wbc.hierarchy`): the QP of each level below the
+"""Kernels of strict task priorities (:mod:`wbc.control.hierarchy`): the QP of each level below the
 first gets the controller's constraints (:func:`level_constraints`) and, once the levels above
 are solved, the band rows that hold their task values (:func:`band_rows`); a level's cost is
 normalised like the one-level QP (:func:`normalise_level`); and the holonomic preview of a

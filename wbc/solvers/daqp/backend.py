@@ -94,7 +94,7 @@ class DaqpBackend(QPSolver):
 
     def workspace(self, qp: QP) -> NativeWorkspace | None:
         """A native workspace of its own on ``qp`` (this backend's settings and warm start), for a
-        caller that solves several QPs every tick (the levels of :mod:`wbc.hierarchy`); None on
+        caller that solves several QPs every tick (the levels of :mod:`wbc.control.hierarchy`); None on
         the binding path."""
         return None if self._library is None else NativeWorkspace(self._library, qp, self.settings, self.warm_start)
 

@@ -14,9 +14,9 @@ controller is built, by named pieces:
   is assembled in its lifted form (:mod:`wbc.qp.lifting`: the dense task rows as variables);
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
   **input reduction** (:class:`wbc.qp.reduction.InputReduction`, ``reduced=True``);
-* the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
+* the **fallback chain** (:class:`wbc.control.fallback.Fallback`), driven by
   :class:`wbc.core.outcome.Outcome`;
-* with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.hierarchy`.
+* with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.control.hierarchy`.
 """
 
 from __future__ import annotations
@@ -29,25 +29,25 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .constraints.constraint import Constraint, ConstraintData
-from .core.errors import InvalidInputError
-from .core.outcome import Outcome
-from .core.settings import Setting
-from .core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
+from ..constraints.constraint import Constraint, ConstraintData
+from ..core.errors import InvalidInputError
+from ..core.outcome import Outcome
+from ..core.settings import Setting
+from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
+from ..qp.layout import ConstraintLayout, TaskStack
+from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
+from ..qp.problem import QP
+from ..qp.reduction import InputReduction
+from ..runtime import kernels
+from ..runtime.program import TickProgram, ops_follow_compute
+from ..solvers import DaqpBackend, QPSolution, QPSolver, make_solver
+from ..tasks.task import Task, TaskData
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
 from .lm_damping import LMDamping
-from .model.kinematics import Kinematics
-from .model.robot import Robot
-from .qp.layout import ConstraintLayout, TaskStack
-from .qp.lifting import LiftedQP, dense_rows, worth_lifting
-from .qp.problem import QP
-from .qp.reduction import InputReduction
-from .runtime import kernels
-from .runtime.program import TickProgram, ops_follow_compute
-from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
-from .tasks.task import Task, TaskData
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -64,7 +64,7 @@ class Controller:
     Args:
         robot: the robot model.
         tasks: cost terms (at least one), weighted in one QP; or a list of lists, a priority
-            order of levels, highest first (strict priorities, :mod:`wbc.hierarchy`).
+            order of levels, highest first (strict priorities, :mod:`wbc.control.hierarchy`).
         constraints: hard limits. A nonholonomic base needs :class:`~wbc.constraints.NonholonomicBase`
             unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
@@ -250,7 +250,7 @@ class Controller:
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
-        # strict priorities (wbc.hierarchy): one QP per level, their cascade and its fallback
+        # strict priorities (wbc.control.hierarchy): one QP per level, their cascade and its fallback
         self._hierarchy = None if self._level_sizes is None else Hierarchy(self, self._level_sizes)
         if self._hierarchy is not None:
             self._fallback = self._hierarchy.fallback
@@ -304,7 +304,7 @@ class Controller:
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.hierarchy)
+        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.control.hierarchy)
             self._lifted = None
             self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program)
             self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
