@@ -265,8 +265,8 @@ def _warmup(args: argparse.Namespace) -> int:
 def _singularities(args: argparse.Namespace) -> int:
     import numpy as np
 
+    from .analysis.singularity import singular_systems, verify
     from .model.robot import load_robot
-    from .singularity import singular_systems, verify
 
     robot = load_robot(args.model)
     rng = np.random.default_rng(args.seed)
