@@ -198,8 +198,8 @@ def record_scenario(path: Path, duration: float | None = None, show_progress: bo
     ``q0``: start the loop there instead of the scenario's initial configuration (its tasks and
     reference, built from the initial configuration, are unchanged: a perturbed start).
     """
+    from wbc.app.scenario import load_scenario
     from wbc.core.errors import SolverError
-    from wbc.scenario import load_scenario
 
     scenario = load_scenario(path)
     controller = scenario.make_controller()

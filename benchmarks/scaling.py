@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import wbc
-from wbc.references import Circle
+from wbc.app.references import Circle
 
 from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
 from .peer_setups import MinkSetup, PinkSetup, StackSpec, WorldVelocityLimits

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import wbc
-from wbc import closed_loop, outputs, plotting, view
+from wbc.app import closed_loop, outputs, plotting, view
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs" / "api"

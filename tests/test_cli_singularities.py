@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from wbc.cli import main
+from wbc.app.cli import main
 
 
 @pytest.mark.parametrize("model, expected", [

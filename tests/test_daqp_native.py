@@ -13,9 +13,9 @@ import pytest
 
 import wbc
 from conftest import TASKS
+from wbc.app.scenario import load_scenario
 from wbc.qp.problem import QP
 from wbc.runtime import kernels
-from wbc.scenario import load_scenario
 from wbc.solvers import DaqpBackend
 from wbc.solvers.daqp import abi as daqp_abi
 from wbc.solvers.daqp import probe as daqp_probe

@@ -13,8 +13,8 @@ from scipy.optimize import lsq_linear
 
 import wbc
 from conftest import TASKS
-from wbc.closed_loop import run
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 
 DT = 0.01
 ARM = slice(3, 8)  # the youBot's arm coordinates (the base is x, y, theta)
@@ -440,8 +440,8 @@ def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
 def test_the_plot_of_priorities_shows_the_posture_next_to_the_weighted_stack():
     """`wbc run ..._weighted.toml ...priorities.toml --plot`: a posture panel with both runs,
     starting at the posture error of the initial configuration (1 rad: written out here)."""
-    from wbc.closed_loop import posture_traces
-    from wbc.plotting import figure
+    from wbc.app.closed_loop import posture_traces
+    from wbc.app.plotting import figure
 
     runs = [(scenario, run(scenario, duration=0.3)) for scenario in
             (load_scenario(TASKS / f"{name}.toml") for name in ("youbot_priorities_weighted", "youbot_priorities"))]

@@ -47,7 +47,7 @@ def test_import_does_not_import_numba():
 def test_cli_without_kernels_does_not_import_numba(argv):
     result = _python(f"""
         import sys
-        from wbc.cli import main
+        from wbc.app.cli import main
         try:
             status = main({argv!r})
         except SystemExit as exc:
@@ -88,8 +88,8 @@ def test_loaded_kernels_are_plain_attributes(warm):
 
 
 def test_warmup_command(warm):
-    result = subprocess.run([sys.executable, "-m", "wbc.cli", "warmup"], capture_output=True, text=True, timeout=300,
-                            cwd=NEUTRAL)
+    result = subprocess.run([sys.executable, "-m", "wbc.app.cli", "warmup"], capture_output=True, text=True,
+                            timeout=300, cwd=NEUTRAL)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("numba kernels ready in ")
     assert result.stderr == ""

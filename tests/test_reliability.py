@@ -143,7 +143,7 @@ def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
 
 def test_warm_start_returns_the_cold_solution(youbot):
     from conftest import TASKS
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")
     warm = scenario.make_controller()

@@ -29,8 +29,8 @@ from scipy.optimize import least_squares
 import wbc
 from conftest import ROOT, TASKS
 from test_kernels import _python_only
-from wbc.closed_loop import run
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 
 if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
     sys.path.insert(0, str(ROOT))
