@@ -44,10 +44,11 @@ from ..runtime import kernels
 from ..runtime.program import TickProgram, ops_follow_compute
 from ..solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from ..tasks.task import Task, TaskData
-from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
+from .diagnostics import NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
 from .lm_damping import LMDamping
+from .tick_buffers import TickBuffers
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -152,7 +153,6 @@ class Controller:
                                     "NonholonomicBase() to the constraints or use reduced=True")
         self._solver: QPSolver = make_solver(solver, solver_options)
         self.kinematics = Kinematics(robot)
-        self._tick = 0
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
@@ -237,22 +237,24 @@ class Controller:
         layout = ConstraintLayout(self._constraint_data, qp, _velocity_names(robot))
         self._bound_policy = bounds = layout.bounds
         self._constraint_blocks = layout.blocks
-        self._upper, self._lower = bounds.upper, bounds.lower  # per bounded constraint (diagnostics)
-        self._row_labels, self._bound_labels = layout.row_labels, layout.bound_labels
         # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
         self._fallback = Fallback(layout.soft_rows, self.solver.fallback_budget, self.strict)
-        self._preview = np.zeros(nv)  # holonomic relaxation -H^-1 c of the plain tasks
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
 
         self._nonholonomic = robot.base.is_nonholonomic
         self._S = robot.input_map(robot.neutral())
         self._reduction = InputReduction(self._S, n_ineq, n_eq) if self.reduced else None
+        # what the hierarchy, the fallback and the diagnostics read (never the controller)
+        self._buffers = buffers = TickBuffers(self.kinematics, self._task_data, stack, qp, layout, self._cost_scaling,
+                                              self._lm_damping, self._S, self._reduction)
+        self._preview = buffers.preview  # holonomic relaxation -H^-1 c of the plain tasks
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
         # strict priorities (wbc.control.hierarchy): one QP per level, their cascade and its fallback
-        self._hierarchy = None if self._level_sizes is None else Hierarchy(self, self._level_sizes)
-        if self._hierarchy is not None:
+        self._hierarchy = None
+        if self._level_sizes is not None:
+            self._hierarchy = buffers.cascade = Hierarchy(buffers, self._level_sizes, self.solver, self._fallback)
             self._fallback = self._hierarchy.fallback
         self._build_program()
 
@@ -306,7 +308,7 @@ class Controller:
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
         if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.control.hierarchy)
             self._lifted = None
-            self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program)
+            self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program, self.solver)
             self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
             self._finish_program(program, rest)
             return
@@ -395,7 +397,7 @@ class Controller:
             qp.sync_equalities()
         has_nan = self._program.run(dt)  # q screen, compiled items, normal equations, bounds, NaN screen
         if has_nan and self._q_screened and not math.isfinite(q.dot(self._q_weights)):
-            self._tick += 1  # this call overwrote the buffers the previous record reads lazily
+            self._buffers.tick += 1  # this call overwrote the buffers the previous record reads lazily
             self.robot.check_configuration(q)  # raises, naming what is wrong with q
         if self._program_after_preview is not None:
             for task, jacobian, target in self._python_preview:
@@ -410,7 +412,8 @@ class Controller:
         # solved in the program already (native DAQP: answer checked there too), or now
         answer = (self._collector.collect_optimal(ANSWER_TOLERANCE) if self._solve_in_program and not has_nan
                   else None)
-        self._tick += 1
+        buffers = self._buffers
+        buffers.tick += 1
         if answer is not None:  # the control loop's path
             (x, solve_time), outcome, status = answer, _OPTIMAL, "optimal"
         else:
@@ -425,7 +428,8 @@ class Controller:
             u = S.T @ v
         else:
             v = u = x
-        self._last = TickDiagnostics(self, self._tick, outcome, status, solve_time, time.perf_counter() - start, v, u)
+        self._last = TickDiagnostics(buffers, buffers.tick, self._solver.name, outcome, status, solve_time,
+                                     time.perf_counter() - start, v, u)
         return v
 
     def _answer(self, has_nan: bool, qp_failure: str) -> tuple[NDArray[np.float64], float, Outcome, str]:
@@ -447,7 +451,7 @@ class Controller:
         if solution.success:
             assert solution.x is not None  # a successful solve has an answer
             return solution.x, solution.solve_time, _OPTIMAL, "optimal"
-        solution, outcome, status = self._fallback.answer(qp, solution, self._solver.name, self._tick, has_nan)
+        solution, outcome, status = self._fallback.answer(qp, solution, self._solver.name, self._buffers.tick, has_nan)
         assert solution.x is not None  # the fallback chain always answers (v = 0 at worst)
         return solution.x, solution.solve_time, outcome, status
 
@@ -475,25 +479,11 @@ class Controller:
     # ------------------------------------------------------------ diagnostics
     def constraint_violation(self, v: NDArray[np.float64]) -> float:
         """Largest violation of this tick's bounds and rows by ``v`` (0 when feasible)."""
-        qp = self._qp_v
-        worst = max(float(np.max(v - qp.ub)), float(np.max(qp.lb - v)), 0.0)
-        if qp.n_ineq or qp.n_eq:
-            rows = qp.C @ v - qp.upper[qp.n:]
-            worst = max(worst, float(np.max(rows[: qp.n_ineq], initial=0.0)),
-                        float(np.max(np.abs(rows[qp.n_ineq:]), initial=0.0)))
-        return worst
+        return self._buffers.constraint_violation(v)
 
     def active_constraints(self, v: NDArray[np.float64]) -> list[str]:
         """Labels of this tick's bounds and rows that ``v`` meets with equality."""
-        at_upper = np.abs(v - self._upper) <= ACTIVE_TOLERANCE
-        at_lower = np.abs(v - self._lower) <= ACTIVE_TOLERANCE
-        active = np.nonzero(np.concatenate([at_upper, at_lower], 1))
-        names = [self._bound_labels[k][i] for k, i in zip(*active, strict=True)]
-        qp = self._qp_v
-        if qp.n_ineq:
-            rows = qp.C[: qp.n_ineq] @ v - qp.h
-            names += [self._row_labels[i] for i in np.flatnonzero(rows >= -ACTIVE_TOLERANCE)]
-        return names + self._row_labels[qp.n_ineq:]  # equality rows always hold
+        return self._buffers.active_constraints(v)
 
     def __repr__(self) -> str:
         tasks = self.tasks if self._hierarchy is None else self.levels

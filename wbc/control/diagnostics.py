@@ -2,19 +2,13 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.errors import WbcError
 from ..core.outcome import Outcome
-from .hierarchy import level_errors, level_optima
+from .tick_buffers import TickBuffers
 
-if TYPE_CHECKING:  # pragma: no cover
-    from .controller import Controller
-
-ACTIVE_TOLERANCE = 1e-7  #: a bound or row within this of equality counts as active
 _OPTIMAL = Outcome.OPTIMAL
 
 
@@ -41,7 +35,8 @@ class TickDiagnostics:
     * ``v`` -- the command; ``u`` -- the same command over the real inputs, ``v = S(q) u``
       (``u is v`` for holonomic bases).
 
-    Computed on first access, from the controller's buffers of this tick (so recording
+    Computed on first access, from the controller's buffers of this tick
+    (:class:`~wbc.control.tick_buffers.TickBuffers`; so recording
     costs the control loop nothing). Read them before the next ``step`` or call
     :meth:`freeze` to keep them; a stale read raises :class:`StaleDiagnosticsError`:
 
@@ -49,7 +44,7 @@ class TickDiagnostics:
       [m/s]); keys like ``"FrameTask(ee).position"``;
     * ``max_violation`` -- largest violation of any bound or row by the command;
     * ``active_constraints`` -- labels of the bounds / rows holding with equality (within
-      :data:`ACTIVE_TOLERANCE`), e.g. ``"JointVelocityLimits: arm_joint_2 upper"``;
+      :data:`~wbc.control.tick_buffers.ACTIVE_TOLERANCE`), e.g. ``"JointVelocityLimits: arm_joint_2 upper"``;
     * ``level_errors`` -- per priority level, highest first (one entry without levels), the
       weighted residual ``|A_k v - b_k|`` of its tasks at the command (the square root of the
       level's cost, as in the QP, before the damping); ``level_optima`` -- the same at the
@@ -68,13 +63,13 @@ class TickDiagnostics:
     v: NDArray[np.float64] | None  #: the command (set by every step)
     u: NDArray[np.float64] | None  #: the command over the real inputs, ``v = S(q) u`` (``u is v`` for holonomic bases)
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
-                 "_controller", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
+                 "_buffers", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
 
-    def __init__(self, controller: Controller, tick: int, outcome: Outcome, status: str, solve_time: float,
-                 tick_time: float, v: NDArray[np.float64] | None = None, u: NDArray[np.float64] | None = None
-                 ) -> None:
-        self._controller = controller
-        self.tick, self.solver, self.outcome, self.status = tick, controller._solver.name, outcome, status
+    def __init__(self, buffers: TickBuffers, tick: int, solver: str, outcome: Outcome, status: str,
+                 solve_time: float, tick_time: float, v: NDArray[np.float64] | None = None,
+                 u: NDArray[np.float64] | None = None) -> None:
+        self._buffers = buffers
+        self.tick, self.solver, self.outcome, self.status = tick, solver, outcome, status
         self.success = outcome is _OPTIMAL
         self.solve_time, self.tick_time, self.v, self.u = solve_time, tick_time, v, u
         self._task_errors: dict[str, float] | None = None
@@ -83,20 +78,20 @@ class TickDiagnostics:
         self._level_errors: list[float] | None = None
         self._level_optima: list[float] | None = None
 
-    def _source(self) -> Controller:
-        if self._controller._tick != self.tick:
+    def _source(self) -> TickBuffers:
+        if self._buffers.tick != self.tick:
             raise StaleDiagnosticsError(
-                f"diagnostics of tick {self.tick} were overwritten by tick {self._controller._tick}; "
+                f"diagnostics of tick {self.tick} were overwritten by tick {self._buffers.tick}; "
                 "read them before the next step() or call freeze()")
-        return self._controller
+        return self._buffers
 
     @property
     def task_errors(self) -> dict[str, float]:
         if self._task_errors is None:
-            controller = self._source()
+            buffers = self._source()
             self._task_errors = {}
             if self.v is not None:
-                for task in controller._task_data:
+                for task in buffers.task_data:
                     task.report(self.v, self._task_errors)
         return self._task_errors
 
@@ -115,13 +110,13 @@ class TickDiagnostics:
     @property
     def level_errors(self) -> list[float]:
         if self._level_errors is None:
-            self._level_errors = level_errors(self._source(), self.v)
+            self._level_errors = self._source().level_errors(self.v)
         return self._level_errors
 
     @property
     def level_optima(self) -> list[float]:
         if self._level_optima is None:
-            self._level_optima = level_optima(self._source(), self.v, self.outcome is not Outcome.ZERO)
+            self._level_optima = self._source().level_optima(self.v, self.outcome is not Outcome.ZERO)
         return self._level_optima
 
     def freeze(self) -> TickDiagnostics:
@@ -131,7 +126,7 @@ class TickDiagnostics:
 
     def __repr__(self) -> str:
         lazy = ""
-        if self._controller._tick == self.tick or self._active is not None:
+        if self._buffers.tick == self.tick or self._active is not None:
             lazy = (f", task_errors={self.task_errors}, max_violation={self.max_violation:.2e}, "
                     f"active_constraints={self.active_constraints}")
         return (f"TickDiagnostics(tick={self.tick}, solver={self.solver!r}, status={self.status!r}, "

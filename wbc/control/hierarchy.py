@@ -87,7 +87,7 @@ from numpy.typing import NDArray
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
 from ..core.validation import as_items
-from ..qp.layout import TaskBlock, TaskStack
+from ..qp.layout import LevelRows
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
 from ..runtime import kernels
@@ -97,10 +97,10 @@ from ..solvers import DaqpBackend, QPSolution, QPSolver
 from ..tasks.task import Task, TaskData
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .lm_damping import LMDamping
+from .tick_buffers import TickBuffers
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..solvers.daqp.native import NativeWorkspace
-    from .controller import Controller
 
 #: relative half-width of the band that holds a level's task values below it (see the module docstring)
 BAND = 1e-9
@@ -140,107 +140,45 @@ def task_levels(tasks: Sequence[Task] | Sequence[Sequence[Task]]) -> tuple[list[
     return flat, ([len(level) for level in levels] if len(levels) > 1 else None)
 
 
-class LevelRows:
-    """The rows of each level in a controller's task stack (tasks ordered by level).
-
-    ``tasks[k]``: (first, last) of level k's ordinary task rows; ``preview[k]``: those of its
-    preview tasks (after the damping rows); ``(0, 0)`` when it has none. ``normal[k]``: the
-    ordinary rows its cost sums -- the last level's include ``sqrt(damping) I``.
-    """
-
-    def __init__(self, stack: TaskStack, level_of: Callable[[object], int], count: int, nv: int) -> None:
-        def span(blocks: list[TaskBlock]) -> list[tuple[int, int]]:
-            spans = []
-            for k in range(count):
-                mine = [(start, start + task.dim) for task, _, _, start in blocks if level_of(task) == k]
-                spans.append((mine[0][0], mine[-1][1]) if mine else (0, 0))
-            return spans
-
-        self.count = count
-        self.tasks, self.preview = span(stack.blocks), span(stack.preview_blocks)
-        damping = stack.n_plain - nv
-        last_first = self.tasks[-1][0] if self.tasks[-1][1] > self.tasks[-1][0] else damping
-        self.normal = self.tasks[:-1] + [(last_first, stack.n_plain)]
-        #: normal ranges as floats (first, last per level), the operand of HIERARCHY_PREVIEW
-        self.ranges = np.array([bound for span in self.normal for bound in span], dtype=np.float64)
-
-    def dim(self, k: int) -> int:
-        """Task rows of level k (ordinary and preview)."""
-        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
-        return last - first + last_p - first_p
-
-    def residuals(self, stack: np.ndarray, v: np.ndarray | None, k: int) -> float:
-        """``|A_k v - b_k|`` of level k's task rows (``stack``: ``[W J | W r]``); NaN without v."""
-        if v is None:
-            return float("nan")
-        nv = v.size
-        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
-        rows = np.concatenate([stack[first:last], stack[first_p:last_p]])
-        return float(np.linalg.norm(rows[:, :nv] @ v - rows[:, nv]))
-
-
-def level_rows(controller: Controller) -> LevelRows:
-    """The level rows of ``controller`` (one level for a flat controller)."""
-    hierarchy = controller._hierarchy
-    if hierarchy is not None:
-        return hierarchy.rows
-    return LevelRows(controller._task_stack, lambda task: 0, 1, controller.robot.nv)
-
-
-def level_errors(controller: Controller, v: NDArray[np.float64] | None) -> list[float]:
-    """``|A_k v - b_k|`` of each level at the command ``v`` (weighted task residuals, as in the cost)."""
-    rows = level_rows(controller)
-    return [rows.residuals(controller._stack, v, k) for k in range(rows.count)]
-
-
-def level_optima(controller: Controller, v: NDArray[np.float64] | None, answered: bool) -> list[float]:
-    """``|A_k v_k - b_k|`` of each level at its own answer ``v_k`` (a flat controller's is the command);
-    NaN for a level that was not solved, and for every level when no solve ``answered`` the tick
-    (the zero command)."""
-    hierarchy = controller._hierarchy
-    if hierarchy is None:
-        return level_errors(controller, v if answered else None)
-    answers = hierarchy.answers if answered else [None] * hierarchy.count
-    return [hierarchy.rows.residuals(controller._stack, answer, k) for k, answer in enumerate(answers)]
-
-
 class Hierarchy:
     """The levels of one controller: their QPs, the ops that fill them, and their cascade.
 
-    Level 0's QP is the controller's own (``controller._qp_v``); level k > 0 has the same bounds
+    Level 0's QP is the controller's own (``buffers.qp``); level k > 0 has the same bounds
     and rows (copied by the program each tick) plus the band rows of the levels above, after the
     inequality rows. ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
+    It reads the controller's :class:`~wbc.control.tick_buffers.TickBuffers`, never the controller.
     """
 
     count: int  #: number of levels
     rows: LevelRows  #: the rows of each level in the task stack
 
-    def __init__(self, controller: Controller, sizes: Sequence[int]) -> None:
-        self._controller = controller
-        nv = controller.robot.nv
+    def __init__(self, buffers: TickBuffers, sizes: Sequence[int], solver: QPSolver, fallback: Fallback) -> None:
+        self._buffers = buffers
+        nv = buffers.nv
         level: dict[int, int] = {}
         start = 0
         for k, size in enumerate(sizes):
-            level.update((id(data), k) for data in controller._task_data[start:start + size])
+            level.update((id(data), k) for data in buffers.task_data[start:start + size])
             start += size
         self.count = count = len(sizes)
-        self.rows = rows = LevelRows(controller._task_stack, lambda task: level[id(task)], count, nv)
+        self.rows = rows = LevelRows(buffers.task_stack, lambda task: level[id(task)], count, nv)
         #: each level's ordinary task blocks (for the error-scaled damping of its tasks)
-        self._blocks = [[block for block in controller._task_blocks if level[id(block[0])] == k] for k in range(count)]
-        first = controller._qp_v
+        self._blocks = [[block for block in buffers.task_stack.blocks if level[id(block[0])] == k]
+                        for k in range(count)]
+        first = buffers.qp
         #: first band row of each level in the QPs below it (same in all of them)
         self.band_start = [first.n_ineq + 2 * sum(rows.dim(j) for j in range(k)) for k in range(count)]
         self.qps = [first] + [QP(nv, self.band_start[k], first.n_eq) for k in range(1, count)]
         self._reductions: list[InputReduction] | None = None
         self.solver_qps = self.qps  #: what the backend solves, level by level
-        if controller._reduction is not None:  # reduced=True (the controller's level-0 reduction)
-            self._reductions = [controller._reduction] + [InputReduction(controller._S, qp.n_ineq, qp.n_eq)
-                                                         for qp in self.qps[1:]]
+        if buffers.reduction is not None:  # reduced=True (the controller's level-0 reduction)
+            self._reductions = [buffers.reduction] + [InputReduction(buffers.input_map, qp.n_ineq, qp.n_eq)
+                                                     for qp in self.qps[1:]]
             self.solver_qps = [reduction.qp for reduction in self._reductions]
         self._upper_scaling = np.zeros(2)  # (damping, floor) of the levels above the last: set by add_ops
         self._settings = np.array([ANSWER_TOLERANCE, BAND])  # operand of the BAND op
         #: the backend of the levels: the controller's (DAQP: :meth:`~wbc.solvers.DaqpBackend.for_levels`)
-        self.solver: QPSolver = controller.solver
+        self.solver: QPSolver = solver
         self._workspaces: list[NativeWorkspace] | None = None
         self.in_program = False  #: the whole cascade runs in the tick program (native DAQP)
         #: each level's answer (over v) in the latest tick; None for a level not solved
@@ -248,7 +186,7 @@ class Hierarchy:
         #: the same in the solver's variables (u with ``reduced``), for :meth:`CascadeFallback.last_resort`
         self.solutions: list[NDArray[np.float64] | None] = [None] * count
         self.failed = 0  #: the level whose solve failed in the latest failed tick
-        self.fallback = CascadeFallback(self, controller._fallback)
+        self.fallback = CascadeFallback(self, fallback)
 
     # ----------------------------------------------------------------- program
     @property
@@ -256,49 +194,49 @@ class Hierarchy:
         """The regularisation floor of the levels above the last (0: a semidefinite backend's)."""
         return float(self._upper_scaling[1])
 
-    def add_ops(self, program: TickProgram) -> tuple[list[tuple[TaskData, NDArray[np.float64], NDArray[np.float64]]],
-                                                      TickProgram, QP, bool]:
+    def add_ops(self, program: TickProgram, backend: QPSolver
+                ) -> tuple[list[tuple[TaskData, NDArray[np.float64], NDArray[np.float64]]], TickProgram, QP, bool]:
         """Append every level's assembly -- and with native DAQP the cascade itself -- to the
-        controller's tick program, after its items' ops. Returns what the controller keeps:
-        (Python preview tasks, the program part after them, the QP the backend sees last,
-        whether the solves run in the program)."""
-        c = self._controller
-        kin, nv, stack = c.kinematics, c.robot.nv, c._stack_t
+        controller's tick program, after its items' ops; ``backend`` is the controller's. Returns
+        what the controller keeps: (Python preview tasks, the program part after them, the QP the
+        backend sees last, whether the solves run in the program)."""
+        b = self._buffers
+        kin, nv, stack, scaling_last = b.kinematics, b.nv, b.task_stack.stack_t, b.cost_scaling
         size = stack.shape[1]
         python_preview, rest = [], program
-        if c._preview_blocks:
-            program.add(kernels.OP_HIERARCHY_PREVIEW, stack=stack, ranges=self.rows.ranges, scaling=c._cost_scaling,
-                        preview=c._preview, nv=nv, rows=size, count=self.rows.ranges.size)
-            python_preview = [(task, jacobian, target) for task, jacobian, target, start in c._preview_blocks
+        if b.task_stack.preview_blocks:
+            program.add(kernels.OP_HIERARCHY_PREVIEW, stack=stack, ranges=self.rows.ranges, scaling=scaling_last,
+                        preview=b.preview, nv=nv, rows=size, count=self.rows.ranges.size)
+            python_preview = [(task, jacobian, target) for task, jacobian, target, start in b.task_stack.preview_blocks
                               if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
-                                      and task.add_preview_ops(program, kin, stack, start, c._preview))]
+                                      and task.add_preview_ops(program, kin, stack, start, b.preview))]
             if python_preview:
                 rest = TickProgram()  # runs after the Python preview tasks
-        lm = LMDamping(c._lm_damping, self.count)
+        lm = LMDamping(b.lm_damping, self.count)
         for k, qp in enumerate(self.qps):
             for (first, last), reset in ((self.rows.normal[k], 1), (self.rows.preview[k], 0)):
                 if last > first or reset:
                     rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
                              reset=reset, Hc=qp.Hc)
             if lm.add_task_ops(rest, stack, self._blocks[k], k):  # the error-scaled damping of the level's tasks
-                lm.add_level_op(rest, k, qp.Hc, c._cost_scaling if k == self.count - 1 else self._upper_scaling)
+                lm.add_level_op(rest, k, qp.Hc, scaling_last if k == self.count - 1 else self._upper_scaling)
         first_qp = self.qps[0]
-        c._bound_policy.add_op(rest, first_qp)
+        b.bounds.add_op(rest, first_qp)
         for k, qp in enumerate(self.qps):
             if k:
                 rest.add(kernels.OP_LEVEL_CONSTRAINTS, source=first_qp.data, target=qp.data, n=nv,
                          p=first_qp.n_ineq, e=first_qp.n_eq, band=qp.n_ineq - first_qp.n_ineq,
                          source_size=first_qp.data.size, target_size=qp.data.size)
-            scaling = c._cost_scaling if k == self.count - 1 else self._upper_scaling
+            scaling = scaling_last if k == self.count - 1 else self._upper_scaling
             rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
             screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
             rest.add(kernels.OP_HAS_NAN, data=screened, size=screened.size, infinite=0)
-        solver = self.solver = c.solver.for_levels() if isinstance(c.solver, DaqpBackend) else c.solver
-        self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else c._cost_scaling[1]
+        solver = self.solver = backend.for_levels() if isinstance(backend, DaqpBackend) else backend
+        self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else scaling_last[1]
         self._workspaces = workspaces = None
         if isinstance(solver, DaqpBackend) and solver.native:  # (then every workspace is one)
             self._workspaces = workspaces = [w for w in map(solver.workspace, self.solver_qps) if w is not None]
-        self.in_program = workspaces is not None and not c.reduced
+        self.in_program = workspaces is not None and b.reduction is None
         if workspaces is not None and self.in_program:
             for k, workspace in enumerate(workspaces):
                 workspace.add_op(rest)
@@ -311,8 +249,7 @@ class Hierarchy:
         return python_preview, rest, self.solver_qps[-1], self.in_program
 
     def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
-        c = self._controller
-        stack, nv = c._stack_t, c.robot.nv
+        stack, nv = self._buffers.task_stack.stack_t, self._buffers.nv
         (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
         program.add(kernels.OP_BAND, stack=stack, first=first, last=last, first_preview=first_p,
                     last_preview=last_p, x=workspace.x, lower=self.qps[0].lb, upper=self.qps[0].ub,
@@ -356,12 +293,12 @@ class Hierarchy:
         """Levels ``start`` onward, each by ``solve(k)`` (the levels above hold their answers and
         bands from this tick); each answer is checked against its QP (unless ``solve`` checks
         what must hold itself: the elastic solves) and writes its band."""
-        c = self._controller
+        input_map = self._buffers.input_map
         self.answers = self.answers[:start] + [None] * (self.count - start)
         self.solutions = self.solutions[:start] + [None] * (self.count - start)
         elapsed = 0.0
         for k in range(start, self.count):
-            if self._reductions is not None and k and not self._reductions[k].reduce(self.qps[k], c._S):
+            if self._reductions is not None and k and not self._reductions[k].reduce(self.qps[k], input_map):
                 return self._failure(k, QPSolution(None, False, _REDUCTION_FAILURE, elapsed))
             solution = solve(k)
             elapsed += solution.solve_time
@@ -375,7 +312,7 @@ class Hierarchy:
                 if defect > ANSWER_TOLERANCE:
                     status = f"answer violates the QP's constraints by {defect:.1e} (relative)"
                     return self._failure(k, QPSolution(None, False, status, elapsed))
-            v = x if self._reductions is None else c._S @ x
+            v = x if self._reductions is None else input_map @ x
             self.answers[k], self.solutions[k] = v, x
             for j in range(k + 1, self.count):
                 self._write_band(k, v, self.qps[j])
@@ -396,7 +333,7 @@ class Hierarchy:
         (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
         n, start = target.n, self.band_start[k]
         rows_start = n * n + n
-        kernels.band_rows(self._controller._stack_t, first, last, first_p, last_p, v, self.qps[0].lb,
+        kernels.band_rows(self._buffers.task_stack.stack_t, first, last, first_p, last_p, v, self.qps[0].lb,
                           self.qps[0].ub, BAND, target.data, rows_start + start * n,
                           rows_start + (target.n_ineq + target.n_eq) * n + n + start)
 
@@ -453,13 +390,12 @@ class CascadeFallback(Fallback):
         semidefinite backend unregularised gets the regularisation floor the others have
         (:data:`wbc.control.controller.DAMPING_FLOOR` of its normalised H) in a copy; DAQP called such
         a level unbounded (exit flag -3) and the tick fell to the zero command."""
-        from .controller import DAMPING_FLOOR  # (the controller module imports this one)
-
         hierarchy = self._hierarchy
+        floor = hierarchy._buffers.cost_scaling[1]  # the controller's DAMPING_FLOOR
         qp = hierarchy.solver_qps[k]
         if k == hierarchy.count - 1 or hierarchy.upper_floor > 0.0:
             return qp
         copy = QP(qp.n, qp.n_ineq, qp.n_eq)
         copy.data[:] = qp.data
-        copy.H.flat[::qp.n + 1] += DAMPING_FLOOR * max(float(np.max(np.diag(qp.H))), 1.0)
+        copy.H.flat[::qp.n + 1] += floor * max(float(np.max(np.diag(qp.H))), 1.0)
         return copy

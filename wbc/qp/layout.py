@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from ..constraints.constraint import ConstraintData, ConstraintRows
@@ -81,3 +83,43 @@ class ConstraintLayout:
         #: labels of every bound slot: (upper of each coordinate, then lower)
         self.bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in velocity_names]
                              for c in bounded] or [[""] * (2 * nv)]
+
+
+class LevelRows:
+    """The rows of each priority level in a controller's task stack (tasks ordered by level; one
+    level for a flat controller).
+
+    ``tasks[k]``: (first, last) of level k's ordinary task rows; ``preview[k]``: those of its
+    preview tasks (after the damping rows); ``(0, 0)`` when it has none. ``normal[k]``: the
+    ordinary rows its cost sums -- the last level's include ``sqrt(damping) I``.
+    """
+
+    def __init__(self, stack: TaskStack, level_of: Callable[[object], int], count: int, nv: int) -> None:
+        def span(blocks: list[TaskBlock]) -> list[tuple[int, int]]:
+            spans = []
+            for k in range(count):
+                mine = [(start, start + task.dim) for task, _, _, start in blocks if level_of(task) == k]
+                spans.append((mine[0][0], mine[-1][1]) if mine else (0, 0))
+            return spans
+
+        self.count = count
+        self.tasks, self.preview = span(stack.blocks), span(stack.preview_blocks)
+        damping = stack.n_plain - nv
+        last_first = self.tasks[-1][0] if self.tasks[-1][1] > self.tasks[-1][0] else damping
+        self.normal = self.tasks[:-1] + [(last_first, stack.n_plain)]
+        #: normal ranges as floats (first, last per level), the operand of HIERARCHY_PREVIEW
+        self.ranges = np.array([bound for span in self.normal for bound in span], dtype=np.float64)
+
+    def dim(self, k: int) -> int:
+        """Task rows of level k (ordinary and preview)."""
+        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
+        return last - first + last_p - first_p
+
+    def residuals(self, stack: np.ndarray, v: np.ndarray | None, k: int) -> float:
+        """``|A_k v - b_k|`` of level k's task rows (``stack``: ``[W J | W r]``); NaN without v."""
+        if v is None:
+            return float("nan")
+        nv = v.size
+        (first, last), (first_p, last_p) = self.tasks[k], self.preview[k]
+        rows = np.concatenate([stack[first:last], stack[first_p:last_p]])
+        return float(np.linalg.norm(rows[:, :nv] @ v - rows[:, nv]))
