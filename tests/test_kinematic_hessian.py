@@ -205,4 +205,4 @@ def test_manipulability_task_on_a_multi_dof_root_runs_a_controller(root):
         dq[i] = FD_STEP
         gradient[i] = (manipulability(robot, pin.integrate(robot.model, q, dq), "ee", "position")
                        - manipulability(robot, pin.integrate(robot.model, q, -dq), "ee", "position")) / (2 * FD_STEP)
-    np.testing.assert_allclose(controller._stack[0, :-1], 2.0 * gradient / m, rtol=0, atol=1e-7)
+    np.testing.assert_allclose(controller._task_stack.stack[0, :-1], 2.0 * gradient / m, rtol=0, atol=1e-7)

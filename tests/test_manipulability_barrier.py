@@ -125,9 +125,9 @@ def test_task_row_is_the_log_manipulability_rate(youbot):
     q = np.array([0.3, 0.1, 0.2, 0.4, -0.6, 0.3, 1.1, 0.2])
     controller.step(q)
     m = manipulability(youbot, q, "ee", "position")
-    np.testing.assert_allclose(controller._stack[0, :-1], 2.0 * fd_gradient(youbot, q, "ee", "position") / m,
+    np.testing.assert_allclose(controller._task_stack.stack[0, :-1], 2.0 * fd_gradient(youbot, q, "ee", "position") / m,
                                rtol=0, atol=1e-7)
-    assert controller._stack[0, -1] == pytest.approx(2.0 * 0.2 / DT * np.log(0.3 / m), rel=1e-12)
+    assert controller._task_stack.stack[0, -1] == pytest.approx(2.0 * 0.2 / DT * np.log(0.3 / m), rel=1e-12)
     assert controller.last.task_errors[task.name] == pytest.approx(abs(np.log(0.3 / m)), rel=1e-12)
     assert repr(task) == "ManipulabilityTask(frame='ee', cost=4.0, gain=0.2, target=0.3, rows='position')"
 

@@ -145,11 +145,6 @@ def log_floor(series: Sequence[ArrayLike], decades: int = FLOOR_DECADES) -> floa
     return float(10.0 ** exponent)
 
 
-def plot_run(scenario: Scenario, result: RunResult, path: str | Path) -> Path:
-    """Figure of one run (see :func:`plot_runs`)."""
-    return plot_runs([(scenario, result)], path)
-
-
 def plot_runs(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path) -> Path:
     """Write the :func:`figure` of ``runs`` to ``path`` in the format its suffix names (one of
     :data:`PLOT_FORMATS`: .png, .pdf, .svg, ...), atomically: a temporary file in the same

@@ -227,7 +227,7 @@ class Controller:
         self._constraint_data = [self._bind(constraint) for constraint in self.constraints]
 
         self._task_stack = stack = TaskStack(self._task_data, nv)
-        self._stack_t, self._stack, self._damping_rows = stack.stack_t, stack.stack, stack.damping_rows
+        self._stack_t, self._damping_rows = stack.stack_t, stack.damping_rows
         self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
         self.damping = self.damping  # writes sqrt(damping) I into its rows
 

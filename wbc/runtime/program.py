@@ -40,7 +40,6 @@ class TickProgram:
         self._rows: list[list[int]] = []
         self._packed = np.array([0, _WIDTH], dtype=np.int64)
         self._program = np.zeros((0, _WIDTH), dtype=np.int64)
-        self._addresses = np.zeros(0, dtype=np.int64)
         self._owners: list[Any] = []
         self._address_list: list[int] = []
 
@@ -111,12 +110,6 @@ class TickProgram:
         self._packed = np.array([len(rows), width, *(value for row in rows for value in row), *self._address_list],
                                 dtype=np.int64)
         self._program = self._packed[2:2 + len(rows) * width].reshape(-1, width)
-        self._addresses = self._packed[2 + len(rows) * width:]
-
-    def truncate(self, length: int) -> None:
-        """Drop the rows after the first ``length`` (registered arrays stay registered)."""
-        del self._rows[length:]
-        self._pack()
 
     def __len__(self) -> int:
         return len(self._rows)

@@ -86,7 +86,6 @@ WARM_UPDATE = UPDATE_RINV | UPDATE_SENSE
 #: a cold tick: everything re-formed from the problem's sense array
 COLD_UPDATE = UPDATE_RINV | UPDATE_M | UPDATE_V | UPDATE_D | UPDATE_SENSE
 SENSE_EQUALITY = 5  # DAQP_ACTIVE | DAQP_IMMUTABLE
-SENSE_SOFT = 8
 
 EXIT_FLAGS = {-1: "infeasible", -2: "cycling detected", -3: "unbounded", -4: "iteration limit", -5: "nonconvex",
               -6: "initial point infeasible", -7: "time limit", -8: "unsupported problem", 2: "soft optimal"}
