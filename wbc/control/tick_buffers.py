@@ -44,7 +44,8 @@ class TickBuffers:
     * ``cascade`` -- the strict hierarchy's levels (None for one level); ``tick`` -- the counter.
     """
 
-    cascade: LevelAnswers | None
+    cascade: LevelAnswers | None  #: the strict hierarchy's levels (None for one level)
+    tick: int  #: ticks stepped (1 after the first step): the tick whose values the buffers hold
 
     def __init__(self, kinematics: Kinematics, task_data: list[TaskData], task_stack: TaskStack, qp: QP,
                  constraints: ConstraintLayout, cost_scaling: NDArray[np.float64], lm_damping: NDArray[np.float64],
