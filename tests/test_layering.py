@@ -26,9 +26,8 @@ LAYERS: list[tuple[str, ...]] = [
     ("wbc", "wbc.__main__"),  # the public namespace and ``python -m wbc``: above everything
 ]
 
-#: imports that point up, each with its reason (annotations only, or the version string)
+#: imports that point up, each with its reason
 ALLOWED_UPWARD = {
-    ("wbc.qp.lifting", "wbc.solvers.daqp.native"): "annotation only (TYPE_CHECKING): the workspace type",
     ("wbc.app.cli", "wbc"): "wbc.__version__, the one version string (pyproject reads it there)",
 }
 

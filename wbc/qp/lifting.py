@@ -29,17 +29,24 @@ fails too does the fallback chain answer. :attr:`LiftedQP.dense_ticks` counts th
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..runtime import kernels
 from ..runtime.program import TickProgram
 from .layout import TaskStack
 from .problem import QP
 
-if TYPE_CHECKING:
-    from ..solvers.daqp.native import NativeWorkspace
+
+class SolvedWorkspace(Protocol):
+    """What the certificate reads of a native DAQP solve (:class:`wbc.solvers.daqp.native.NativeWorkspace`)."""
+
+    x: NDArray[np.float64]  #: the answer
+    lam: NDArray[np.float64]  #: its multipliers (bounds, then rows)
+    control: NDArray[np.float64]  #: the solve's outcome (exit flag, defect, time, iterations)
+
 
 #: smallest number of velocity coordinates at which the lifted form is used: below it the
 #: dense QP is as fast (measured: benchmarks/README.md, "Scaling")
@@ -72,7 +79,7 @@ class LiftedQP:
         self._scratch = np.zeros(2 * source.n)  # of the certificate
         self.dense_ticks = 0  #: ticks whose lifted answer was not certified: the dense QP answered
 
-    def add_check_op(self, program: TickProgram, workspace: NativeWorkspace) -> None:
+    def add_check_op(self, program: TickProgram, workspace: SolvedWorkspace) -> None:
         """Append the certificate of the answer of ``workspace`` (the native DAQP solve of
         :attr:`qp`, appended before): its stationarity in v joins its defect."""
         source, qp = self.source, self.qp
