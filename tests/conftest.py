@@ -1,23 +1,88 @@
+import importlib
 import os
+import re
 import tempfile
+from collections.abc import Generator
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
-from hypothesis import settings
 
 import wbc
 
 # CI replays the same examples every run (a red CI must be reproducible); locally
 # hypothesis explores new ones (that is how the HiGHS cycling case was found)
-settings.register_profile("ci", derandomize=True)
-# the fuzz campaign (tests/test_fuzz.py): `pytest tests/test_fuzz.py --hypothesis-profile=nightly`
-# or `WBC_FUZZ_EXAMPLES=5000 pytest tests/test_fuzz.py` (the count is split over the fuzz tests)
-settings.register_profile("nightly", max_examples=int(os.environ.get("WBC_FUZZ_EXAMPLES") or 3000), deadline=None)
-if os.environ.get("WBC_FUZZ_EXAMPLES"):
-    settings.load_profile("nightly")
-elif os.environ.get("CI"):
-    settings.load_profile("ci")
+try:
+    from hypothesis import settings
+except ModuleNotFoundError:  # the tests that use hypothesis are skipped, naming the [test] extra
+    pass
+else:
+    settings.register_profile("ci", derandomize=True)
+    # the fuzz campaign (tests/test_fuzz.py): `pytest tests/test_fuzz.py --hypothesis-profile=nightly`
+    # or `WBC_FUZZ_EXAMPLES=5000 pytest tests/test_fuzz.py` (the count is split over the fuzz tests)
+    settings.register_profile("nightly", max_examples=int(os.environ.get("WBC_FUZZ_EXAMPLES") or 3000),
+                              deadline=None)
+    if os.environ.get("WBC_FUZZ_EXAMPLES"):
+        settings.load_profile("nightly")
+    elif os.environ.get("CI"):
+        settings.load_profile("ci")
+
+# ------------------------------------------------------------------ missing extras
+#: third-party packages the tests use beyond wbc's own dependencies -> the extra that installs them
+EXTRA_OF = {
+    "mujoco": "sim", "matplotlib": "plot", "viser": "view", "distributed": "distributed", "dask": "distributed",
+    "mink": "bench", "pink": "bench", "qpbenchmark": "bench", "pandas": "bench", "pytest_benchmark": "bench",
+    "quadprog": "solvers", "clarabel": "solvers", "piqp": "solvers", "highspy": "solvers",
+    "hypothesis": "test", "sympy": "test", "mypy": "test", "basedpyright": "test", "sphinx": "test", "build": "test",
+}
+#: CI sets it: a missing extra then fails the test instead of skipping it
+REQUIRE_EXTRAS = os.environ.get("WBC_REQUIRE_EXTRAS") == "1"
+_MISSING = re.compile(r"No module named '([\w.]+)'")
+
+
+def missing_extra(text: str) -> str | None:
+    """The reason to skip when ``text`` (an error) says a module of an extra is missing, else None."""
+    found = _MISSING.search(text)
+    module = found.group(1).split(".")[0] if found else ""
+    if module not in EXTRA_OF or REQUIRE_EXTRAS:
+        return None
+    extra = EXTRA_OF[module]
+    return f"needs the [{extra}] extra ({module} is not installed): pip install \"wbc[{extra}]\""
+
+
+def require(module: str) -> ModuleType:
+    """Import ``module`` for a test; when an extra's package is missing, skip the test (or the
+    whole file, called at its top) naming the extra -- fail instead under ``WBC_REQUIRE_EXTRAS=1``."""
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as error:
+        reason = missing_extra(str(error))
+        if reason is None:
+            raise
+        pytest.skip(reason, allow_module_level=True)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector: pytest.Collector) -> Generator[None, None, None]:
+    """A test file that cannot import an extra's package is skipped, naming the extra."""
+    outcome = yield
+    report = outcome.get_result()
+    reason = missing_extra(str(report.longrepr)) if report.failed else None
+    if reason is not None:
+        report.outcome, report.longrepr = "skipped", (str(collector.path), 0, f"Skipped: {reason}")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) -> Generator[None, None, None]:
+    """A test that imports a missing extra's package while it runs is skipped, naming the extra."""
+    outcome = yield
+    report = outcome.get_result()
+    excinfo = call.excinfo
+    if report.failed and excinfo is not None and excinfo.errisinstance(ModuleNotFoundError):
+        reason = missing_extra(str(excinfo.value))
+        if reason is not None:
+            report.outcome, report.longrepr = "skipped", (str(item.path), 0, f"Skipped: {reason}")
 
 ROOT = Path(__file__).resolve().parents[1]
 TASKS = ROOT / "tasks"

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import wbc
-from conftest import NEUTRAL, ROOT, TASKS
+from conftest import NEUTRAL, ROOT, TASKS, require
 from wbc.app.cli import main
 
 
@@ -84,7 +84,7 @@ def test_text_summary_of_a_position_only_task(capsys):
 
 
 def test_the_summary_says_how_the_loop_was_closed(capsys):
-    pytest.importorskip("mujoco")
+    require("mujoco")
     assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress"]) == 0
     assert capsys.readouterr().out.startswith("scenario youbot_circle  (solver daqp, kinematic loop)\n")
     options = ["--duration", "0.1", "--no-progress", "--sim", "mujoco", "--noise", "1e-4", "--delay", "1"]
@@ -245,7 +245,7 @@ INTERRUPTED_WRITE = (
 @pytest.mark.parametrize("option, name", [("--plot", "out.png"), ("--html", "out.html")])
 def test_ctrl_c_while_an_output_is_written_leaves_no_file(tmp_path, option, name):
     if option == "--html":
-        pytest.importorskip("viser")
+        require("viser")
     target = tmp_path / "new" / name
     result = subprocess.run([sys.executable, "-c", INTERRUPTED_WRITE, "run", CIRCLE, "--duration", "0.1",
                              "--no-progress", "--json", option, str(target)],

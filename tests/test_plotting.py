@@ -5,12 +5,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import TASKS
+from conftest import TASKS, require
 from wbc.app.closed_loop import run
 from wbc.app.plotting import figure, log_floor
 from wbc.app.scenario import load_scenario
 
-plt = pytest.importorskip("matplotlib.pyplot")
+plt = require("matplotlib.pyplot")
 
 YOUBOT_ARM = ["arm_joint_1", "arm_joint_2", "arm_joint_3", "arm_joint_4", "arm_joint_5"]
 MECANUM_ORDER = ["FL", "FR", "RL", "RR"]  # wbc.model.mobile_base.MecanumWheels

@@ -294,7 +294,8 @@ def test_a_robot_too_large_for_pinocchios_data_is_refused_before_it_is_built(tmp
                      for i in range(MAX_VELOCITY_DOF + 1))
     urdf = write(tmp_path, f'<robot name="snake">{links}{joints}</robot>', "snake.urdf")
     with pytest.raises(ModelError, match=rf"{MAX_VELOCITY_DOF + 1} velocity DOF; wbc handles at most "
-                                         rf"{MAX_VELOCITY_DOF} .*grows as nv\^3"):
+                                         rf"{MAX_VELOCITY_DOF} .*grows as nv\^3\); with the memory for it, raise "
+                                         r"wbc.model.robot.MAX_VELOCITY_DOF"):
         wbc.load_robot(urdf)
 
 

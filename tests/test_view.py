@@ -23,10 +23,10 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from conftest import NEUTRAL, TASKS
+from conftest import NEUTRAL, TASKS, require
 from wbc.app.cli import main
 
-viser = pytest.importorskip("viser")
+viser = require("viser")
 
 from browser import HeadlessBrowser, find_browser  # noqa: E402
 from wbc.app import view  # noqa: E402

@@ -36,8 +36,10 @@ _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
 #: largest number of velocity DOF a Robot accepts: Pinocchio's Data allocates O(nv^3) memory
 #: (second-order derivative tensors; measured with pin 4.1: 69 MB at nv = 100, 0.5 GB at 200,
-#: 1.7 GB at 300), so a 1000-joint chain would need ~64 GB
-MAX_VELOCITY_DOF = 200
+#: 1.7 GB at 300; a robot and each controller of it hold one), so a 1000-joint chain would need
+#: ~64 GB. Read when a robot is built: raise it (``wbc.model.robot.MAX_VELOCITY_DOF = 500``) if the
+#: memory is there
+MAX_VELOCITY_DOF = 300
 
 
 @dataclass
@@ -93,7 +95,8 @@ class Robot:
         if self.model.nv > MAX_VELOCITY_DOF:
             raise ModelError(f"{where}: {self.model.nv} velocity DOF; wbc handles at most {MAX_VELOCITY_DOF} "
                              f"(Pinocchio's Data for {self.model.nv} would take "
-                             f"~{8 * 8 * self.model.nv ** 3 / 1e9:.0f} GB: it grows as nv^3)")
+                             f"~{8 * 8 * self.model.nv ** 3 / 1e9:.0f} GB: it grows as nv^3); with the memory for it, "
+                             "raise wbc.model.robot.MAX_VELOCITY_DOF")
 
     def _check_joints(self) -> None:
         """Every joint moves something (a URDF ``<axis xyz="0 0 0">`` gives a zero Jacobian column)
