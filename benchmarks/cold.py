@@ -27,7 +27,7 @@ import json, sys, time
 start = time.perf_counter()
 import numpy as np
 import wbc
-from wbc.scenario import load_scenario
+from wbc.app.scenario import load_scenario
 imported = time.perf_counter()
 scenario = load_scenario(sys.argv[1])
 q = scenario.q0.copy()

@@ -19,7 +19,7 @@ Layout (format version :data:`VERSION`) in ``<out>/v<VERSION>/``::
                      (bounds, then rows, active at x_ref), ref_residuals (T,3) primal/dual/gap of
                      x_ref, q (T,nq), time (T,)
 
-The QP is ``min 1/2 x'Hx + c'x  s.t.  G x <= h, A x = b, lb <= x <= ub`` (``wbc.qp.QP``).
+The QP is ``min 1/2 x'Hx + c'x  s.t.  G x <= h, A x = b, lb <= x <= ub`` (``wbc.qp.problem.QP``).
 :func:`load` reads it back; :meth:`ScenarioQPs.problem` gives a ``qpsolvers.Problem``.
 """
 
@@ -198,8 +198,8 @@ def record_scenario(path: Path, duration: float | None = None, show_progress: bo
     ``q0``: start the loop there instead of the scenario's initial configuration (its tasks and
     reference, built from the initial configuration, are unchanged: a perturbed start).
     """
+    from wbc.app.scenario import load_scenario
     from wbc.core.errors import SolverError
-    from wbc.scenario import load_scenario
 
     scenario = load_scenario(path)
     controller = scenario.make_controller()

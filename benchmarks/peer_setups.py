@@ -33,10 +33,10 @@ import numpy as np
 import pinocchio as pin
 
 import wbc
+from wbc.app.scenario import Scenario
 from wbc.constraints.constraint import Constraint, ConstraintRows
 from wbc.model.kinematics import Kinematics
 from wbc.model.robot import Robot
-from wbc.scenario import Scenario
 from wbc.tasks import FrameTask, PostureTask
 from wbc.tasks.frame_task import FrameTaskData
 

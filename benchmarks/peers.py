@@ -55,7 +55,7 @@ import numpy as np
 import pinocchio as pin
 
 import wbc
-from wbc.scenario import load_scenario
+from wbc.app.scenario import load_scenario
 
 from . import placo_peer
 from .common import OUTPUT, ROOT, TASKS, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
@@ -255,7 +255,7 @@ def placo_alternation(scenario, spec: StackSpec, placo: Placo, configurations: n
 
 def run_scenario(path: Path, repeats: int, warmup: int, peers: bool, show_progress: bool,
                  placo: Placo | None = None) -> dict:
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(path)
     spec = spec_from_scenario(scenario)

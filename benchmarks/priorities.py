@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import wbc
-from wbc.scenario import Scenario, load_scenario
+from wbc.app.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -15,7 +15,7 @@ matching MJCF are generated in a temporary folder.
   consecutive ticks (50), the blocks in a random order each round (seeded), so noise hits
   them alike and each runs like a control loop (a library stepped right after another one
   at 128 DOF finds its data evicted from the caches). From 16 DOF wbc solves the lifted QP
-  (``wbc.lifting``).
+  (``wbc.qp.lifting``).
 * **task sweep**: on the 24-DOF chain, k FrameTasks on frames spread along the chain
   (each on its own small circle) + PostureTask, k in ``--tasks``; wbc only.
 
@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import wbc
-from wbc.references import Circle
+from wbc.app.references import Circle
 
 from .common import OUTPUT, fmt, machine_note, markdown_table, package_versions, percentiles_us, progress
 from .peer_setups import MinkSetup, PinkSetup, StackSpec, WorldVelocityLimits

@@ -73,7 +73,7 @@ class StartJob:
 
 def record_start(job: StartJob) -> dict:
     """Record ``job`` (on a worker or here): ``{"entry", "arrays"}`` as :func:`dataset.record_scenario`."""
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / job.source
@@ -102,7 +102,7 @@ def _read(path: Path) -> tuple[dict, dict[str, np.ndarray]] | None:
 def _jobs(folder: Path, index: dict, nominal: Sequence[ds.ScenarioQPs], starts: int, seed: int,
           tasks: Path) -> list[StartJob]:
     """The starts of ``nominal`` that are missing or stale in ``folder``."""
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     jobs = []
     for sc in nominal:

@@ -23,8 +23,8 @@ pytest.importorskip("pytest_benchmark")
 
 import wbc  # noqa: E402
 from benchmarks.common import TASKS, scenario_files  # noqa: E402
+from wbc.app.scenario import load_scenario  # noqa: E402
 from wbc.model.kinematics import Kinematics  # noqa: E402
-from wbc.scenario import load_scenario  # noqa: E402
 from wbc.solvers import QpsolversBackend, make_solver  # noqa: E402
 
 TRAJECTORY_TICKS = 300

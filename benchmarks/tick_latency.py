@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from wbc.scenario import load_scenario
+from wbc.app.scenario import load_scenario
 from wbc.solvers import QpsolversBackend
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from wbc.closed_loop import RunResult, run, velocity_ratio
-from wbc.plotting import manipulability_traces
-from wbc.scenario import Scenario, load_scenario
+from wbc.app.closed_loop import RunResult, run, velocity_ratio
+from wbc.app.plotting import manipulability_traces
+from wbc.app.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIOS = [ROOT / "tasks" / "youbot_stretch_no_barrier.toml", ROOT / "tasks" / "youbot_stretch.toml"]

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 import wbc
-from wbc import closed_loop, outputs, plotting, view
+from wbc.app import closed_loop, outputs, plotting, view
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs" / "api"
@@ -31,7 +31,7 @@ def test_api_reference_builds_without_warnings(tmp_path):
                              str(tmp_path / "html")], capture_output=True, text=True, timeout=900)
     assert result.returncode == 0, result.stderr[-20000:]
     controller_page = (tmp_path / "html" / "control.html").read_text()
-    assert 'id="wbc.controller.Controller.step"' in controller_page
+    assert 'id="wbc.control.controller.Controller.step"' in controller_page
     assert "ArrayLike" in controller_page  # numpy's aliases as written, not expanded
 
 

@@ -78,7 +78,7 @@ def test_shifted_geometric_mean():
 # ------------------------------------------------------------ qpbenchmark test set
 def test_conversion_to_qpbenchmark_keeps_wbc_qp(small_dataset):
     """lb/ub, G x <= h, A x = b describe the same feasible set and optimum as wbc's [I; C] layout."""
-    from wbc.qp import QP
+    from wbc.qp.problem import QP
     from wbc.solvers import make_solver
 
     out, _, _ = small_dataset
@@ -263,7 +263,7 @@ def test_peer_setups_solve_the_same_qp():
     """Pink solves wbc's QP once wbc uses the peers' log6 error; the hand-rolled tick equals wbc's."""
     from benchmarks import peers  # Pink and mink are part of the [test] extra
     from benchmarks.peer_setups import spec_from_scenario
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")
     spec = spec_from_scenario(scenario)
@@ -280,7 +280,7 @@ def test_peer_setups_solve_the_same_qp():
 
 def test_cli_bench_finds_the_checkout():
     import wbc
-    from wbc.cli import build_parser, find_benchmarks
+    from wbc.app.cli import build_parser, find_benchmarks
 
     editable = Path(wbc.__file__).resolve().parents[1] == ROOT  # else: installed, the checkout is not found
     assert find_benchmarks() == (ROOT if editable else None)
@@ -293,7 +293,7 @@ def _placo_run(ticks: int = 40):
     """The youbot_circle peer spec, the configurations and targets of its first ticks."""
     from benchmarks import peers
     from benchmarks.peer_setups import spec_from_scenario
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")
     spec = spec_from_scenario(scenario)

@@ -11,7 +11,7 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, ROOT, TASKS
-from wbc.cli import main
+from wbc.app.cli import main
 
 
 def test_run_prints_summary_and_writes_plot(tmp_path, capsys):
@@ -36,7 +36,7 @@ def test_run_json_summary(capsys):
 def test_json_alone_on_stdout_with_every_backend(solver):
     """`--json` leaves stdout to the JSON whatever the backend prints on first use (highspy 1.16's
     banner), in a process of its own as a user runs it."""
-    result = subprocess.run([sys.executable, "-c", "from wbc.cli import main; raise SystemExit(main())", "run",
+    result = subprocess.run([sys.executable, "-c", "from wbc.app.cli import main; raise SystemExit(main())", "run",
                              str(TASKS / "youbot_circle.toml"), "--duration", "0.1", "--solver", solver, "--json",
                              "--no-progress"], capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr
@@ -117,7 +117,7 @@ CIRCLE = str(TASKS / "youbot_circle.toml")
 
 def wbc_process(*args: str, cwd=NEUTRAL, **kwargs) -> subprocess.CompletedProcess:
     """``wbc ARGS`` as a separate process (its stdout/stderr/exit status as a user sees them)."""
-    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
     return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, capture_output=True, text=True,
                           timeout=300, **kwargs)
 
@@ -153,12 +153,12 @@ def test_noise_and_delay_options_are_checked(capsys, options, message):
     ("mujoco", ["--sim", "mujoco"], 'pip install "wbc[sim]"'),
 ])
 def test_missing_extra_fails_before_the_run(monkeypatch, tmp_path, capsys, module, options, extra):
-    import wbc.closed_loop
+    import wbc.app.closed_loop
 
     def no_run(*args, **kwargs):
         raise AssertionError("the run started")
 
-    monkeypatch.setattr(wbc.closed_loop, "run", no_run)
+    monkeypatch.setattr(wbc.app.closed_loop, "run", no_run)
     monkeypatch.setitem(sys.modules, module, None)  # import matplotlib / mujoco -> ImportError
     monkeypatch.chdir(tmp_path)
     assert main(["run", CIRCLE, "--no-progress", *options]) == 2
@@ -180,10 +180,10 @@ def test_plot_folder_that_cannot_be_made_fails_before_the_run(tmp_path, capsys):
 
 # ---------------------------------------------------------------- output files
 #: ``python -c`` code running ``wbc ARGS`` in which a run that starts exits with status 99
-NO_RUN = ("import sys, wbc.closed_loop as loop\n"
+NO_RUN = ("import sys, wbc.app.closed_loop as loop\n"
           "def started(*args, **kwargs):\n    print('the run started', file=sys.stderr); sys.exit(99)\n"
           "loop.run = started\n"
-          "from wbc.cli import main; sys.exit(main(sys.argv[1:]))")
+          "from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))")
 
 
 def files_under(folder: Path) -> list[str]:
@@ -230,16 +230,16 @@ def test_plot_format_follows_the_suffix(tmp_path):
 #: interrupted by a real SIGINT (Ctrl-C) once part of it is written
 INTERRUPTED_WRITE = (
     "import os, signal, sys\n"
-    "import matplotlib.figure, wbc.outputs\n"
+    "import matplotlib.figure, wbc.app.outputs\n"
     "def savefig(self, stream, **kwargs):\n"
     "    stream.write(b'half a plot'); stream.flush(); os.kill(os.getpid(), signal.SIGINT)\n"
     "matplotlib.figure.Figure.savefig = savefig\n"
-    "replace = wbc.outputs.os.replace\n"
+    "replace = wbc.app.outputs.os.replace\n"
     "def interrupted_replace(source, target):\n"
     "    if str(target).endswith('.html'): os.kill(os.getpid(), signal.SIGINT)\n"
     "    replace(source, target)\n"
-    "wbc.outputs.os.replace = interrupted_replace\n"
-    "from wbc.cli import main; sys.exit(main(sys.argv[1:]))")
+    "wbc.app.outputs.os.replace = interrupted_replace\n"
+    "from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))")
 
 
 @pytest.mark.parametrize("option, name", [("--plot", "out.png"), ("--html", "out.html")])
@@ -257,7 +257,7 @@ def test_ctrl_c_while_an_output_is_written_leaves_no_file(tmp_path, option, name
 
 
 def test_an_existing_output_is_replaced_whole_or_kept(tmp_path):
-    from wbc.outputs import write_atomically
+    from wbc.app.outputs import write_atomically
 
     target = tmp_path / "plot.png"
     target.write_bytes(b"the previous plot")
@@ -277,12 +277,12 @@ def test_an_existing_output_is_replaced_whole_or_kept(tmp_path):
 
 
 def test_a_failed_write_after_the_run_is_one_line(tmp_path, capsys, monkeypatch):
-    import wbc.outputs
+    import wbc.app.outputs
 
     def full_disk(*args):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(wbc.outputs.os, "replace", full_disk)
+    monkeypatch.setattr(wbc.app.outputs.os, "replace", full_disk)
     assert main(["run", CIRCLE, "--duration", "0.1", "--no-progress", "--plot", str(tmp_path / "x.png")]) == 2
     err = capsys.readouterr().err
     assert err == "wbc: error: --plot: the plot was not written: [Errno 28] No space left on device\n"
@@ -291,7 +291,7 @@ def test_a_failed_write_after_the_run_is_one_line(tmp_path, capsys, monkeypatch)
 
 @pytest.mark.parametrize("args", [["run", CIRCLE, "--duration", "0.2", "--no-progress", "--json"], ["solvers"]])
 def test_broken_pipe_exits_quietly(args):
-    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
     process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, cwd=NEUTRAL)
     process.stdout.close()  # the reader is gone before wbc writes (like `| head -0`)
@@ -319,7 +319,7 @@ def plant_benchmarks(folder, marker):
 
 
 def test_bench_never_imports_benchmarks_from_the_working_directory(tmp_path, monkeypatch):
-    from wbc.cli import find_benchmarks
+    from wbc.app.cli import find_benchmarks
 
     marker = tmp_path / "marker"
     plant_benchmarks(tmp_path / "parent", marker)

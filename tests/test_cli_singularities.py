@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from wbc.cli import main
+from wbc.app.cli import main
 
 
 @pytest.mark.parametrize("model, expected", [
@@ -32,7 +32,7 @@ def test_singularities_unknown_model_exits_2(capsys):
 def test_singularities_exits_1_on_disagreement(capsys, monkeypatch):
     import numpy as np
 
-    from wbc import singularity
+    from wbc.analysis import singularity
 
     def broken(robot, rng, samples, on_set, subsystem):
         report = singularity.Agreement("random configurations")
@@ -60,7 +60,7 @@ def test_counts_and_seeds_out_of_range_are_usage_errors(capsys, options, option)
 
 def test_a_check_that_ran_no_case_fails(capsys, monkeypatch):
     """An empty agreement (0 / 0) confirms nothing: the command reports a disagreement, exit 1."""
-    from wbc import singularity
+    from wbc.analysis import singularity
 
     monkeypatch.setattr(singularity, "verify", lambda *args, **kwargs: [singularity.Agreement("no case")])
     assert main(["singularities", "puma560"]) == 1

@@ -7,8 +7,8 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc.closed_loop import position_violation, run, velocity_ratio
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import position_violation, run, velocity_ratio
+from wbc.app.scenario import load_scenario
 
 VELOCITY_TOLERANCE = 1e-9  # solver tolerance on |v| <= limit
 

@@ -1,4 +1,4 @@
-"""DAQP through its C API from compiled code (wbc.daqp_abi, wbc.daqp_native): the layout is
+"""DAQP through its C API from compiled code (wbc.solvers.daqp.abi, wbc.solvers.daqp.native): the layout is
 checked on the installed build, the answers are DAQP's Python binding's (an independent
 code path into the same solver) and optimal by a second solver, and the controller's
 commands are the same on both paths."""
@@ -13,12 +13,13 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc import daqp_abi
-from wbc.daqp_native import NativeWorkspace
-from wbc.qp import QP
+from wbc.app.scenario import load_scenario
+from wbc.qp.problem import QP
 from wbc.runtime import kernels
-from wbc.scenario import load_scenario
 from wbc.solvers import DaqpBackend
+from wbc.solvers.daqp import abi as daqp_abi
+from wbc.solvers.daqp import probe as daqp_probe
+from wbc.solvers.daqp.native import NativeWorkspace
 
 
 def random_qp(rng: np.random.Generator, n: int, n_ineq: int, n_eq: int) -> QP:
@@ -62,24 +63,24 @@ def assert_kkt(qp: QP, x: np.ndarray, lam: np.ndarray) -> None:
 def test_the_installed_daqp_passes_the_layout_probe():
     version = daqp_abi.importlib.metadata.version("daqp")
     assert version.startswith(daqp_abi.SUPPORTED_VERSIONS), f"pyproject's daqp bound lets in {version}"
-    assert daqp_abi.unavailable_reason() is None
+    assert daqp_probe.unavailable_reason() is None
     assert DaqpBackend().native
 
 
 def test_the_probe_refuses_a_layout_the_kernels_do_not_share(monkeypatch):
-    library = daqp_abi.native()
+    library = daqp_probe.native()
     monkeypatch.setattr(kernels, "DAQP_RESULT_EXITFLAG", kernels.DAQP_RESULT_EXITFLAG + 1)
-    assert "result exit flag" in daqp_abi.probe(library)
+    assert "result exit flag" in daqp_probe.probe(library)
     monkeypatch.undo()
-    assert daqp_abi.probe(library) is None
+    assert daqp_probe.probe(library) is None
 
 
 def test_an_unknown_daqp_release_uses_the_binding(monkeypatch):
     daqp_abi._load.cache_clear()
-    daqp_abi._probe_failure.cache_clear()
+    daqp_probe._probe_failure.cache_clear()
     monkeypatch.setattr(daqp_abi.importlib.metadata, "version", lambda name: "0.99.0")
     try:
-        assert "daqp 0.99.0" in daqp_abi.unavailable_reason()
+        assert "daqp 0.99.0" in daqp_probe.unavailable_reason()
         backend = DaqpBackend()
         assert not backend.native
         qp = random_qp(np.random.default_rng(1), 5, 3, 1)
@@ -87,7 +88,7 @@ def test_an_unknown_daqp_release_uses_the_binding(monkeypatch):
         assert solution.success and np.allclose(solution.x, binding_answer(qp)[0], atol=1e-10)
     finally:
         daqp_abi._load.cache_clear()
-        daqp_abi._probe_failure.cache_clear()
+        daqp_probe._probe_failure.cache_clear()
 
 
 @pytest.mark.parametrize("warm_start", [True, False])
@@ -95,7 +96,7 @@ def test_native_answers_are_the_bindings_and_optimal(rng, warm_start):
     """200 random QPs, 5 ticks each on one workspace (warm or cold): the binding's answer and
     exit status; the answer and multipliers satisfy the KKT conditions; the defect written
     is the QP's."""
-    library = daqp_abi.native()
+    library = daqp_probe.native()
     infeasible = 0
     for _ in range(200):
         n, p, e = int(rng.integers(1, 12)), int(rng.integers(0, 6)), int(rng.integers(0, 3))
@@ -137,7 +138,7 @@ def test_a_warm_start_does_not_change_the_answer_and_saves_iterations():
     answers, iterations = {}, {}
     for warm in (True, False):
         qp = base.copy()
-        workspace = NativeWorkspace(daqp_abi.native(), qp, {}, warm_start=warm)
+        workspace = NativeWorkspace(daqp_probe.native(), qp, {}, warm_start=warm)
         answers[warm], iterations[warm] = [], 0
         for k in range(100):
             qp.c[...] = base.c + np.sin(0.05 * k + np.arange(12))
@@ -168,7 +169,7 @@ def test_controller_commands_match_the_binding_path(scenario_file, monkeypatch):
 
     native, native_outcomes, controller = run()
     assert controller.solver.native and controller._solve_in_program == (not controller.reduced)
-    monkeypatch.setattr(daqp_abi, "native", lambda: None)
+    monkeypatch.setattr(daqp_probe, "native", lambda: None)
     binding, binding_outcomes, controller = run()
     assert not controller.solver.native and not controller._solve_in_program
     assert native_outcomes == binding_outcomes

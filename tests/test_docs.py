@@ -231,7 +231,7 @@ def test_toml_blocks_are_valid(block, tmp_path):
     assert set(data) <= {"tasks", "constraints", "reference"}, f"{block.label}: a fragment of what?"
     path = tmp_path / "fragment.toml"
     path.write_text(SCENARIO + block.code)
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(path)
     assert len(scenario.tasks) == len(data.get("tasks", []))

@@ -63,7 +63,7 @@ import wbc
 
 def _chain24() -> wbc.Robot:
     """A 24-DOF mobile chain (benchmarks.scaling's): its controllers solve the lifted QP
-    (wbc.lifting) whenever at most 12 task rows are dense."""
+    (wbc.qp.lifting) whenever at most 12 task rows are dense."""
     from conftest import ROOT
 
     if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
@@ -261,7 +261,8 @@ def cases(draw, solvers=None, robot_name=None):
         constraints.append(dict(kind="ManipulabilityBarrier", frame=frame, min_value=draw(log_uniform(-6, -1)),
                                 gain=draw(GAINS), rows=draw(st.sampled_from(["all", "position", "orientation"]))))
     constraints = draw(st.permutations(constraints))
-    # strict priorities (wbc.hierarchy) once in four: the tasks before ``levels`` at level 0, the rest at level 1
+    # strict priorities (wbc.control.hierarchy) once in four:
+    # the tasks before ``levels`` at level 0, the rest at level 1
     levels = draw(st.integers(1, len(tasks) - 1)) if len(tasks) >= 2 and draw(st.integers(0, 3)) == 0 else None
     return dict(robot=name, q=q, tasks=tasks, levels=levels, constraints=constraints,
                 solver=draw(st.sampled_from(solvers or IN_PROCESS_SOLVERS)),

@@ -1,4 +1,4 @@
-"""Strict task priorities (wbc.hierarchy) against references written here, independently of
+"""Strict task priorities (wbc.control.hierarchy) against references written here, independently of
 wbc's kernels: the task rows from Pinocchio's Jacobians and the task definitions of the README,
 the classical null-space projection for equality-only stacks (task-1 pseudo-inverse + projected
 task 2), and with active inequalities a brute-force cascade solved by SciPy and Clarabel."""
@@ -13,8 +13,8 @@ from scipy.optimize import lsq_linear
 
 import wbc
 from conftest import TASKS
-from wbc.closed_loop import run
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 
 DT = 0.01
 ARM = slice(3, 8)  # the youBot's arm coordinates (the base is x, y, theta)
@@ -145,9 +145,9 @@ def test_two_levels_match_the_null_space_projection(youbot, rng, solver, damping
         reference = null_space_projection([(A1, b1), (A2, b2)], damping)
         assert np.all(np.abs(reference) < 0.9 * youbot.velocity_limit), "the limits must be inactive"
         np.testing.assert_allclose(v, reference, rtol=0, atol=1e-6)
-        # level 0 is met (its targets are reachable) up to the band of wbc.hierarchy (plus the
+        # level 0 is met (its targets are reachable) up to the band of wbc.control.hierarchy (plus the
         # regularisation floor of its QP, 1e-10 of its largest curvature: < 1e-7 relative here)
-        slack = 2 * wbc.hierarchy.BAND * np.linalg.norm(A1, axis=1) * max(1.0, np.abs(v).max())
+        slack = 2 * wbc.control.hierarchy.BAND * np.linalg.norm(A1, axis=1) * max(1.0, np.abs(v).max())
         slack += 1e-7 * np.abs(b1).max()
         assert np.all(np.abs(A1 @ v - b1) <= slack)
         errors, optima = controller.last.level_errors, controller.last.level_optima
@@ -440,8 +440,8 @@ def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
 def test_the_plot_of_priorities_shows_the_posture_next_to_the_weighted_stack():
     """`wbc run ..._weighted.toml ...priorities.toml --plot`: a posture panel with both runs,
     starting at the posture error of the initial configuration (1 rad: written out here)."""
-    from wbc.closed_loop import posture_traces
-    from wbc.plotting import figure
+    from wbc.app.closed_loop import posture_traces
+    from wbc.app.plotting import figure
 
     runs = [(scenario, run(scenario, duration=0.3)) for scenario in
             (load_scenario(TASKS / f"{name}.toml") for name in ("youbot_priorities_weighted", "youbot_priorities"))]
@@ -501,7 +501,7 @@ def test_a_level_below_a_fully_determined_one_falls_back_to_its_answer(monkeypat
     def fails(self, qp):
         return wbc.solvers.QPSolution(None, False, "exitflag -1", 0.0)
 
-    monkeypatch.setattr(wbc.fallback.Fallback, "elastic_solve", fails)
+    monkeypatch.setattr(wbc.control.fallback.Fallback, "elastic_solve", fails)
     puma, controller = posture_over_pose(1.0, 1e9, "daqp")
     v = controller.step(PUMA_Q)
     assert controller.last.outcome is wbc.Outcome.LEVEL_ABOVE, controller.last.status

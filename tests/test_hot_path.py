@@ -6,8 +6,8 @@ import pytest
 
 import wbc
 from conftest import TASKS, random_youbot_configurations
-from wbc.qp import QP
-from wbc.scenario import load_scenario
+from wbc.app.scenario import load_scenario
+from wbc.qp.problem import QP
 from wbc.solvers import DaqpBackend
 
 

@@ -10,11 +10,11 @@ import pytest
 
 import wbc
 from conftest import TASKS
+from wbc.app.scenario import load_scenario
 from wbc.constraints.constraint import ConstraintData
 from wbc.model.kinematics import Kinematics
 from wbc.runtime import kernels
 from wbc.runtime.program import TickProgram
-from wbc.scenario import load_scenario
 from wbc.tasks.frame_task import FrameTaskData
 from wbc.tasks.task import TaskData
 

@@ -1,6 +1,6 @@
 """numba is imported only when compiled code is first needed; its on-disk cache is never stale.
 
-``import wbc`` (and ``wbc.singularity``, ``wbc.trajectory``, ``wbc solvers``, ``wbc --help``)
+``import wbc`` (and ``wbc.analysis.singularity``, ``wbc.trajectory``, ``wbc solvers``, ``wbc --help``)
 must not import numba; building a controller loads the kernels. numba keys a cached function
 on its own source file only, so :mod:`wbc.runtime.kernels._cache` deletes the package's entries when
 any kernel source changes: checked here on a small package with a cross-file call, whose
@@ -34,7 +34,7 @@ def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> su
 def test_import_does_not_import_numba():
     result = _python("""
         import sys
-        import wbc, wbc.singularity, wbc.trajectory
+        import wbc, wbc.analysis.singularity, wbc.trajectory
         from wbc.runtime import kernels
         assert kernels.FRAME_GAIN == 24 and kernels.OP_FRAME_TASK == 1  # the layouts need no numba
         print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite")))
@@ -47,7 +47,7 @@ def test_import_does_not_import_numba():
 def test_cli_without_kernels_does_not_import_numba(argv):
     result = _python(f"""
         import sys
-        from wbc.cli import main
+        from wbc.app.cli import main
         try:
             status = main({argv!r})
         except SystemExit as exc:
@@ -88,8 +88,8 @@ def test_loaded_kernels_are_plain_attributes(warm):
 
 
 def test_warmup_command(warm):
-    result = subprocess.run([sys.executable, "-m", "wbc.cli", "warmup"], capture_output=True, text=True, timeout=300,
-                            cwd=NEUTRAL)
+    result = subprocess.run([sys.executable, "-m", "wbc.app.cli", "warmup"], capture_output=True, text=True,
+                            timeout=300, cwd=NEUTRAL)
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("numba kernels ready in ")
     assert result.stderr == ""

@@ -1,4 +1,4 @@
-"""The lifted form of high-DOF QPs (wbc.lifting): the same minimiser over v as the dense
+"""The lifted form of high-DOF QPs (wbc.qp.lifting): the same minimiser over v as the dense
 normal equations, written out here from the task stack and solved by two other solvers."""
 
 import sys
@@ -8,7 +8,8 @@ import pytest
 
 import wbc
 from conftest import ROOT
-from wbc import lifting, solvers
+from wbc import solvers
+from wbc.qp import lifting
 
 if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
     sys.path.insert(0, str(ROOT))

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import TASKS
-from wbc.closed_loop import run
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 from wbc.core.errors import InvalidInputError
-from wbc.scenario import load_scenario
 
 POSTURE_ONLY = ('[robot]\nname = "youbot"\ninitial_configuration = [0, 0, 0, 0, 0.5, 1.0, 1.2, 0]\n'
                 '[controller]\nduration = 1.0\n'
@@ -111,8 +111,8 @@ def test_a_run_needs_a_tick_and_a_row(circle):
 
 
 def test_the_manipulability_of_a_decimated_run_says_it_is_sampled():
-    from wbc.cli import format_summary
-    from wbc.closed_loop import manipulability_traces
+    from wbc.app.cli import format_summary
+    from wbc.app.closed_loop import manipulability_traces
     from wbc.model.manipulability import manipulability
 
     scenario = load_scenario(TASKS / "youbot_stretch.toml")

@@ -11,12 +11,12 @@ import pinocchio as pin
 import pytest
 
 from conftest import ROOT, TASKS
-from wbc.cli import main
-from wbc.closed_loop import run, velocity_ratio
+from wbc.app.cli import main
+from wbc.app.closed_loop import run, velocity_ratio
+from wbc.app.plotting import manipulability_traces
+from wbc.app.references import Line
+from wbc.app.scenario import load_scenario
 from wbc.model.manipulability import manipulability
-from wbc.plotting import manipulability_traces
-from wbc.references import Line
-from wbc.scenario import load_scenario
 
 if sys.version_info >= (3, 11):
     import tomllib

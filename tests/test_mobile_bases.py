@@ -6,8 +6,8 @@ import pytest
 
 import wbc
 from conftest import TASKS, random_youbot_configurations
-from wbc.closed_loop import lateral_slip, run, wheel_ratio
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import lateral_slip, run, wheel_ratio
+from wbc.app.scenario import load_scenario
 
 R, L, W = 0.0475, 0.235, 0.15  # youBot wheels, from issue 2 (independent of the model files)
 D0, L2, L3 = 0.6, 0.432, 0.432  # De Luca model dimensions, from issue 3

@@ -7,9 +7,9 @@ import pytest
 
 import wbc
 from conftest import TASKS
+from wbc.app.scenario import load_scenario
 from wbc.model import kinematics
 from wbc.model.kinematics import Kinematics, native_chain
-from wbc.scenario import load_scenario
 
 MIXED = """<robot name="mixed">
   <link name="world"/><link name="a"/><link name="b"/><link name="c"/><link name="d"/><link name="tip"/>

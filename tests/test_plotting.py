@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from conftest import TASKS
-from wbc.closed_loop import run
-from wbc.plotting import figure, log_floor
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import run
+from wbc.app.plotting import figure, log_floor
+from wbc.app.scenario import load_scenario
 
 plt = pytest.importorskip("matplotlib.pyplot")
 
@@ -290,7 +290,7 @@ def service(tmp_path_factory):
 
 
 def test_joint_roles_of_a_many_joint_robot(service):
-    from wbc.plotting import joint_roles
+    from wbc.app.plotting import joint_roles
 
     scenario, _ = service
     roles = joint_roles(scenario.robot, "gripper")
@@ -303,7 +303,7 @@ def test_joint_roles_of_a_many_joint_robot(service):
 
 
 def test_many_joints_get_readable_panels_named_by_role(service, panels):
-    from wbc.plotting import MAX_LINES
+    from wbc.app.plotting import MAX_LINES
 
     scenario, result = service
     axes = panels([service])
@@ -395,10 +395,10 @@ def test_title_names_the_loop_and_what_a_long_run_kept(circle, panels):
 
 
 def test_a_long_record_is_drawn_coarsened_and_says_so(circle, panels, monkeypatch):
-    import wbc.plotting
+    import wbc.app.plotting
 
     scenario, result = circle  # 400 ticks
-    monkeypatch.setattr(wbc.plotting, "PLOT_ROWS", 100)
+    monkeypatch.setattr(wbc.app.plotting, "PLOT_ROWS", 100)
     axes = panels([circle])
     (line,) = data_lines(axes["position"])
     np.testing.assert_allclose(line.get_ydata(), result.position_error.reshape(100, 4).max(axis=1) * 1e3)
@@ -436,7 +436,7 @@ def test_figure_needs_a_run():
 
 
 def test_shipped_scenarios_all_plot(tmp_path):
-    from wbc.plotting import plot_runs
+    from wbc.app.plotting import plot_runs
 
     runs = [_run(path.stem, 0.2) for path in sorted(TASKS.glob("*.toml"))]
     path = plot_runs(runs, tmp_path / "all.png")

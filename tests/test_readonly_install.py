@@ -33,7 +33,7 @@ PROGRAM = f"""
     import json, sys
     import numpy as np
     import wbc
-    from wbc.cli import main
+    from wbc.app.cli import main
 
     status = main(["run", {str(TASKS / "youbot_reach.toml")!r}, "--json", "--no-progress", "--duration", "0.05"])
     robot = wbc.load_robot("youbot")

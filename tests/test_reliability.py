@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 import wbc
 from wbc.constraints.constraint import Constraint
-from wbc.diagnostics import StaleDiagnosticsError
+from wbc.control.diagnostics import StaleDiagnosticsError
 from wbc.tasks.task import Task
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
@@ -143,7 +143,7 @@ def test_every_tick_is_solved_by_the_backend_itself(youbot, constraints):
 
 def test_warm_start_returns_the_cold_solution(youbot):
     from conftest import TASKS
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")
     warm = scenario.make_controller()

@@ -12,8 +12,8 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, ROOT, TASKS
+from wbc.app.scenario import load_scenario
 from wbc.core.errors import ModelError, ScenarioError
-from wbc.scenario import load_scenario
 
 CIRCLE = (TASKS / "youbot_circle.toml").read_text()
 
@@ -304,7 +304,7 @@ def test_every_file_is_checked_before_the_first_run_starts(tmp_path):
     included, before any run; one line on stderr, nothing else (no progress bar of a run)."""
     long = write(tmp_path, edited("duration = 20.0", "duration = 30.0"), "long.toml")
     bad = write(tmp_path, edited('target = "initial"', 'target = "initial"\njoints = ["nope"]'), "bad.toml")
-    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run([sys.executable, "-c", code, "run", str(long), str(bad), "--json"], cwd=NEUTRAL,
                             capture_output=True, text=True, timeout=600)
     assert result.returncode == 2 and result.stdout == ""
@@ -316,7 +316,7 @@ def test_every_file_is_checked_before_the_first_run_starts(tmp_path):
 def test_a_duration_option_out_of_the_tick_range_is_refused_before_the_run(duration, ticks):
     """--duration 1e-9 ran 0 ticks then died in numpy; 1e9 tried to allocate 5.8 TiB (the 10^7-tick
     cap held for files only) (issue 22 §1)."""
-    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run([sys.executable, "-c", code, "run", str(TASKS / "youbot_circle.toml"), "--duration",
                              duration, "--no-progress"], cwd=NEUTRAL, capture_output=True, text=True, timeout=600)
     assert result.returncode == 2 and result.stdout == ""

@@ -7,9 +7,9 @@ import pytest
 
 import wbc
 from conftest import TASKS
-from wbc.closed_loop import run
-from wbc.scenario import load_scenario
-from wbc.simulation import MujocoSimulation
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
+from wbc.app.simulation import MujocoSimulation
 
 
 def test_circle_is_tracked_through_the_servos_with_noise_and_delay():

@@ -1,4 +1,4 @@
-"""wbc.singularity against independent rank computations: property tests on random configurations
+"""wbc.analysis.singularity against independent rank computations: property tests on random configurations
 within the limits and on / epsilon-near every singular set, lost directions (Kapustina eq. 7), the
 singular-region measure, the Scorbot angle conversion and input errors."""
 
@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 import wbc
 from dh_tables import PUMA, SCORBOT
 from test_youbot_model import A1, A2, A3, C
-from wbc import singularity as sing
+from wbc.analysis import singularity as sing
 
 MODELS = ["youbot", "scorbot_er4pc", "puma560"]
 

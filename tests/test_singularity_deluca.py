@@ -8,7 +8,7 @@ import pytest
 import sympy as sp
 
 import wbc
-from wbc.singularity import is_singular, lost_directions, numeric_rank, verify
+from wbc.analysis.singularity import is_singular, lost_directions, numeric_rank, verify
 
 X, Y, TH, T1, T2, T3 = sp.symbols("x y theta theta1 theta2 theta3", real=True)
 D0, L2, L3 = sp.symbols("d0 l2 l3", positive=True)

@@ -5,9 +5,9 @@ import pytest
 
 import wbc
 from wbc.core.errors import InvalidInputError, WbcError
-from wbc.qp import QP
-from wbc.solver_options import BUDGET_KEYS, InvalidSolverOptionError, valid_options
+from wbc.qp.problem import QP
 from wbc.solvers import make_solver
+from wbc.solvers.options import BUDGET_KEYS, InvalidSolverOptionError, valid_options
 
 SOLVERS = wbc.available_solvers()
 KNOWN = [name for name in SOLVERS if name in BUDGET_KEYS]

@@ -8,8 +8,8 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, TASKS
-from wbc.qp import QP
-from wbc.scenario import load_scenario
+from wbc.app.scenario import load_scenario
+from wbc.qp.problem import QP
 from wbc.solvers import make_solver
 
 AGREEMENT = 1e-6
@@ -141,7 +141,7 @@ def test_a_fresh_process_prints_nothing_with_any_backend(name):
     backend's first use happens (highspy 1.16 prints a banner on stdout at its first Highs()):
     wbc runs that first use silenced when the backend is built (wbc.core.quiet)."""
     # the kernels compiled beforehand: a cold numba cache is announced on stderr (once after an install)
-    subprocess.run([sys.executable, "-c", "from wbc.cli import main; main(['warmup'])"], capture_output=True,
+    subprocess.run([sys.executable, "-c", "from wbc.app.cli import main; main(['warmup'])"], capture_output=True,
                    check=True, timeout=600)
     result = subprocess.run([sys.executable, "-c", QUIET_PROBE, name], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -154,7 +154,7 @@ import subprocess
 import sys
 
 import numpy as np
-from wbc.qp import QP
+from wbc.qp.problem import QP
 from wbc.solvers import make_solver
 
 solver = make_solver(sys.argv[1])

@@ -150,7 +150,7 @@ def test_missing_engine_names_the_extra(sweep_dataset, tmp_path, monkeypatch, ca
 
 
 def test_benchmarks_import_no_engine():
-    code = "import sys, benchmarks.solvers, benchmarks.sweep, wbc.cli; print('distributed' in sys.modules)"
+    code = "import sys, benchmarks.solvers, benchmarks.sweep, wbc.app.cli; print('distributed' in sys.modules)"
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "False"
@@ -185,7 +185,7 @@ def test_version_check_names_a_missing_package():
 # ------------------------------------------------------------------ perturbed starts
 @pytest.mark.parametrize("path", scenario_files(TASKS), ids=lambda path: path.stem)
 def test_perturbed_starts_are_inside_the_limits_and_seeded(path):
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(path)
     robot, q0 = scenario.robot, scenario.q0
@@ -201,7 +201,7 @@ def test_perturbed_starts_are_inside_the_limits_and_seeded(path):
 
 
 def test_recorded_starts_begin_at_the_perturbed_start_and_follow_the_seed(sweep_dataset, serial_run, tmp_path):
-    from wbc.scenario import load_scenario
+    from wbc.app.scenario import load_scenario
 
     copy = tmp_path / "dataset"
     shutil.copytree(sweep_dataset, copy)
@@ -230,7 +230,7 @@ def test_recorded_starts_begin_at_the_perturbed_start_and_follow_the_seed(sweep_
 def test_sweep_options_are_checked_before_anything_starts(options, expected, tmp_path):
     """nan was a raw KeyError traceback, -5 a garbled message, a malformed address an error followed by a 20 s
     hang and an 'Exception ignored ... TimeoutError' traceback (issue 22 §6): now exit 2, one line."""
-    code = "import sys; from wbc.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
     result = subprocess.run([sys.executable, "-c", code, "bench", "--checkout", str(ROOT), "solvers",
                              "--out", str(tmp_path), *options], capture_output=True, text=True, timeout=300)
     assert result.returncode == 2, result.stderr

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc.diagnostics import StaleDiagnosticsError
+from wbc.control.diagnostics import StaleDiagnosticsError
 from wbc.runtime import kernels
 from wbc.solvers import QPSolution, QPSolver
 

@@ -6,8 +6,8 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from wbc.analysis.singularity import singularity_measure
 from wbc.core.errors import InvalidInputError
-from wbc.singularity import singularity_measure
 from wbc.trajectory import (
     ArcPath,
     JointTrajectory,

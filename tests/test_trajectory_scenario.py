@@ -11,11 +11,11 @@ import pinocchio as pin
 import pytest
 
 from conftest import TASKS
-from wbc.cli import main
-from wbc.closed_loop import run
+from wbc.analysis.singularity import singularity_measure
+from wbc.app.cli import main
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 from wbc.core.errors import PlanningError, ScenarioError
-from wbc.scenario import load_scenario
-from wbc.singularity import singularity_measure
 from wbc.trajectory import JointTrajectory, LinePath, branch_switches, plan
 
 if sys.version_info >= (3, 11):

@@ -142,7 +142,7 @@ def test_user_script_passes_mypy_strict(tmp_path, request):
     for script, line_of in scripts.items():
         seen = {expression: revealed[script.name, line] for expression, line in line_of.items()}
         assert seen["controller.dt"] in ("float", "builtins.float"), seen
-        assert seen["controller.last"] == "wbc.diagnostics.TickDiagnostics", seen
+        assert seen["controller.last"] == "wbc.control.diagnostics.TickDiagnostics", seen
         for name in ("controller.step", "robot.frame_pose", "robot.integrate", "robot.wheel_speeds",
                      "controller.step(q)", "target"):
             if name in seen:

@@ -29,8 +29,8 @@ from scipy.optimize import least_squares
 import wbc
 from conftest import ROOT, TASKS
 from test_kernels import _python_only
-from wbc.closed_loop import run
-from wbc.scenario import load_scenario
+from wbc.app.closed_loop import run
+from wbc.app.scenario import load_scenario
 
 if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
     sys.path.insert(0, str(ROOT))
@@ -352,7 +352,7 @@ def test_a_hierarchy_damps_each_level_with_its_own_tasks(youbot):
 
 
 def test_the_lifted_qp_of_a_high_dof_robot_is_damped_alike(tmp_path):
-    """32 DOF (the lifted QP of wbc.lifting, H never formed): the command is the written-out
+    """32 DOF (the lifted QP of wbc.qp.lifting, H never formed): the command is the written-out
     dense QP's optimum with the FrameTask's term in the damping."""
     path = tmp_path / "chain32.urdf"
     path.write_text(chain_urdf(32))

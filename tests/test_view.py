@@ -1,4 +1,4 @@
-"""The 3-D view (wbc.view, ``wbc run ... --view / --html``): what is drawn of a robot, the
+"""The 3-D view (wbc.app.view, ``wbc run ... --view / --html``): what is drawn of a robot, the
 self-contained HTML replay, the live viewer, and both in a real headless browser.
 
 The browser tests (marked slow) need a Chromium-family browser (tests/browser.py finds it);
@@ -24,14 +24,14 @@ import pytest
 
 import wbc
 from conftest import NEUTRAL, TASKS
-from wbc.cli import main
+from wbc.app.cli import main
 
 viser = pytest.importorskip("viser")
 
 from browser import HeadlessBrowser, find_browser  # noqa: E402
-from wbc import view  # noqa: E402
-from wbc.closed_loop import run  # noqa: E402
-from wbc.scenario import load_scenario  # noqa: E402
+from wbc.app import view  # noqa: E402
+from wbc.app.closed_loop import run  # noqa: E402
+from wbc.app.scenario import load_scenario  # noqa: E402
 
 CIRCLE = str(TASKS / "youbot_circle.toml")
 
@@ -45,8 +45,8 @@ def circle_run():
 
 # ------------------------------------------------------------------ the extra and the CLI
 def test_import_wbc_and_the_cli_do_not_import_viser():
-    code = ("import sys, wbc, wbc.cli\n"
-            "try:\n    wbc.cli.main(['run', '--help'])\nexcept SystemExit:\n    pass\n"
+    code = ("import sys, wbc, wbc.app.cli\n"
+            "try:\n    wbc.app.cli.main(['run', '--help'])\nexcept SystemExit:\n    pass\n"
             "print('viser' in sys.modules)")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=NEUTRAL, timeout=300)
     assert result.returncode == 0, result.stderr
@@ -55,12 +55,12 @@ def test_import_wbc_and_the_cli_do_not_import_viser():
 
 @pytest.mark.parametrize("options", [["--html", "out.html"], ["--view"]])
 def test_missing_view_extra_fails_before_the_run(monkeypatch, tmp_path, capsys, options):
-    import wbc.closed_loop
+    import wbc.app.closed_loop
 
     def no_run(*args, **kwargs):
         raise AssertionError("the run started")
 
-    monkeypatch.setattr(wbc.closed_loop, "run", no_run)
+    monkeypatch.setattr(wbc.app.closed_loop, "run", no_run)
     monkeypatch.setitem(sys.modules, "viser", None)  # import viser -> ImportError
     monkeypatch.chdir(tmp_path)
     assert main(["run", CIRCLE, "--no-progress", *options]) == 2
@@ -93,9 +93,9 @@ def test_view_option_streams_the_run_then_replays_until_interrupted():
     """``wbc run ... --view PORT``: the URL on stdout before the run, viser's client served there
     while the run streams, then the replay line after the summary; exit 0 on Ctrl-C."""
     port = free_port()
-    process = subprocess.Popen([sys.executable, "-m", "wbc.cli", "run", CIRCLE, "--duration", "0.5", "--no-progress",
-                                "--view", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               cwd=NEUTRAL)
+    process = subprocess.Popen([sys.executable, "-m", "wbc.app.cli", "run", CIRCLE, "--duration", "0.5",
+                                "--no-progress", "--view", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True, cwd=NEUTRAL)
     try:
         lines = iter(process.stdout.readline, "")
         first = next(lines, "")
@@ -119,8 +119,8 @@ def test_view_option_streams_the_run_then_replays_until_interrupted():
 
 def test_ctrl_c_during_a_streamed_run_stops_it_cleanly():
     port = free_port()
-    process = subprocess.Popen([sys.executable, "-m", "wbc.cli", "run", CIRCLE, "--no-progress", "--view", str(port)],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=NEUTRAL)
+    process = subprocess.Popen([sys.executable, "-m", "wbc.app.cli", "run", CIRCLE, "--no-progress", "--view",
+                                str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=NEUTRAL)
     try:
         assert process.stdout.readline().startswith("3-D view at ")
         time.sleep(1.0)  # the 20 s run is streaming in real time
@@ -378,7 +378,7 @@ def test_a_decimated_run_is_replayed_at_its_own_pace_and_the_page_says_what_was_
 
 
 def test_write_html_refuses_a_path_before_building_the_page(circle_run, tmp_path, monkeypatch):
-    from wbc.outputs import OutputError
+    from wbc.app.outputs import OutputError
 
     def no_page(*args, **kwargs):
         raise AssertionError("the page was built")

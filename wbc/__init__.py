@@ -18,7 +18,8 @@ from .constraints import (
     NonholonomicBase,
     WheelSpeedLimits,
 )
-from .controller import Controller
+from .control.controller import Controller
+from .control.diagnostics import TickDiagnostics
 from .core.errors import (
     InvalidInputError,
     ModelError,
@@ -31,11 +32,10 @@ from .core.errors import (
     WbcError,
 )
 from .core.outcome import Outcome
-from .diagnostics import TickDiagnostics
 from .model.manipulability import Manipulability, manipulability, manipulability_gradient
 from .model.mobile_base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 from .model.robot import Robot, load_robot, model_path, shipped_models
-from .qp import QP
+from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
 

@@ -1,7 +1,7 @@
-"""``python -m wbc ...``: the ``wbc`` command (:func:`wbc.cli.main`)."""
+"""``python -m wbc ...``: the ``wbc`` command (:func:`wbc.app.cli.main`)."""
 
 import sys
 
-from .cli import main
+from .app.cli import main
 
 sys.exit(main())

@@ -12,7 +12,7 @@ op's int operands, range conditions on those ints), and the program keeps a refe
 every array it was given, so none is freed or reallocated while the program can run
 (views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``;
 an op whose arrays point into memory owned by another object -- the DAQP workspace of
-:class:`wbc.daqp_native.NativeWorkspace` -- registers that object with :meth:`keep_alive`).
+:class:`wbc.solvers.daqp.native.NativeWorkspace` -- registers that object with :meth:`keep_alive`).
 """
 
 from __future__ import annotations

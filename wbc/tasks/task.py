@@ -39,7 +39,7 @@ class TaskData:
     uses_preview: bool = False
     #: True when each row of ``W J`` has at most one non-zero entry, in a fixed column (e.g.
     #: PostureTask): the row then adds to the diagonal of H only, which the lifted form of
-    #: high-DOF QPs (:mod:`wbc.lifting`) keeps out of its auxiliary variables
+    #: high-DOF QPs (:mod:`wbc.qp.lifting`) keeps out of its auxiliary variables
     diagonal_rows: bool = False
     #: True when the controller's error-scaled damping (``Controller.lm_damping``) applies to
     #: this task: its target feeds back an error through a nonlinear map (a frame's pose, a

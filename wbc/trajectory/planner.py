@@ -3,7 +3,7 @@
 1. **Sample.** The Cartesian path, timed by the rest-to-rest quintic s(t) over
    ``duration``, is followed by IK continuation (:func:`.sampling.follow`): joint
    positions, rates and the singularity measure m = det(J_s^T J_s)
-   (:func:`wbc.singularity.singularity_measure`, dimensionless) at every sample.
+   (:func:`wbc.analysis.singularity.singularity_measure`, dimensionless) at every sample.
 2. **Check.** Samples with m <= ``threshold`` lie in the singular region (the paper's
    eq. 6, with a unit-free measure).
 3. **Re-route.** Every maximal run of samples with m < ``margin * threshold`` that
@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..analysis.singularity import singularity_measure
 from ..core.errors import InvalidInputError, PlanningError
 from ..core.validation import as_positive
 from ..model.robot import Robot
-from ..singularity import singularity_measure
 from .flips import WristFlip, branch_switches, wrist_flips
 from .paths import Path, SubPath, TimedPath
 from .quintic import REST_TO_REST_PEAK_SPEED, Quintic

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from ..analysis.singularity import singularity_measure
 from ..core.errors import PlanningError
 from ..model.robot import Robot
-from ..singularity import singularity_measure
 from .ik import solve_ik
 from .paths import TimedPath
 

@@ -1,4 +1,4 @@
-"""``[reference] type = "planned"`` of a scenario file (wbc.scenario): the keys and their plan.
+"""``[reference] type = "planned"`` of a scenario file (wbc.app.scenario): the keys and their plan.
 
     path = "line" | "arc"      # straight line or circular arc (then centre = [x, y, z] [m])
     duration = 6.0             # [s] of the rest-to-rest quintic timing of the whole path

@@ -88,9 +88,9 @@ GRAM_CONDITION = 1e-8
 OP_EXTERNAL = 100
 #: forward kinematics of a chain of 1-DOF joints (wbc.model.kinematics' native mode)
 OP_FORWARD_KINEMATICS = 15
-#: strict task priorities (wbc.hierarchy, kernels in .hierarchy)
+#: strict task priorities (wbc.control.hierarchy, kernels in .hierarchy)
 OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
-#: the optimality certificate of a lifted QP's answer (wbc.lifting)
+#: the optimality certificate of a lifted QP's answer (wbc.qp.lifting)
 OP_LIFT_CHECK = 20
 #: the error-scaled (Levenberg-Marquardt) damping of the tasks (Controller.lm_damping): each task's
 #: mu summed per level, then written into the damping rows of one weighted level, or added to the
@@ -106,11 +106,11 @@ CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 
 # ------------------------------------------------------------ native DAQP
 
-#: float64 words of DAQP's C structures (checked against wbc.daqp_abi's ctypes layouts by its probe)
+#: float64 words of DAQP's C structures (checked against wbc.solvers.daqp.abi's ctypes layouts by its probe)
 DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
 #: int32 indices of DAQPResult's exitflag and iter (checked likewise)
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
-#: layout of the control vector of the compiled DAQP solve (wbc.daqp_native): the update mask
+#: layout of the control vector of the compiled DAQP solve (wbc.solvers.daqp.native): the update mask
 #: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
 #: answer), the solve time [s] and DAQP's iterations out
 DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS = range(5)

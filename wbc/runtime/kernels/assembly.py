@@ -1,5 +1,5 @@
 """QP assembly: normal equations, holonomic preview solve, bound clip, cost normalisation,
-NaN screen and the answer check (layout of :class:`wbc.qp.QP`).
+NaN screen and the answer check (layout of :class:`wbc.qp.problem.QP`).
 """
 
 from __future__ import annotations
@@ -123,7 +123,7 @@ def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bo
 
 @njit("void(float64[:, :], int64, float64[:], float64[:])", cache=CACHE, nogil=True)
 def merge_bounds(bounds: np.ndarray, n_hard: int, upper: np.ndarray, lower: np.ndarray) -> None:
-    """The QP's bounds from every bounded constraint's own pair (:class:`wbc.bounds.BoundPolicy`).
+    """The QP's bounds from every bounded constraint's own pair (:class:`wbc.qp.bounds.BoundPolicy`).
 
     ``bounds`` holds, per constraint k, its upper bound in row 2k and its lower bound in row
     2k + 1, the ``n_hard`` hard constraints first. Hard bounds are intersected; soft ones are
@@ -179,7 +179,7 @@ def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None
 @njit("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
 def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
     """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
-    :class:`wbc.qp.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
+    :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
     the size of the numbers it was computed from. NaN in ``x`` gives inf."""
     n = x.shape[0]
     worst = 0.0
@@ -205,7 +205,7 @@ def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np
 
 @njit("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)
 def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
-    """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.QP`'s
+    """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.problem.QP`'s
     flat buffer: H (n x n), c (n), C (rows x n), upper, lower (n + rows each), so
     ``len(data) = n^2 + 3 n + rows (n + 2)``) with ``n = len(x)``: the check run on every
     answer, with two arguments (each costs ~0.1 us to pass)."""
@@ -241,12 +241,12 @@ def has_non_finite(data: np.ndarray) -> bool:
       cache=CACHE, nogil=True)
 def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifted: np.ndarray, nv: int, k: int,
             p: int, e: int, damping: float, damping_floor: float) -> bool:
-    """The lifted form of the QP (:mod:`wbc.lifting`): its dense stack rows as ``k`` auxiliary
+    """The lifted form of the QP (:mod:`wbc.qp.lifting`): its dense stack rows as ``k`` auxiliary
     variables. Returns True when a NaN was met (nothing to solve).
 
     ``stack_t``: the task stack ``A^T`` ((nv + 1) x rows); ``diagonal[r] = 1`` for a row with
     one non-zero entry (posture, damping), 0 for a dense one (k of them). ``source``: the
-    v-QP's buffer (:class:`wbc.qp.QP` with nv variables, p inequality and e equality rows;
+    v-QP's buffer (:class:`wbc.qp.problem.QP` with nv variables, p inequality and e equality rows;
     its bounds and rows are read, its H and c are not used). ``lifted``: the buffer of the
     QP over ``x = (v, w)``, N = nv + k variables, rows ``[G 0; A 0; U -I]``::
 

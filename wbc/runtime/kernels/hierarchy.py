@@ -1,10 +1,10 @@
-"""Kernels of strict task priorities (:mod:`wbc.hierarchy`): the QP of each level below the
+"""Kernels of strict task priorities (:mod:`wbc.control.hierarchy`): the QP of each level below the
 first gets the controller's constraints (:func:`level_constraints`) and, once the levels above
 are solved, the band rows that hold their task values (:func:`band_rows`); a level's cost is
 normalised like the one-level QP (:func:`normalise_level`); and the holonomic preview of a
 hierarchy is its cascade without constraints (:func:`hierarchy_preview`).
 
-QP layouts are those of :class:`wbc.qp.QP` (one flat buffer: H, c, C, upper, lower).
+QP layouts are those of :class:`wbc.qp.problem.QP` (one flat buffer: H, c, C, upper, lower).
 """
 
 from __future__ import annotations

@@ -1,10 +1,10 @@
-"""DAQP called through its C API from compiled code (see :mod:`wbc.daqp_native`).
+"""DAQP called through its C API from compiled code (see :mod:`wbc.solvers.daqp.native`).
 
 The C functions are called through their addresses, passed in as int operands
-(:class:`wbc.daqp_abi.Entry`), by three small intrinsics that emit an indirect call: the
+(:class:`wbc.solvers.daqp.abi.Entry`), by three small intrinsics that emit an indirect call: the
 machine code then holds no address of this process, so numba can cache it like every
 other kernel. Pointers travel as int64 (the x86-64 and AArch64 ABIs pass both in the same
-registers); the structures are float64 arrays that wbc owns (``wbc.daqp_abi.struct_in``).
+registers); the structures are float64 arrays that wbc owns (``wbc.solvers.daqp.abi.struct_in``).
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
                data: np.ndarray, x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
                steady_mask: int) -> None:
     """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
-    flat buffer, :class:`wbc.qp.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
+    flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
 
     ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
     fresh buffers, ``daqp_solve`` writes x (``result`` points to ``x``); the answer is then

@@ -134,7 +134,7 @@ OP_SPECS: dict[int, OpSpec] = {
     OP_FORWARD_KINEMATICS: OpSpec("FORWARD_KINEMATICS", (
         ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),
         ("jacobians_t", ("nv", 6)), ("nq", None), ("joints", None), ("nv", None)), ("1 <= joints",)),
-    # strict priorities (wbc.hierarchy)
+    # strict priorities (wbc.control.hierarchy)
     OP_LEVEL_CONSTRAINTS: OpSpec("LEVEL_CONSTRAINTS", (
         ("source", ("source_size",)), ("target", ("target_size",)), ("n", None), ("p", None), ("e", None),
         ("band", None), ("source_size", None), ("target_size", None)),

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.errors import ModelError
-from .core.validation import as_positive
-from .model.robot import Robot, model_path
+from ..core.errors import ModelError
+from ..core.validation import as_positive
+from ..model.robot import Robot, model_path
 
 
 class MujocoSimulation:

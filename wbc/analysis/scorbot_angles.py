@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .core.validation import as_vector
+from ..core.validation import as_vector
 
 _DH_TO_MEASURED = np.array([
     [1, 0, 0, 0, 0],

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .core.errors import ModelError
-from .model.robot import Robot
+from ..core.errors import ModelError
+from ..model.robot import Robot
 
 Residuals = Callable[[NDArray[np.float64]], NDArray[np.float64]]
 Projection = Callable[[NDArray[np.float64]], NDArray[np.float64] | None]

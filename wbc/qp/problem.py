@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from .runtime import kernels
+from ..runtime import kernels
 
 
 @dataclass

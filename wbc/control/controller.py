@@ -3,20 +3,20 @@
 The whole tick is :meth:`Controller.step`; everything it uses is allocated once, when the
 controller is built, by named pieces:
 
-* the **layout** (:mod:`wbc.layout`): the task stack ``[W J | W r]`` (the tasks' rows, then
+* the **layout** (:mod:`wbc.qp.layout`): the task stack ``[W J | W r]`` (the tasks' rows, then
   ``sqrt(damping) I``, then the preview tasks' rows) and where each constraint writes;
-* the **bound policy** (:class:`wbc.bounds.BoundPolicy`): hard bounds intersected, soft
+* the **bound policy** (:class:`wbc.qp.bounds.BoundPolicy`): hard bounds intersected, soft
   ones clipped into them;
 * the **program** (:class:`wbc.runtime.program.TickProgram`): one native call for every compiled
   item, the normal equations ``H = Js^T Js + damping I``, ``c = -Js^T rs``, the bound clip,
   the cost normalisation, the NaN screen and -- with DAQP on its native path
-  (:mod:`wbc.daqp_native`) -- the solve and the check of its answer; at high DOF the QP
-  is assembled in its lifted form (:mod:`wbc.lifting`: the dense task rows as variables);
+  (:mod:`wbc.solvers.daqp.native`) -- the solve and the check of its answer; at high DOF the QP
+  is assembled in its lifted form (:mod:`wbc.qp.lifting`: the dense task rows as variables);
 * the optional **holonomic preview** (tasks with ``uses_preview``, e.g. SteeringTask) and
-  **input reduction** (:class:`wbc.reduction.InputReduction`, ``reduced=True``);
-* the **fallback chain** (:class:`wbc.fallback.Fallback`), driven by
+  **input reduction** (:class:`wbc.qp.reduction.InputReduction`, ``reduced=True``);
+* the **fallback chain** (:class:`wbc.control.fallback.Fallback`), driven by
   :class:`wbc.core.outcome.Outcome`;
-* with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.hierarchy`.
+* with strict priorities (``tasks`` a list of levels) the **cascade** of :mod:`wbc.control.hierarchy`.
 """
 
 from __future__ import annotations
@@ -29,25 +29,25 @@ from typing import Any, overload
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .constraints.constraint import Constraint, ConstraintData
-from .core.errors import InvalidInputError
-from .core.outcome import Outcome
-from .core.settings import Setting
-from .core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
+from ..constraints.constraint import Constraint, ConstraintData
+from ..core.errors import InvalidInputError
+from ..core.outcome import Outcome
+from ..core.settings import Setting
+from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
+from ..qp.layout import ConstraintLayout, TaskStack
+from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
+from ..qp.problem import QP
+from ..qp.reduction import InputReduction
+from ..runtime import kernels
+from ..runtime.program import TickProgram, ops_follow_compute
+from ..solvers import DaqpBackend, QPSolution, QPSolver, make_solver
+from ..tasks.task import Task, TaskData
 from .diagnostics import ACTIVE_TOLERANCE, NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
-from .layout import ConstraintLayout, TaskStack
-from .lifting import LiftedQP, dense_rows, worth_lifting
 from .lm_damping import LMDamping
-from .model.kinematics import Kinematics
-from .model.robot import Robot
-from .qp import QP
-from .reduction import InputReduction
-from .runtime import kernels
-from .runtime.program import TickProgram, ops_follow_compute
-from .solvers import DaqpBackend, QPSolution, QPSolver, make_solver
-from .tasks.task import Task, TaskData
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -64,14 +64,14 @@ class Controller:
     Args:
         robot: the robot model.
         tasks: cost terms (at least one), weighted in one QP; or a list of lists, a priority
-            order of levels, highest first (strict priorities, :mod:`wbc.hierarchy`).
+            order of levels, highest first (strict priorities, :mod:`wbc.control.hierarchy`).
         constraints: hard limits. A nonholonomic base needs :class:`~wbc.constraints.NonholonomicBase`
             unless ``reduced=True``.
         solver: a name from :func:`wbc.available_solvers` (default ``"daqp"``).
         dt: control period [s]; per-tick gains and dampers refer to it.
         damping: Tikhonov term ``damping * |v|^2`` [cost] / [unit/s]^2, keeps H positive definite.
         lm_damping: scale (>= 0, dimensionless) of the error-scaled damping below; 0 turns it off.
-        solver_options: settings passed to the backend (override :data:`wbc.solvers.DEFAULT_SETTINGS`).
+        solver_options: settings passed to the backend (override :data:`wbc.solvers.solver.DEFAULT_SETTINGS`).
         reduced: solve over the real inputs ``u`` with ``v = robot.input_map(q) u`` (the
             no-slip rows then hold by construction and are skipped). ``step`` still returns v;
             ``last.u`` holds the inputs in both forms. Holonomic and fixed bases have
@@ -250,7 +250,7 @@ class Controller:
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
             self._reduction.check_bounds(qp)  # checked once
-        # strict priorities (wbc.hierarchy): one QP per level, their cascade and its fallback
+        # strict priorities (wbc.control.hierarchy): one QP per level, their cascade and its fallback
         self._hierarchy = None if self._level_sizes is None else Hierarchy(self, self._level_sizes)
         if self._hierarchy is not None:
             self._fallback = self._hierarchy.fallback
@@ -304,13 +304,13 @@ class Controller:
                               if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                                     if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.hierarchy)
+        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.control.hierarchy)
             self._lifted = None
             self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program)
             self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
             self._finish_program(program, rest)
             return
-        # high DOF with native DAQP: the dense task rows as variables (wbc.lifting), H never formed
+        # high DOF with native DAQP: the dense task rows as variables (wbc.qp.lifting), H never formed
         self._lifted = None
         if not self.reduced and not self._preview_blocks and getattr(self.solver, "native", False):
             diagonal = dense_rows(self._task_stack, nv)
@@ -439,7 +439,7 @@ class Controller:
         else:
             solution = self._solver.collect() if self._solve_in_program else self._solver.solve(qp)
             solution = self._checked(solution, qp)
-            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.lifting)
+            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.qp.lifting)
                 spent = solution.solve_time
                 qp = self._lifted.fill_dense(self._stack_t, self._n_plain, self._cost_scaling)
                 solution = self._checked(self._solver.solve(qp), qp)

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .layout import TaskBlock
-from .runtime import kernels
-from .runtime.program import TickProgram
+from ..qp.layout import TaskBlock
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 
 
 class LMDamping:

@@ -22,10 +22,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .core.errors import InvalidInputError
-from .core.validation import as_positive
-from .model.robot import Robot
-from .scorbot import scorbot_dh_angles, scorbot_measured_angles
+from ..core.errors import InvalidInputError
+from ..core.validation import as_positive
+from ..model.robot import Robot
+from .scorbot_angles import scorbot_dh_angles, scorbot_measured_angles
 from .singular_sets import SingularCondition, SingularSystem, registered_models, singular_systems
 
 RESIDUAL_TOLERANCE = 1e-9  # |residual| <= this counts as on a set (residuals are dimensionless)

@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from ..model.robot import Robot
 from .closed_loop import RunResult, manipulability_traces, posture_traces
-from .model.robot import Robot
 from .outputs import check_output, write_atomically
 from .scenario import Scenario
 
@@ -157,14 +157,14 @@ def plot_runs(runs: Sequence[tuple[Scenario, RunResult]], path: str | Path) -> P
     ``pip install wbc[plot]``).
 
     Args:
-        runs: ``(scenario, result)`` pairs (:func:`wbc.closed_loop.run`), overlaid.
+        runs: ``(scenario, result)`` pairs (:func:`wbc.app.closed_loop.run`), overlaid.
         path: the file to write.
 
     Returns:
         ``path``, as a :class:`~pathlib.Path`.
 
     Raises:
-        OutputError: ``path`` cannot be written (:func:`wbc.outputs.check_output`); raised
+        OutputError: ``path`` cannot be written (:func:`wbc.app.outputs.check_output`); raised
             before the figure is drawn.
         OSError: writing failed (e.g. the disk is full); ``path`` is left as it was.
         ValueError: ``runs`` is empty.
@@ -193,7 +193,7 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     tool; for fixed bases the tool in the world plane of its largest extent; start and end
     marked), when a scenario watches the manipulability, ``m``, and when a scenario has
     priority levels, ``posture`` (the error of each run's PostureTask,
-    :func:`wbc.closed_loop.posture_traces`).
+    :func:`wbc.app.closed_loop.posture_traces`).
     """
     if not runs:
         raise ValueError("figure() needs at least one (scenario, result) pair")

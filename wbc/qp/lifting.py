@@ -21,7 +21,7 @@ to stop on the lifted QP 0.2 rad/s from the optimum, or at its iteration limit, 
 QP of the same tick is solved exactly. So every lifted answer is certified in the tick
 program (:data:`~wbc.runtime.kernels.OP_LIFT_CHECK`): its stationarity *in v*
 (:func:`wbc.runtime.kernels.lifted_stationarity`, relative) joins its defect, both held to
-:data:`wbc.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
+:data:`wbc.control.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
 followed, in the same tick, by the dense QP (:meth:`LiftedQP.fill_dense`) solved by the same
 backend -- the answer then costs a normal-equations pass and a second solve; only if that
 fails too does the fallback chain answer. :attr:`LiftedQP.dense_ticks` counts those ticks.
@@ -33,13 +33,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from .layout import TaskStack
-from .qp import QP
-from .runtime import kernels
-from .runtime.program import TickProgram
+from .problem import QP
 
 if TYPE_CHECKING:
-    from .daqp_native import NativeWorkspace
+    from ..solvers.daqp.native import NativeWorkspace
 
 #: smallest number of velocity coordinates at which the lifted form is used: below it the
 #: dense QP is as fast (measured: benchmarks/README.md, "Scaling")

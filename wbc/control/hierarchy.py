@@ -1,9 +1,9 @@
 """Strict task priorities: ``Controller(robot, tasks=[[ee], [posture, steering]])``.
 
 A list of lists is a priority order, highest first; a flat list is one level (the weighted QP of
-:mod:`wbc.controller`, unchanged). Level k is the least-squares term ``|A_k v - b_k|^2`` of its
+:mod:`wbc.control.controller`, unchanged). Level k is the least-squares term ``|A_k v - b_k|^2`` of its
 tasks, weighted among themselves as in one level: its rows ``A = [W J | W r]`` are rows of the
-controller's one task stack (:class:`wbc.layout.TaskStack`, tasks ordered by level). The levels
+controller's one task stack (:class:`wbc.qp.layout.TaskStack`, tasks ordered by level). The levels
 are solved in order -- a *cascade* -- each as a QP with every constraint of the controller::
 
     level k:  min |A_k v - b_k|^2  (+ damping |v|^2 at the last level)
@@ -28,10 +28,10 @@ level infeasible (its own answer is feasible for the next), and linearly depende
 tasks of one level asking for the same thing) need no rank decision. ``v_j`` is projected onto
 the bounds before ``y_a`` is taken, so an answer a hair outside a bound does not move the band
 off it. A backend may stop outside a band row by its own primal tolerance, like outside any row:
-DAQP's in the levels (:data:`wbc.solvers.LEVEL_PRIMAL_TOL`, DAQP's default 1e-6 in its scaled
+DAQP's in the levels (:data:`wbc.solvers.daqp.backend.LEVEL_PRIMAL_TOL`, DAQP's default 1e-6 in its scaled
 rows, though a single-level controller uses 1e-9; measured up to 8e-7 relative) is then the
 effective relaxation, within the answer check of every tick
-(:data:`wbc.fallback.ANSWER_TOLERANCE`). A tighter one (``solver_options={"primal_tol": 1e-9}``)
+(:data:`wbc.control.fallback.ANSWER_TOLERANCE`). A tighter one (``solver_options={"primal_tol": 1e-9}``)
 holds the bands closer, but DAQP then called some feasible levels infeasible when a level above
 saturated the limits (1.5% of the ticks of a fast reach, answered by the fallback).
 
@@ -40,7 +40,7 @@ the command, as in one level. A level above it has a cost that is flat along its
 (``A_k^T A_k`` is singular when the level has fewer rows than ``nv``), which leaves its v -- not
 its task values -- undetermined. Backends that factorise H (DAQP, quadprog, and any backend not
 in :data:`SEMIDEFINITE_SOLVERS`) get the regularisation floor of every QP there
-(:data:`wbc.controller.DAMPING_FLOOR` = 1e-10 of the level's largest curvature,
+(:data:`wbc.control.controller.DAMPING_FLOOR` = 1e-10 of the level's largest curvature,
 :func:`wbc.runtime.kernels.normalise_cost`): it moves the level's task values by ``1e-10 / c``
 relative along a direction of relative curvature c (< 1e-7 in the tests against the
 pseudo-inverse). The others take a semidefinite H and get the level as it is: exact.
@@ -51,14 +51,14 @@ trusted (a target out of reach), and the band then holds the damped task values.
 with the level's error, so it does not change the cascade at a fixed point. The steering
 preview of a hierarchy (below) leaves it out.
 
-**Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.daqp_native`)
+**Solvers.** Every backend solves the levels in turn. With native DAQP (:mod:`wbc.solvers.daqp.native`)
 the whole cascade -- each level's QP, solve, answer check and band -- runs inside the tick
 program, one warm-started DAQP workspace per level; otherwise (other backends, DAQP's binding,
 the reduced form of a nonholonomic base) the program builds every level's QP and the levels are
 solved from Python, the bands written by the same kernel.
 
 **Fallback.** When a level's solve fails (or its answer does not check), the cascade is re-solved
-from that level on by DAQP with the soft rows elastic (:meth:`wbc.fallback.Fallback.elastic_solve`;
+from that level on by DAQP with the soft rows elastic (:meth:`wbc.control.fallback.Fallback.elastic_solve`;
 the band rows, like the hard limits, stay hard): the hierarchy is kept, and where the soft rows
 can hold, the elastic answer is the level's exact one. If that fails too, the command is the
 answer of the deepest level solved this tick (``Outcome.LEVEL_ABOVE``: optimal for it and the
@@ -84,23 +84,23 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .core.errors import InvalidInputError
-from .core.outcome import Outcome
-from .core.validation import as_items
+from ..core.errors import InvalidInputError
+from ..core.outcome import Outcome
+from ..core.validation import as_items
+from ..qp.layout import TaskBlock, TaskStack
+from ..qp.problem import QP
+from ..qp.reduction import InputReduction
+from ..runtime import kernels
+from ..runtime.kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
+from ..runtime.program import TickProgram, ops_follow_compute
+from ..solvers import DaqpBackend, QPSolution, QPSolver
+from ..tasks.task import Task, TaskData
 from .fallback import ANSWER_TOLERANCE, Fallback
-from .layout import TaskBlock, TaskStack
 from .lm_damping import LMDamping
-from .qp import QP
-from .reduction import InputReduction
-from .runtime import kernels
-from .runtime.kernels import DAQP_CONTROL_OUTCOME, DAQP_CONTROL_TIME
-from .runtime.program import TickProgram, ops_follow_compute
-from .solvers import DaqpBackend, QPSolution, QPSolver
-from .tasks.task import Task, TaskData
 
 if TYPE_CHECKING:  # pragma: no cover
+    from ..solvers.daqp.native import NativeWorkspace
     from .controller import Controller
-    from .daqp_native import NativeWorkspace
 
 #: relative half-width of the band that holds a level's task values below it (see the module docstring)
 BAND = 1e-9
@@ -324,7 +324,7 @@ class Hierarchy:
         """The control loop's fast path with the cascade in the program: ``(x, solve time [s])``
         when the last level solved and its answer's defect is at most ``tolerance`` -- which the
         program's BAND ops allow only after every level above did the same, with
-        :data:`wbc.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
+        :data:`wbc.control.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
         level failed)."""
         exitflag, defect, elapsed = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
         if exitflag >= 1.0 and defect <= tolerance:
@@ -412,7 +412,7 @@ class Hierarchy:
 
 def _native_status(exitflag: int, defect: float) -> str:
     """Why a native DAQP solve's answer was not taken (the texts of :class:`wbc.solvers.DaqpBackend`)."""
-    from . import daqp_abi
+    from ..solvers.daqp import abi as daqp_abi
 
     if exitflag < 1:
         return daqp_abi.EXIT_FLAGS.get(exitflag, f"exitflag {exitflag}")
@@ -422,7 +422,7 @@ def _native_status(exitflag: int, defect: float) -> str:
 
 
 class CascadeFallback(Fallback):
-    """The fallback chain of a hierarchy (:class:`wbc.fallback.Fallback`): its elastic re-solve is
+    """The fallback chain of a hierarchy (:class:`wbc.control.fallback.Fallback`): its elastic re-solve is
     the cascade from the level that failed on, each level by DAQP with the soft rows elastic and
     the band rows of the levels above hard."""
 
@@ -451,7 +451,7 @@ class CascadeFallback(Fallback):
     def _factorisable(self, k: int) -> QP:
         """Level k's QP for DAQP, which factorises H: a level above the last that reached a
         semidefinite backend unregularised gets the regularisation floor the others have
-        (:data:`wbc.controller.DAMPING_FLOOR` of its normalised H) in a copy; DAQP called such
+        (:data:`wbc.control.controller.DAMPING_FLOOR` of its normalised H) in a copy; DAQP called such
         a level unbounded (exit flag -3) and the tick fell to the zero command."""
         from .controller import DAMPING_FLOOR  # (the controller module imports this one)
 

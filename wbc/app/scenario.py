@@ -14,7 +14,7 @@ wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are
                       solve over the real inputs of a nonholonomic base)
     [[tasks]]         type = a name in TASK_TYPES; the other keys are arguments of its constructor;
                       level = 0 (optional, an integer >= 0): the task's priority level, 0 highest
-                      (strict priorities, wbc.hierarchy; all at 0: one weighted level); levels
+                      (strict priorities, wbc.control.hierarchy; all at 0: one weighted level); levels
                       must be 0, 1, ... without gaps
     [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise
                       (``target = "initial"`` in a PostureTask means initial_configuration)
@@ -47,17 +47,17 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
-from . import constraints as constraint_module
-from . import tasks as task_module
-from .constraints import Constraint
-from .controller import DEFAULT_LM_DAMPING, Controller
-from .core.errors import ScenarioError, WbcError
-from .core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
-from .model import shipped
-from .model.robot import Robot, load_robot
+from .. import constraints as constraint_module
+from .. import tasks as task_module
+from ..constraints import Constraint
+from ..control.controller import DEFAULT_LM_DAMPING, Controller
+from ..core.errors import ScenarioError, WbcError
+from ..core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
+from ..model import shipped
+from ..model.robot import Robot, load_robot
+from ..tasks import FrameTask, PositionTask, PostureTask, Task
+from ..trajectory.scenario_spec import plan_from_spec
 from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
-from .tasks import FrameTask, PositionTask, PostureTask, Task
-from .trajectory.scenario_spec import plan_from_spec
 
 TASK_TYPES: dict[str, type[Task]] = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
 CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module, name)

@@ -16,8 +16,8 @@ from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, TextIO
 
-from . import __version__
-from .core.errors import WbcError
+from .. import __version__
+from ..core.errors import WbcError
 
 if TYPE_CHECKING:  # (imported when a command needs them: `wbc solvers` loads no simulation or viewer)
     from .closed_loop import RunResult
@@ -231,14 +231,14 @@ def _loop_text(s: Mapping[str, Any]) -> str:
 
 
 def _solvers(args: argparse.Namespace) -> int:
-    from .solvers import available_solvers
+    from ..solvers import available_solvers
 
     print("\n".join(available_solvers()))
     return 0
 
 
 def _scenarios(args: argparse.Namespace) -> int:
-    from .model import shipped
+    from ..model import shipped
 
     names = shipped.scenario_names()
     width = max(map(len, names))
@@ -251,7 +251,7 @@ def _warmup(args: argparse.Namespace) -> int:
     """Load the compiled kernels -- compiling them if the cache is cold -- and say how long it took."""
     import time
 
-    from .runtime import kernels
+    from ..runtime import kernels
 
     start = time.perf_counter()
     kernels.load()
@@ -265,8 +265,8 @@ def _warmup(args: argparse.Namespace) -> int:
 def _singularities(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .model.robot import load_robot
-    from .singularity import singular_systems, verify
+    from ..analysis.singularity import singular_systems, verify
+    from ..model.robot import load_robot
 
     robot = load_robot(args.model)
     rng = np.random.default_rng(args.seed)
@@ -302,7 +302,7 @@ def find_benchmarks(checkout: Path | None = None) -> Path | None:
     """The source checkout holding ``benchmarks/`` (not part of the installed package):
     ``checkout`` if given, else the checkout of an editable install (the folder above the
     ``wbc`` package). The current directory is never searched: code found there would run."""
-    root = Path(checkout) if checkout is not None else Path(__file__).resolve().parents[1]
+    root = Path(checkout) if checkout is not None else Path(__file__).resolve().parents[2]  # (wbc/app/cli.py)
     return root.resolve() if is_checkout(root) else None
 
 

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..constraints.constraint import ConstraintData, ConstraintRows
+from ..tasks.task import TaskData
 from .bounds import BoundPolicy
-from .constraints.constraint import ConstraintData, ConstraintRows
-from .qp import QP
-from .tasks.task import TaskData
+from .problem import QP
 
 #: a task's rows: (its data, W J view (dim x nv), W r view (dim), first row in the stack)
 TaskBlock = tuple[TaskData, np.ndarray, np.ndarray, int]
@@ -44,7 +44,7 @@ class TaskStack:
 
 
 class ConstraintLayout:
-    """Each constraint's bound slot (:class:`wbc.bounds.BoundPolicy`: hard ones first) and its
+    """Each constraint's bound slot (:class:`wbc.qp.bounds.BoundPolicy`: hard ones first) and its
     inequality and equality rows of the QP, with the labels of every bound and row (for
     ``last.active_constraints``) and the indices of the soft rows (elastic in the fallback).
     Each constraint writes its static parts once here (``write_static``)."""

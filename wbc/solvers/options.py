@@ -14,8 +14,8 @@ import re
 from functools import cache
 from typing import Any
 
-from .core.errors import InvalidInputError
-from .core.quiet import silenced
+from ..core.errors import InvalidInputError
+from ..core.quiet import silenced
 
 #: generic budget key -> the backend's own setting; a backend without an entry cannot
 #: honour that budget (quadprog runs to completion, ProxQP and PIQP have no clock)

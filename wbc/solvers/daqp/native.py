@@ -1,6 +1,6 @@
 """One DAQP workspace on one QP's buffers, solved by compiled code (no Python binding).
 
-DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.QP`: H, c, [G; A], upper,
+DAQP keeps pointers into the QP's own buffers (:class:`wbc.qp.problem.QP`: H, c, [G; A], upper,
 lower), so a tick hands it nothing: :func:`wbc.runtime.kernels.native_qp.daqp_solve` re-forms the
 factorisation (``daqp_update_ldp``), solves (``daqp_solve``), checks the answer against the
 QP's bounds and rows (:func:`wbc.runtime.kernels.qp_defect`) and times itself -- as an op of the
@@ -25,21 +25,21 @@ from typing import Any
 
 import numpy as np
 
-from . import daqp_abi
-from .daqp_abi import Library, Problem, Result, Settings, Workspace, struct_in, words
-from .qp import QP
-from .runtime import kernels
-from .runtime.kernels import DAQP_CONTROL_ITERATIONS, DAQP_CONTROL_MASK, DAQP_CONTROL_OUTCOME, DAQP_CONTROL_SIZE
-from .runtime.program import TickProgram
+from ...qp.problem import QP
+from ...runtime import kernels
+from ...runtime.kernels import DAQP_CONTROL_ITERATIONS, DAQP_CONTROL_MASK, DAQP_CONTROL_OUTCOME, DAQP_CONTROL_SIZE
+from ...runtime.program import TickProgram
+from . import abi as daqp_abi
+from .abi import Library, Problem, Result, Settings, Workspace, struct_in, words
 
 
 class NativeWorkspace:
     """DAQP set up once on ``qp``'s buffers (see the module docstring).
 
     Args:
-        library: the checked C entry points (:func:`wbc.daqp_abi.native`).
+        library: the checked C entry points (:func:`wbc.solvers.daqp.probe.native`).
         qp: the QP whose buffers DAQP reads every tick.
-        settings: DAQP settings (keys of :class:`wbc.daqp_abi.Settings`), validated upstream.
+        settings: DAQP settings (keys of :class:`wbc.solvers.daqp.abi.Settings`), validated upstream.
         warm_start: keep the working set from one tick to the next.
     """
 

@@ -11,9 +11,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import BinaryIO
 
-from .core.errors import WbcError
+from ..core.errors import WbcError
 
-#: what ``--html`` (:func:`wbc.view.write_html`) writes, by suffix
+#: what ``--html`` (:func:`wbc.app.view.write_html`) writes, by suffix
 HTML_FORMATS = {".html": "HTML page", ".htm": "HTML page"}
 
 

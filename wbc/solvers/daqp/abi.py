@@ -1,16 +1,17 @@
 """DAQP's C interface as wbc calls it: the structures of ``types.h`` / ``api.h``, the entry
-points, and a probe that checks them on the installed build.
+points (:mod:`wbc.solvers.daqp.probe` checks them on the installed build).
 
 The ``daqp`` extension module exports DAQP's C functions (``setup_daqp``,
 ``daqp_update_ldp``, ``daqp_solve``, ...). Calling them from compiled code (one native
 call per tick, :mod:`wbc.runtime.kernels.native_qp`) needs their structure layouts, which this
 module writes down from DAQP 0.11's headers (``csrc/include/types.h``, ``api.h``,
 ``constants.h``). A layout is an ABI promise of one release, so it is *checked, not
-trusted*: :func:`native` runs :func:`probe` once per process -- the installed version
-must be one of :data:`SUPPORTED_VERSIONS`, and a set-up probe problem must show its
+trusted*: :func:`~wbc.solvers.daqp.probe.native` runs :func:`~wbc.solvers.daqp.probe.probe` once
+per process -- the installed version must be one of :data:`SUPPORTED_VERSIONS`, and a set-up probe problem must show its
 dimensions, problem pointer and settings pointer at the offsets written here and solve to
 its known answer through the compiled path. When anything differs, the native path is off
-(:func:`native` returns None, :func:`unavailable_reason` says why) and
+(:func:`~wbc.solvers.daqp.probe.native` returns None, :func:`~wbc.solvers.daqp.probe.unavailable_reason`
+says why) and
 :class:`wbc.solvers.DaqpBackend` uses DAQP's Python binding instead.
 
 The structures live in memory wbc owns (numpy arrays, see :func:`struct_in`), so the
@@ -22,7 +23,6 @@ from __future__ import annotations
 import ctypes
 import functools
 import importlib.metadata
-import math
 import time
 from typing import TYPE_CHECKING, NamedTuple, TypeVar
 
@@ -34,7 +34,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 _Structure = TypeVar("_Structure", bound=ctypes.Structure)
 
-#: DAQP releases whose C layout is the one written here (checked by :func:`probe` too)
+#: DAQP releases whose C layout is the one written here (checked by :func:`wbc.solvers.daqp.probe.probe` too)
 SUPPORTED_VERSIONS = ("0.11.",)
 
 _int, _double, _ptr = ctypes.c_int, ctypes.c_double, ctypes.c_void_p
@@ -156,71 +156,3 @@ def _load() -> Library | str:
     lib.free_daqp_ldp.argtypes = [_ptr]
     entry = Entry(_address(lib.daqp_update_ldp), _address(lib.daqp_solve), _address(gettime), int(clock))
     return Library(lib, entry)
-
-
-def native() -> Library | None:
-    """The native DAQP path if this installation passes :func:`probe`, else None."""
-    library = _load()
-    if isinstance(library, str) or _probe_failure() is not None:
-        return None
-    return library
-
-
-def unavailable_reason() -> str | None:
-    """Why the native path is off (None when it is on)."""
-    library = _load()
-    return library if isinstance(library, str) else _probe_failure()
-
-
-@functools.cache
-def _probe_failure() -> str | None:
-    library = _load()
-    if isinstance(library, str):
-        return library
-    try:
-        return probe(library)
-    except Exception as exc:  # noqa: BLE001 -- any surprise means: do not trust the layout
-        return f"the DAQP layout probe failed ({type(exc).__name__}: {exc})"
-
-
-def probe(library: Library) -> str | None:
-    """Check the layouts of this module on the installed DAQP; None when they hold.
-
-    The sizes and offsets the compiled kernels assume (the ``DAQP_*`` constants of
-    :mod:`wbc.runtime.kernels`) must be those of the structures here. Then it sets up
-    ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``, ``|x| <= 10`` through
-    :class:`wbc.daqp_native.NativeWorkspace` and checks what ``setup_daqp`` wrote at the offsets
-    of :class:`Workspace` (dimensions, problem and settings pointers) and the answer of one
-    compiled solve: x = (0, 1) (the projection of (1, 2) onto the row).
-    """
-    from .daqp_native import NativeWorkspace
-    from .qp import QP
-    from .runtime import kernels
-
-    layout = {"problem words": (words(Problem), kernels.DAQP_PROBLEM_WORDS),
-              "workspace words": (words(Workspace), kernels.DAQP_WORKSPACE_WORDS),
-              "result words": (words(Result), kernels.DAQP_RESULT_WORDS),
-              "result exit flag": (Result.exitflag.offset // 4, kernels.DAQP_RESULT_EXITFLAG),
-              "result iterations": (Result.iter.offset // 4, kernels.DAQP_RESULT_ITERATIONS)}
-    for name, (here, compiled) in layout.items():
-        if here != compiled:  # a constant of wbc.runtime.kernels out of step with the layouts above
-            return f"the compiled kernels assume {name} = {compiled}, the DAQP layout has {here}"
-    qp = QP(2, 1, 0)
-    qp.H[...] = np.eye(2)
-    qp.c[...] = (-1.0, -2.0)
-    qp.C[0] = (1.0, 1.0)
-    qp.upper[...] = (10.0, 10.0, 1.0)
-    qp.lower[:2] = -10.0
-    workspace = NativeWorkspace(library, qp, {}, warm_start=True)
-    work, problem = workspace.work, workspace.problem
-    if (work.n, work.m, work.ms) != (2, 3, 2):
-        return f"setup_daqp wrote dimensions {(work.n, work.m, work.ms)} where (2, 3, 2) was expected"
-    if work.qp != ctypes.addressof(problem) or work.settings != ctypes.addressof(workspace.settings):
-        return "setup_daqp's problem / settings pointers are not where the layout expects them"
-    if not work.sense:
-        return "setup_daqp left the constraint states unallocated"
-    exitflag, _, _ = workspace.solve()
-    x = workspace.x
-    if exitflag != 1 or not (math.isclose(x[0], 0.0, abs_tol=1e-12) and math.isclose(x[1], 1.0, abs_tol=1e-12)):
-        return f"the compiled solve of the probe returned exit flag {exitflag}, x = {x.tolist()} (expected 1, [0, 1])"
-    return None

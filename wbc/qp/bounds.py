@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .qp import QP
-from .runtime import kernels
-from .runtime.program import TickProgram
+from ..runtime import kernels
+from ..runtime.program import TickProgram
+from .problem import QP
 
 
 class BoundPolicy:

@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from .core.errors import WbcError
-from .core.outcome import Outcome
+from ..core.errors import WbcError
+from ..core.outcome import Outcome
 from .hierarchy import level_errors, level_optima
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,7 +55,7 @@ class TickDiagnostics:
       level's cost, as in the QP, before the damping); ``level_optima`` -- the same at the
       level's own answer, the best it could do below the levels above it (NaN for a level that
       was not solved). ``level_errors[k] - level_optima[k]`` is what the levels below cost level
-      k: zero up to the band (:data:`wbc.hierarchy.BAND`) and the backend's tolerance.
+      k: zero up to the band (:data:`wbc.control.hierarchy.BAND`) and the backend's tolerance.
     """
 
     tick: int  #: the tick counter (1 at the first step)

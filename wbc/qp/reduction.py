@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .core.errors import InvalidInputError
-from .qp import QP
+from ..core.errors import InvalidInputError
+from .problem import QP
 
 
 class InputReduction:

@@ -14,12 +14,12 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from .core.errors import InvalidInputError
-from .core.validation import as_pose, as_positive, as_vector
+from ..core.errors import InvalidInputError
+from ..core.validation import as_pose, as_positive, as_vector
 
 
 class ReferenceMotion(Protocol):
-    """What :class:`wbc.scenario.Scenario` and :func:`wbc.closed_loop.run` call: ``reference(t)``
+    """What :class:`wbc.app.scenario.Scenario` and :func:`wbc.app.closed_loop.run` call: ``reference(t)``
     at time ``t`` [s] gives the target and its feed-forward rate, the arguments of the task's
     ``set_target`` (every class of this module, and :class:`wbc.trajectory.planner.PlannedReference`)."""
 

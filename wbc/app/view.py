@@ -35,8 +35,8 @@ import pinocchio as pin
 import viser
 from numpy.typing import ArrayLike, NDArray
 
+from ..model.robot import Robot
 from .closed_loop import RunResult, TickObserver, orientation_tracked
-from .model.robot import Robot
 from .outputs import HTML_FORMATS, check_output, write_atomically
 from .references import ReferenceMotion
 from .scenario import Scenario
@@ -333,7 +333,7 @@ class _RunTrack:
     def record(self, k: int, q: NDArray[np.float64]) -> None:
         """The run reached ``q`` = q[k] (``k`` counts up from 0, one tick at a time)."""
         self.q[k] = q
-        if self.tool_path is not None and self.tool_frame is not None:  # as wbc.closed_loop.run records it
+        if self.tool_path is not None and self.tool_frame is not None:  # as wbc.app.closed_loop.run records it
             self.tool_path[k] = self.scenario.robot.frame_pose(self.q[k], self.tool_frame)[:3, 3]
         self.recorded = k
         self._extend_path()
@@ -509,7 +509,7 @@ def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstac
     missing folder is created).
 
     Args:
-        runs: ``(scenario, result)`` pairs (:func:`wbc.closed_loop.run`), on one timeline.
+        runs: ``(scenario, result)`` pairs (:func:`wbc.app.closed_loop.run`), on one timeline.
         path: the page to write.
         obstacles: static shapes drawn with the runs.
         fps: frames per second of the replay.
@@ -518,7 +518,7 @@ def write_html(runs: Sequence[Run], path: str | Path, obstacles: Sequence[Obstac
         ``path``, as a :class:`~pathlib.Path`.
 
     Raises:
-        OutputError: ``path`` cannot be written (:func:`wbc.outputs.check_output`); raised
+        OutputError: ``path`` cannot be written (:func:`wbc.app.outputs.check_output`); raised
             before the page is built.
         OSError: writing failed (e.g. the disk is full); ``path`` is left as it was.
     """
@@ -548,7 +548,7 @@ class LiveView:
 
     ``runs`` may hold finished runs ``(scenario, result)`` and runs still to come
     ``(scenario, ticks)``: :meth:`follow` gives the ``on_tick`` observer of
-    :func:`wbc.closed_loop.run` that streams one of those into the view while the controller
+    :func:`wbc.app.closed_loop.run` that streams one of those into the view while the controller
     runs, paced to real time (times the speed setting; "play" unticked pauses the run).
     :meth:`serve` then plays everything on one timeline, looping, until stopped.
 

@@ -20,11 +20,11 @@ from typing import Any
 
 import numpy as np
 
-from .core.errors import SolverError
-from .core.outcome import Outcome
-from .qp import QP
-from .runtime import kernels
-from .solvers import QPSolution
+from ..core.errors import SolverError
+from ..core.outcome import Outcome
+from ..qp.problem import QP
+from ..runtime import kernels
+from ..solvers import QPSolution
 
 #: largest relative violation of its own constraints accepted in an answer
 #: (:func:`wbc.runtime.kernels.constraint_defect`); the backends' default tolerances are ~1e-9

@@ -10,15 +10,15 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
-from .constraints import ManipulabilityBarrier
-from .controller import Controller
-from .core.errors import InvalidInputError
-from .model.manipulability import manipulability
-from .model.robot import Robot
+from ..constraints import ManipulabilityBarrier
+from ..control.controller import Controller
+from ..core.errors import InvalidInputError
+from ..model.manipulability import manipulability
+from ..model.robot import Robot
+from ..tasks import FrameTask, ManipulabilityTask, PositionTask, PostureTask, Task
+from ..tasks.frame_task import FrameTaskData
+from ..tasks.position_task import PositionTaskData
 from .scenario import Scenario
-from .tasks import FrameTask, ManipulabilityTask, PositionTask, PostureTask, Task
-from .tasks.frame_task import FrameTaskData
-from .tasks.position_task import PositionTaskData
 
 if TYPE_CHECKING:
     from .simulation import MujocoSimulation
@@ -165,7 +165,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     """Run ``scenario`` in closed loop and record everything needed for the summary and plots.
 
     Without ``simulation`` the loop is kinematic, ``q <- integrate(q, v, dt)``. With a
-    :class:`~wbc.simulation.MujocoSimulation` the controller sees the (noisy) measured
+    :class:`~wbc.app.simulation.MujocoSimulation` the controller sees the (noisy) measured
     positions, the servos track ``v`` in MuJoCo, and the recorded ``q`` and tracking
     errors are those of the true simulated state. ``on_tick(k, q)``, if given, sees every
     new configuration as it is reached (``k`` = 1 .. ticks; the live 3-D view streams the run
@@ -195,7 +195,7 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
     Raises:
         InvalidInputError: ``duration`` is less than half a tick, ``max_rows`` is not an
             int >= 1 or None, or ``scenario.reference`` is set without a ``reference_task`` to
-            move; or what :meth:`wbc.controller.Controller.step` raises (e.g. a task without a
+            move; or what :meth:`wbc.control.controller.Controller.step` raises (e.g. a task without a
             target).
     """
     controller = controller or scenario.make_controller(solver)
