@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 import urllib.request
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -237,6 +238,36 @@ def test_urdf_primitives_materials_and_meshes(tmp_path):
     # "upper" has visuals: no bone of its own; "lower" has none: a bone to the tip
     bones = [s for s in by_kind["cylinder"] if s.joint != 0]
     assert [(s.joint, s.size[1]) for s in bones] == [(joint_id(robot, "elbow"), pytest.approx(0.25))]
+
+
+def test_package_meshes_resolve_from_the_folders_above_the_urdf(tmp_path):
+    """A ROS-style tree: share/my_robot/{urdf/robot.urdf, meshes/cube.stl}, the mesh named as
+    package://my_robot/meshes/cube.stl."""
+    import trimesh
+
+    (tmp_path / "share" / "my_robot" / "meshes").mkdir(parents=True)
+    (tmp_path / "share" / "my_robot" / "urdf").mkdir()
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(tmp_path / "share" / "my_robot" / "meshes" / "cube.stl")
+    urdf = tmp_path / "share" / "my_robot" / "urdf" / "robot.urdf"
+    urdf.write_text(URDF.replace('filename="cube.stl"', 'filename="package://my_robot/meshes/cube.stl"'))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "visual geometry not loaded": the mesh is found
+        shapes = view.robot_shapes(wbc.load_robot(urdf))
+    (mesh,) = [s for s in shapes if s.kind == "mesh"]
+    np.testing.assert_allclose(mesh.vertices.max(axis=0), [0.1, 0.1, 0.1])
+
+
+def test_tiagos_meshes_are_drawn_on_its_declared_base():
+    from test_declared_base import tiago_urdf
+
+    robot = wbc.load_robot(tiago_urdf(), "differential", wheels=["wheel_left_joint", "wheel_right_joint"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        shapes = view.robot_shapes(robot)
+    meshes = [s for s in shapes if s.kind == "mesh"]
+    assert len(meshes) > 30  # tiago.urdf's <visual> elements are meshes (package://example-robot-data/...)
+    heading = robot.model.getJointId("base_heading")
+    assert any(s.joint == heading for s in meshes)  # the chassis rides on the declared base
 
 
 def test_a_missing_mesh_falls_back_to_the_skeleton(tmp_path):

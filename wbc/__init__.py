@@ -23,6 +23,7 @@ from .control.diagnostics import TickDiagnostics
 from .core.errors import (
     InvalidInputError,
     ModelError,
+    ModelWarning,
     PlanningError,
     ScenarioError,
     SolverError,
@@ -46,8 +47,8 @@ __all__ = [
     "NonholonomicBase", "WheelSpeedLimits",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
-    "InvalidInputError", "ModelError", "PlanningError", "ScenarioError", "SolverError", "UnknownFrameError",
-    "UnknownSolverError", "WbcError",
+    "InvalidInputError", "ModelError", "ModelWarning", "PlanningError", "ScenarioError", "SolverError",
+    "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
 ]

@@ -184,13 +184,23 @@ def _segment_placement(end: NDArray[np.float64]) -> NDArray[np.float64]:
     return placement
 
 
+def package_dirs(urdf: Path) -> list[str]:
+    """Where ``package://NAME/...`` mesh paths of ``urdf`` are looked for: the URDF's folder and
+    every folder above it (a ROS install tree or a Python package's data, e.g.
+    ``.../share/example-robot-data/robots/tiago_description/robots/tiago.urdf`` names meshes as
+    ``package://example-robot-data/robots/...``, found in ``.../share``); Pinocchio adds
+    ``ROS_PACKAGE_PATH`` itself."""
+    folder = urdf.resolve().parent
+    return [str(folder), *(str(parent) for parent in folder.parents)]
+
+
 def _urdf_visuals(robot: Robot) -> list[Shape]:
     """The URDF's visual geometry as shapes (none for a robot without a URDF file)."""
     if robot.source is None or Path(robot.source).suffix != ".urdf":
         return []
     try:
         geometry = pin.buildGeomFromUrdf(robot.model, str(robot.source), pin.GeometryType.VISUAL,
-                                         package_dirs=[str(Path(robot.source).parent)])
+                                         package_dirs=package_dirs(Path(robot.source)))
     except (RuntimeError, ValueError, OSError) as exc:  # e.g. a mesh file not found
         warnings.warn(f"{robot.source}: visual geometry not loaded ({exc}); drawing the skeleton", stacklevel=2)
         return []

@@ -23,6 +23,11 @@ class ModelError(WbcError):
     """A robot description could not be found or is inconsistent."""
 
 
+class ModelWarning(UserWarning):
+    """A robot model loads, but with something wbc does not model (a mobile robot loaded with a
+    fixed base, URDF mimic joints): the message names the fix."""
+
+
 class ScenarioError(WbcError, ValueError):
     """A scenario file (``tasks/*.toml``) is malformed."""
 

@@ -2,6 +2,7 @@
 
 * :mod:`wbc.model.robot` -- :class:`~wbc.model.robot.Robot`, loaded from a URDF (and its sidecar);
 * :mod:`wbc.model.mobile_base` -- the kinds of mobile base (differential, mecanum) and their maps;
+* :mod:`wbc.model.declared_base` -- base joints added to third-party models, wheels read from them;
 * :mod:`wbc.model.kinematics` -- the kinematics of one tick, computed once for every item;
 * :mod:`wbc.model.manipulability` -- the manipulability measure and its gradient;
 * :mod:`wbc.model.shipped` -- where the shipped robot models and scenario files are.

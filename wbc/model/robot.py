@@ -16,8 +16,10 @@ from __future__ import annotations
 
 import difflib
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from dataclasses import replace as replace_field
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -26,10 +28,18 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 from pydantic import Field, ValidationError
 
-from ..core.errors import InvalidInputError, ModelError, UnknownFrameError
+from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFrameError
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
 from . import shipped
+from .declared_base import (
+    BaseDeclaration,
+    base_kind,
+    declare_base,
+    mimic_joints,
+    planar_root_joints,
+    wheel_like_joints,
+)
 from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -319,13 +329,32 @@ def model_path(name: str, kind: str = "urdf") -> Path:
     return folder / filename
 
 
-def load_robot(name_or_path: str | Path) -> Robot:
+def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Sequence[str] = (),
+               wheel_radius: float | None = None, lock: Sequence[str] = (), replace: Sequence[str] = (),
+               max_linear_speed: float | None = None, max_yaw_rate: float | None = None,
+               max_wheel_speed: float | None = None) -> Robot:
     """Load a shipped robot by name (``"youbot"``) or any URDF by path.
 
     A URDF may sit next to a ``<stem>.toml`` sidecar (see ``models/youbot/youbot.toml``)
-    that declares the base. Without one, a chain of root joints prismatic-x,
-    prismatic-y, revolute-z is recognised as a holonomic planar base; anything else
-    is a fixed-base robot.
+    that declares the base. Without one, a chain of root joints prismatic-x, prismatic-y,
+    revolute-z, or a URDF ``planar`` root joint, is recognised as a holonomic planar base;
+    anything else is a fixed-base robot, unless ``base`` declares one
+    (:mod:`wbc.model.declared_base`: the base joints ``base_x``, ``base_y``, ``base_heading`` are
+    put at the root of the model, replacing a ``planar`` root joint):
+
+    Args:
+        base: ``"planar"`` (holonomic, no wheel model), ``"mecanum"``, ``"differential"``,
+            ``"synchro"`` or ``"fixed"``; for a URDF without a sidecar (a sidecar declares its
+            base in its ``[base]`` table, with the same keys).
+        wheels: the driven wheel joints (differential: 2, mecanum: 4, any order): held at 0 in
+            the model (their speeds follow from the base's motion) and read for the wheel model
+            (positions, axes, URDF velocity limit, radius of the link's collision cylinder).
+        wheel_radius: [m] when the URDF does not give it.
+        lock: more joints held at their neutral position (casters, passive wheels).
+        replace: the root joints the base joints replace (default: a ``planar`` root joint).
+        max_linear_speed: [m/s] ``|v_x|, |v_y|`` limit (default: the replaced joints', else none).
+        max_yaw_rate: [rad/s] ``|omega|`` limit (default as for ``max_linear_speed``).
+        max_wheel_speed: [rad/s] (default: the wheel joints' URDF velocity limit).
 
     Returns:
         The robot: its Pinocchio model, base, limits (see :class:`Robot`).
@@ -333,45 +362,109 @@ def load_robot(name_or_path: str | Path) -> Robot:
     Raises:
         ModelError: neither a shipped model nor a file; an unreadable URDF or sidecar; a sidecar
             key that is unknown, misspelt or invalid (named with the file); a joint with a
-            velocity limit of 0 or NaN.
+            velocity limit of 0 or NaN; a base declaration that does not fit the model (unknown
+            joints, wheels the base kind's wheel model does not describe, a radius to give).
+
+    Warns:
+        ModelWarning: a robot loaded with a fixed base whose ``continuous`` joints are named
+            wheels (declare its base), or a URDF ``<mimic>`` joint (moved independently).
     """
+    declared = base is not None or any((wheels, wheel_radius, lock, replace, max_linear_speed, max_yaw_rate,
+                                        max_wheel_speed))
     if isinstance(name_or_path, str) and name_or_path in shipped_models():
-        sidecar = model_path(name_or_path, "toml")
-        return _load_from_sidecar(sidecar)
+        _no_declaration(declared, name_or_path)
+        return _load_from_sidecar(model_path(name_or_path, "toml"))
     path = Path(name_or_path)
     if not path.is_file():
         raise ModelError(
             f"{str(name_or_path)!r} is neither a shipped model ({', '.join(shipped_models())}) nor a file"
         )
-    if path.suffix == ".toml":
-        return _load_from_sidecar(path)
-    sidecar = path.with_suffix(".toml")
+    sidecar = path if path.suffix == ".toml" else path.with_suffix(".toml")
     if sidecar.is_file():
+        _no_declaration(declared, sidecar)
         return _load_from_sidecar(sidecar)
     model = _build_model(path)
-    return Robot(name=model.name or path.stem, model=model, base=_detect_planar_base(model), source=path)
+    where = str(path)
+    if declared:
+        declaration = BaseDeclaration(base_kind("fixed" if base is None else base), tuple(wheels), wheel_radius,
+                                      tuple(lock), tuple(replace), max_linear_speed, max_yaw_rate, max_wheel_speed)
+        model, mobile_base = _declared(model, path, declaration, where)
+    elif planar_root_joints(model):
+        model, mobile_base = declare_base(model, path, BaseDeclaration(BaseKind.PLANAR), where)
+    else:
+        mobile_base = _detect_planar_base(model)
+    _warn_unhandled(model, mobile_base, path)
+    return Robot(name=model.name or path.stem, model=model, base=mobile_base, source=path)
+
+
+def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where: str) -> tuple[pin.Model, MobileBase]:
+    """The model and base of a declaration (a fixed one only locks joints)."""
+    if declaration.kind is not BaseKind.FIXED:
+        return declare_base(model, urdf, declaration, where)
+    if declaration.wheels or declaration.replace:
+        raise ModelError(f"{where}: a fixed base has no wheels and replaces nothing; list joints to hold in lock=[...]")
+    held = sorted(model.getJointId(name) for name in declaration.lock if _is_joint(model, name, "lock", where))
+    planar = planar_root_joints(model)  # a planar root joint held: the robot stands at the origin
+    locked = sorted(set(held + planar))
+    return (pin.buildReducedModel(model, locked, pin.neutral(model)) if locked else model), FIXED_BASE
+
+
+def _is_joint(model: pin.Model, name: str, key: str, where: str) -> bool:
+    if not isinstance(name, str) or not model.existJointName(name):
+        raise ModelError(f"{where}: {key}: {name!r} is not a joint of the model{suggest(str(name), model.names[1:])}")
+    return True
+
+
+def _no_declaration(declared: bool, where: str | Path) -> None:
+    if declared:
+        raise ModelError(f"{where}: this robot's base is declared by its sidecar's [base] table; change it there "
+                         "(load_robot's base, wheels, ... arguments are for a URDF without a sidecar)")
+
+
+def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> None:
+    """Say what wbc does not model: a mobile robot loaded as fixed, mimic joints."""
+    wheels = wheel_like_joints(model)
+    if wheels and not mobile_base.is_mobile:
+        warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels, but the robot is loaded with a fixed "
+                      "base (its base will not move); declare it: load_robot(path, base='differential' | "
+                      "'mecanum' | 'planar', wheels=[...])", ModelWarning, stacklevel=3)
+    elif wheels:
+        warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels but stay free joints of the model (the "
+                      "controller would spin them as it likes); name the driven ones in wheels=[...] and the "
+                      "others in lock=[...]", ModelWarning, stacklevel=3)
+    mimics = mimic_joints(urdf)
+    if mimics:
+        warnings.warn(f"{urdf}: joints {mimics} are URDF <mimic> joints; wbc moves them as independent joints "
+                      "(couplings are not modelled yet): hold them with lock=[...] or leave them out of the "
+                      "tasks", ModelWarning, stacklevel=3)
 
 
 # ------------------------------------------------------------------ sidecar schema
 class MecanumWheelsTable(Table):
-    radius: Positive
-    half_length: Positive
-    half_width: Positive
+    joints: list[str] | None = None  # wheel joints of the URDF: radius and layout read from them
+    radius: Positive | None = None
+    half_length: Positive | None = None
+    half_width: Positive | None = None
     max_speed: Positive | None = None
 
 
 class DifferentialWheelsTable(Table):
-    radius: Positive
-    half_track: Positive
+    joints: list[str] | None = None
+    radius: Positive | None = None
+    half_track: Positive | None = None
     max_speed: Positive | None = None
 
 
 class FixedBaseTable(Table):
     kind: Literal["fixed"]
+    lock: list[str] = []
 
 
 class MobileBaseTable(Table):
-    joints: Annotated[list[str], Field(min_length=3, max_length=3)]
+    # the model's own (x, y, heading) joints; None: wbc adds them (replacing ``replace``, e.g. a planar joint)
+    joints: Annotated[list[str], Field(min_length=3, max_length=3)] | None = None
+    replace: list[str] = []
+    lock: list[str] = []
     max_linear_speed: Positive | None = None
     max_yaw_rate: Positive | None = None
 
@@ -386,7 +479,7 @@ class MecanumBaseTable(MobileBaseTable):
 
 
 class UnicycleBaseTable(MobileBaseTable):
-    kind: Literal["unicycle"]
+    kind: Literal["unicycle", "differential"]
     wheels: DifferentialWheelsTable | None = None
 
 
@@ -423,29 +516,69 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
     urdf = sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
     model = _build_model(urdf)
     try:
-        base = _base_from_spec(model, spec.base)
+        model, base = _base_from_spec(model, urdf, spec.base)
     except ModelError as exc:
         raise ModelError(f"{sidecar}: {exc}") from exc
+    _warn_unhandled(model, base, urdf)
     return Robot(name=spec.name or sidecar.stem, model=model, base=base, end_effector=spec.end_effector,
                  parameters=params, source=urdf)
 
 
-def _base_from_spec(model: pin.Model,
-                    spec: FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable) -> MobileBase:
+BaseTable = FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
+
+
+def _base_from_spec(model: pin.Model, urdf: Path, spec: BaseTable) -> tuple[pin.Model, MobileBase]:
+    """The model and base a sidecar's ``[base]`` table describes."""
     if isinstance(spec, FixedBaseTable):
-        return FIXED_BASE
+        return _declared(model, urdf, BaseDeclaration(BaseKind.FIXED, lock=tuple(spec.lock)), "[base]")
+    wheels = getattr(spec, "wheels", None)
+    if spec.joints is None or spec.lock or spec.replace or (wheels is not None and wheels.joints):
+        return _declared_from_table(model, urdf, spec, wheels)
+    return model, _base_of_joints(model, spec, spec.joints)
+
+
+def _declared_from_table(model: pin.Model, urdf: Path, spec: PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
+                         wheels: MecanumWheelsTable | DifferentialWheelsTable | None) -> tuple[pin.Model, MobileBase]:
+    """A base wbc builds (:mod:`wbc.model.declared_base`): its joints added, wheels read from the model."""
+    if spec.joints is not None:
+        raise ModelError("[base] joints names the model's own base joints; lock, replace and [base.wheels] joints "
+                         "are for a base wbc adds: remove joints (wbc then adds base_x, base_y, base_heading)")
+    read = ("half_length", "half_width") if isinstance(wheels, MecanumWheelsTable) else ("half_track",)
+    given = [key for key in read if wheels is not None and getattr(wheels, key) is not None]
+    if wheels is not None and wheels.joints and given:
+        raise ModelError(f"[base.wheels] {', '.join(given)}: read from the wheel joints' positions when joints is "
+                         "given; remove them")
+    if wheels is not None and not wheels.joints:
+        _wheels(wheels)  # the geometry must then be given in full
+    declaration = BaseDeclaration(
+        base_kind(spec.kind), wheels=tuple(wheels.joints or ()) if wheels is not None else (),
+        wheel_radius=wheels.radius if wheels is not None else None, lock=tuple(spec.lock), replace=tuple(spec.replace),
+        max_linear_speed=spec.max_linear_speed, max_yaw_rate=spec.max_yaw_rate,
+        max_wheel_speed=wheels.max_speed if wheels is not None else None)
+    model, base = declare_base(model, urdf, declaration, "[base]")
+    if wheels is not None and not wheels.joints:  # the geometry is given in full
+        base = replace_field(base, wheels=_wheels(wheels))
+    return model, base
+
+
+def _base_of_joints(model: pin.Model, spec: PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
+                    names: list[str]) -> MobileBase:
+    """A base on the model's own (x, y, heading) joints."""
     indices = []
-    for joint_name in spec.joints:
+    for joint_name in names:
         if not model.existJointName(joint_name):
             raise ModelError(f"[base] joints: {joint_name!r} is not a joint of the URDF"
                              f"{suggest(joint_name, model.names[1:])}")
         joint = model.joints[model.getJointId(joint_name)]
         if joint.nq != 1 or joint.nv != 1:
-            raise ModelError(f"[base] joints: {joint_name!r} must be a 1-DOF joint")
+            raise ModelError(f"[base] joints: {joint_name!r} is a {joint.shortname().removeprefix('JointModel')} "
+                             f"joint of {joint.nq} coordinates; the base coordinates are three 1-DOF joints -- "
+                             f"for a continuous or planar joint, remove joints and list the model's base joints in "
+                             f"replace = [...]: wbc then puts its own base joints in their place")
         indices.append(joint.idx_v)
-    _check_base_joints(model, spec.joints)
+    _check_base_joints(model, names)
     return MobileBase(
-        kind=BaseKind(spec.kind),
+        kind=base_kind(spec.kind),
         indices=tuple(indices),
         max_linear_speed=_or_inf(spec.max_linear_speed),
         max_yaw_rate=_or_inf(spec.max_yaw_rate),
@@ -504,10 +637,16 @@ def _or_inf(value: float | None) -> float:
 
 
 def _wheels(spec: MecanumWheelsTable | DifferentialWheelsTable | None) -> MecanumWheels | DifferentialWheels | None:
+    """The wheel model a ``[base.wheels]`` table gives in full (radius and layout)."""
     if spec is None:
         return None
+    fields = spec.model_dump(exclude={"joints"}) | {"max_speed": _or_inf(spec.max_speed)}
+    missing = [key for key, value in fields.items() if value is None]
+    if missing:
+        raise ModelError(f"[base.wheels] {', '.join(missing)}: required key missing; give it, or the wheel joints "
+                         "(joints = [...]) to read the geometry from the model")
     wheel_type = MecanumWheels if isinstance(spec, MecanumWheelsTable) else DifferentialWheels
-    return wheel_type(**(spec.model_dump() | {"max_speed": _or_inf(spec.max_speed)}))
+    return wheel_type(**fields)
 
 
 def _detect_planar_base(model: pin.Model) -> MobileBase:
