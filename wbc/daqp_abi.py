@@ -187,10 +187,11 @@ def probe(library: Library) -> str | None:
     """Check the layouts of this module on the installed DAQP; None when they hold.
 
     The sizes and offsets the compiled kernels assume (the ``DAQP_*`` constants of
-    :mod:`wbc.runtime.kernels`) must be those of the structures here. Then it sets up ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``,
-    ``|x| <= 10`` through :class:`wbc.daqp_native.NativeWorkspace` and checks what ``setup_daqp`` wrote at
-    the offsets of :class:`Workspace` (dimensions, problem and settings pointers) and the
-    answer of one compiled solve: x = (0, 1) (the projection of (1, 2) onto the row).
+    :mod:`wbc.runtime.kernels`) must be those of the structures here. Then it sets up
+    ``min 1/2 |x|^2 - x1 - 2 x2`` s.t. ``x1 + x2 <= 1``, ``|x| <= 10`` through
+    :class:`wbc.daqp_native.NativeWorkspace` and checks what ``setup_daqp`` wrote at the offsets
+    of :class:`Workspace` (dimensions, problem and settings pointers) and the answer of one
+    compiled solve: x = (0, 1) (the projection of (1, 2) onto the row).
     """
     from .daqp_native import NativeWorkspace
     from .qp import QP
