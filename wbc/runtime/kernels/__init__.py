@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import importlib
 import pkgutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -180,6 +181,11 @@ def load() -> None:
                                 f"module attribute of its own name, unique among the ops and names of {__name__}")
             declared[name] = value
     ops = [declared[name] for name in sorted(declared)]
+    for op in ops:  # the generated interpreter imports each kernel by its module and name
+        kernel = getattr(op.kernel, "py_func", None)
+        if kernel is None or getattr(sys.modules[kernel.__module__], kernel.__name__, None) is not op.kernel:
+            raise TypeError(f"op {op.spec.name}: its kernel must be an @njit function defined at module level in "
+                            f"a module of {__name__}")
     for code, op in enumerate(ops, start=1):
         op.code = code
     from .tick import interpreter
