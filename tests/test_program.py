@@ -148,10 +148,11 @@ def test_a_nan_screen_skips_the_solves_after_it():
     program.add(kernels.DAQP_SOLVE, **_daqp_operands(control))  # would jump to address 1 if run
     assert program.run(DT) is True
     assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
-    data[1] = 0.0  # the flags start from 0 at every run: a NaN screen of a clean tick finds nothing
-    program = TickProgram()
-    program.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
-    assert program.run(DT) is False
+    screen = TickProgram()  # the flags start from 0 at every run: a clean tick after a NaN is clean
+    screen.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
+    assert screen.run(DT) is True
+    data[1] = 0.0
+    assert screen.run(DT) is False
 
 
 def test_a_failed_level_stops_the_solves_below_it():

@@ -19,7 +19,7 @@ through its dual, whose conditioning is not the v-problem's: with costs and damp
 (e.g. a posture weight 1e12 next to coordinates held only by the damping floor) DAQP was seen
 to stop on the lifted QP 0.2 rad/s from the optimum, or at its iteration limit, where the dense
 QP of the same tick is solved exactly. So every lifted answer is certified in the tick
-program (:data:`~wbc.runtime.kernels.LIFT_CHECK`): its stationarity *in v*
+program (:data:`~wbc.runtime.kernels.assembly.LIFT_CHECK`): its stationarity *in v*
 (:func:`wbc.runtime.kernels.lifted_stationarity`, relative) joins its defect, both held to
 :data:`wbc.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
 followed, in the same tick, by the dense QP (:meth:`LiftedQP.fill_dense`) solved by the same

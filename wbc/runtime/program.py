@@ -3,7 +3,7 @@
 Tasks and constraints that have a kernel (:mod:`wbc.runtime.kernels`) register their rows here
 once, when the controller is built (``TaskData.add_ops`` / ``ConstraintData.add_ops``);
 the controller appends the assembly (normal equations, bound clip, cost normalisation, NaN
-screen). Each tick then costs one call of :func:`wbc.runtime.kernels.run_program` for all of it.
+screen). Each tick then costs one call of ``run_program`` (:mod:`wbc.runtime.kernels.tick`) for all of it.
 
 Operands are passed by address. Memory safety rests on two rules, both enforced here when
 an op is added: every array operand is checked against the op's declared schema

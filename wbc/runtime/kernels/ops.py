@@ -40,7 +40,9 @@ Shape = tuple[int | str, ...] | None
 DTYPES = ("float64", "int64")
 #: the operand through which a built-in op reads and sets the program's flags
 FLAGS = "flags"
+#: the program's flags: a NaN screen found a NaN; a level of a hierarchy failed
 FLAG_FOUND_NAN, FLAG_STOPPED = 0, 1
+#: the number of the program's flags
 FLAG_COUNT = 2
 #: the declaration of the flags operand
 FLAGS_OPERAND = (FLAGS, (FLAG_COUNT,), "int64")

@@ -4,7 +4,7 @@ The program's operands are registered once (:class:`wbc.runtime.program.TickProg
 C-contiguous arrays and handed over by address: entering a numba function costs ~0.1 us per
 array argument, a dozen arrays would cost more than the arithmetic. One native call,
 ``run_program(packed, dt)``, runs every row; ``packed`` = [rows, width, the flags
-(:data:`~.ops.FLAG_COUNT`), the rows (rows x width, row-major), the operand addresses]. Each
+(:data:`~wbc.runtime.kernels.ops.FLAG_COUNT`), the rows (rows x width, row-major), the operand addresses]. Each
 row is [opcode, operands...] (array operands by index into the addresses).
 
 :func:`interpreter_source` writes ``run_program`` from the :class:`~.ops.Op` declarations of
