@@ -4,6 +4,12 @@ exactly the arrays and ints TickProgram.add was given, and TickProgram.add refus
 else when the controller is built."""
 
 import importlib
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -224,3 +230,58 @@ def test_compiled_ops_use_the_same_declaration_format():
     program.add(external, x=x, factor=np.array([2.0]), n=3)
     program.run(0.5)
     np.testing.assert_array_equal(x, [0.0, 1.0, 2.0])
+
+
+_NEW_KERNEL_FILE = '''
+import numpy as np
+from numba import njit
+
+from . import prepare_cache
+from .ops import STACK, Op
+
+CACHE = prepare_cache()
+
+
+@njit("void(float64[:], float64[:], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
+def centering_rows(q, middle, settings, dt, target):
+    for i in range(len(q)):
+        target[i] = settings[0] / dt * (middle[i] - q[i])
+
+
+@njit(inline="always")
+def _centering(q, middle, settings, stack, start, dim, nv, rows, dt):
+    centering_rows(q, middle, settings, dt, stack[nv, start:start + dim])
+
+
+CENTERING = Op("CENTERING", _centering, (
+    ("q", ("dim",)), ("middle", ("dim",)), ("settings", (1,)), STACK, ("start", None), ("dim", None), ("nv", None),
+    ("rows", None)), checks=("0 <= start", "start + dim <= rows"))
+'''
+
+
+@pytest.mark.slow  # compiles a copy of every kernel (~25 s)
+def test_a_new_op_is_its_kernel_file_alone(tmp_path):
+    """A copy of the kernels package plus one file declaring an op -- no opcode, no edit of
+    __init__.py, ops.py or tick.py -- runs that op in the generated interpreter."""
+    package = tmp_path / "kernels_copy"
+    shutil.copytree(Path(kernels.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
+    (package / "centering.py").write_text(_NEW_KERNEL_FILE)
+    code = textwrap.dedent("""
+        import numpy as np
+        import kernels_copy
+        import kernels_copy.ops
+        from wbc.runtime import program
+
+        program.kernels, program.Op = kernels_copy, kernels_copy.ops.Op  # the program on the copy
+        tick = program.TickProgram()
+        stack = np.zeros((3, 4))
+        tick.add(kernels_copy.CENTERING, q=np.array([1.0, 2.0]), middle=np.zeros(2), settings=np.array([0.5]),
+                 stack=stack, start=1, dim=2, nv=2, rows=4)
+        tick.run(0.1)
+        print(stack[2].tolist())
+    """)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
+                            cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(tmp_path),
+                                               "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[-2] == str([0.0, 0.5 / 0.1 * -1.0, 0.5 / 0.1 * -2.0, 0.0])
