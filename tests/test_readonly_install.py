@@ -75,7 +75,7 @@ def test_a_read_only_install_compiles_in_memory_and_says_how_to_cache(tmp_path):
     env["HOME"] = str(home)
     result = _in_read_only_sandbox(PROGRAM, [PACKAGE, home], env)
     assert result.returncode == 0, result.stderr
-    notice = _cache.NO_CACHE_MESSAGE.format(folder=PACKAGE / "kernels")
+    notice = _cache.NO_CACHE_MESSAGE.format(folder=PACKAGE / "runtime" / "kernels")
     assert "NUMBA_CACHE_DIR" in notice
     assert result.stderr.count(notice) == 1, result.stderr
     assert "Traceback" not in result.stderr and "RuntimeError" not in result.stderr, result.stderr
