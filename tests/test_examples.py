@@ -7,6 +7,7 @@ import sys
 import numpy as np
 
 from conftest import ROOT
+from wbc.runtime.kernels.ops import OP_EXTERNAL
 
 EXAMPLES = ROOT / "examples"
 
@@ -47,7 +48,7 @@ def test_custom_compiled_task_centres_the_joints():
     np.testing.assert_allclose(v[3:], w2 / (w2 + controller.damping) * 0.5 / controller.dt * e, rtol=1e-9)
     assert task.name in controller.last.task_errors
     # it runs inside the tick program (no Python compute for it), through its C callback
-    assert not controller._python_tasks and any(row[0] == 100 for row in controller._program._program)
+    assert not controller._python_tasks and any(row[0] == OP_EXTERNAL for row in controller._program._program)
 
 
 def test_compiled_ops_are_checked_against_their_declaration():

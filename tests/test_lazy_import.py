@@ -17,7 +17,7 @@ import pytest
 
 from conftest import NEUTRAL
 from wbc.runtime import kernels
-from wbc.runtime.kernels import _cache
+from wbc.runtime.kernels import _cache, tick
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +36,7 @@ def test_import_does_not_import_numba():
         import sys
         import wbc, wbc.analysis.singularity, wbc.trajectory
         from wbc.runtime import kernels
-        assert kernels.FRAME_GAIN == 24 and kernels.OP_FRAME_TASK == 1  # the layouts need no numba
+        assert kernels.FRAME_GAIN == 24 and kernels.FRAME_SETTINGS == 27  # the layouts need no numba
         print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite")))
     """)
     assert result.returncode == 0, result.stderr
@@ -85,6 +85,35 @@ def test_loaded_kernels_are_plain_attributes(warm):
         assert dispatchers == set(names), module
     with pytest.raises(AttributeError):
         kernels.no_such_kernel  # noqa: B018
+
+
+def test_the_generated_interpreter_is_loaded_from_the_cache(warm):
+    """run_program, generated from the op declarations, is read from numba's cache by the next
+    process (not compiled again), from the file next to the package's cache."""
+    result = _python("""
+        from wbc.runtime import kernels
+        kernels.load()
+        stats, source = kernels.run_program.stats, kernels.run_program.py_func.__code__.co_filename
+        print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), source)
+    """)
+    assert result.returncode == 0, result.stderr
+    hits, misses, source = result.stdout.split()
+    assert (hits, misses) == ("1", "0")
+    assert Path(source).parent == kernels.cache_directory and Path(source).name.startswith(tick.GENERATED_PREFIX)
+    assert result.stderr == ""
+
+
+def test_generated_sources_are_written_once_and_replace_the_stale_ones(tmp_path):
+    first = _cache.write_generated(tmp_path, "gen_", "x = 1\n")
+    stamp = first.stat().st_mtime_ns
+    entry = _cache.cache_dir(first) / f"{first.stem}.run_program-10.py311.nbi"  # numba's entry of the first
+    entry.write_bytes(b"")
+    assert _cache.write_generated(tmp_path, "gen_", "x = 1\n") == first
+    assert first.stat().st_mtime_ns == stamp  # not rewritten: numba's index of it stays valid
+    second = _cache.write_generated(tmp_path, "gen_", "x = 2\n")
+    assert second != first and second.read_text() == "x = 2\n"
+    assert not first.exists() and not entry.exists()  # generated from other sources: gone with its entries
+    assert _cache.write_generated(tmp_path / "missing", "gen_", "x = 3\n") is None  # not writable: in memory
 
 
 def test_warmup_command(warm):

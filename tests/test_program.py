@@ -1,77 +1,287 @@
-"""The op schemas (wbc.runtime.kernels.ops) are the one place an op's operand order is written:
-the interpreter must read each row as its schema says, and TickProgram.add must refuse
-anything else when the controller is built."""
+"""An op is declared once, next to its kernel (wbc.runtime.kernels.ops.Op); the interpreter is
+generated from the declarations: every declared op is dispatched, its decoder hands the kernel
+exactly the arrays and ints TickProgram.add was given, and TickProgram.add refuses anything
+else when the controller is built."""
 
-import ast
-import inspect
-import re
+import importlib
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from wbc.runtime import kernels
-from wbc.runtime.kernels import ops, tick
+from wbc.runtime.compiled_op import CompiledOp
+from wbc.runtime.kernels import ops
 from wbc.runtime.program import TickProgram
 
-CONSTANTS = {name: getattr(kernels, name) for name in ("FRAME_SETTINGS", "FRAME_DATA", "POSITION_SETTINGS",
-                                                       "DAQP_PROBLEM_WORDS", "DAQP_WORKSPACE_WORDS",
-                                                       "DAQP_RESULT_WORDS", "DAQP_CONTROL_SIZE", "CHAIN_COLUMNS")}
+DT = 0.01
 
 
-def _decoder_blocks() -> dict[str, str]:
-    """Source of each ``if/elif code == OP_X:`` branch of run_program, by opcode name."""
-    source = inspect.getsource(tick.run_program)
-    parts = re.split(r"\n\s+(?:el)?if code == (OP_\w+):\n", source)
-    return {parts[i]: parts[i + 1] for i in range(1, len(parts) - 1, 2)}
+def _declared() -> dict[str, ops.Op]:
+    """Every Op of the topic modules, found independently of kernels.load."""
+    found = {}
+    for module_name in kernels.topic_modules():
+        module = importlib.import_module(f"wbc.runtime.kernels.{module_name}")
+        found |= {name: value for name, value in vars(module).items() if isinstance(value, ops.Op)}
+    return found
 
 
-def _normal(expression: str, names_at: dict[int, str]) -> str:
-    expression = re.sub(r"op\[(\d+)\]", lambda m: names_at[int(m.group(1))], expression.strip())
-    for name, value in CONSTANTS.items():
-        expression = re.sub(rf"\b{name}\b", str(value), expression)
-    return expression.replace(" ", "")
+DECLARED = _declared()
+
+#: int operands satisfying each op's checks (the arrays follow from them)
+INTS = {
+    "BAND": dict(first=1, last=3, first_preview=0, last_preview=1, nv=3, rows=5, size=9 + 9 + 8 * 5, row=1,
+                 target_rows=8),
+    "DAQP_SOLVE": dict(n=3, size=9 + 9 + 2 * 5, update_ldp=1, solve=1, clock_gettime=1, clock_id=1, steady_mask=0),
+    "FORWARD_KINEMATICS": dict(nq=2, joints=3, nv=2),
+    "FRAME_TASK": dict(start=2, nv=4, rows=9),
+    "HAS_NAN": dict(size=7, infinite=1),
+    "HEADING_ROWS": dict(rows=3, nq=5, nv=4, heading=2, x=0, y=1),
+    "HIERARCHY_PREVIEW": dict(nv=3, rows=6, count=4),
+    "LEVEL_CONSTRAINTS": dict(n=3, p=2, e=1, band=2, source_size=9 + 9 + 3 * 5, target_size=9 + 9 + 5 * 5),
+    "LIFT": dict(nv=3, stack_rows=6, rows=4, k=2, p=1, e=1, source_size=9 + 9 + 2 * 5,
+                 lifted_size=25 + 15 + 4 * 7),
+    "LIFT_CHECK": dict(nv=3, k=2, p=1, e=1, lifted_size=25 + 15 + 4 * 7),
+    "LM_DAMPING_LEVEL": dict(nv=3),
+    "LM_DAMPING_ROWS": dict(nv=3, rows=8, first=4),
+    "LM_TASK": dict(start=1, dim=3, nv=4, rows=6, reset=1),
+    "MANIPULABILITY_BARRIER": dict(first=0, last=6, nv=5),
+    "MERGE_BOUNDS": dict(count=3, n_hard=1, nv=4),
+    "NORMALISE_COST": dict(nv=4),
+    "NORMALISE_LEVEL": dict(nv=4),
+    "NORMAL_EQUATIONS": dict(nv=4, rows=7, first=1, last=6, reset=1),
+    "POSITION_LIMITS": dict(k=4),
+    "POSITION_TASK": dict(start=1, nv=4, rows=6),
+    "POSTURE": dict(start=1, dim=3, nv=4, rows=6),
+    "PREVIEW": dict(nv=4),
+    "STEERING": dict(x=0, y=1, heading=2, start=1, nv=4, rows=6, nq=5),
+}
 
 
-@pytest.mark.parametrize("code", sorted(ops.OP_SPECS), ids=lambda code: ops.OP_SPECS[code].name)
-def test_the_interpreter_reads_every_row_as_its_schema_says(code):
-    spec = ops.OP_SPECS[code]
-    block = _decoder_blocks()[f"OP_{spec.name}"]
-    position = {name: i + 1 for i, (name, _) in enumerate(spec.operands)}
-    shape_of = dict(spec.operands)
-    names_at = {i: name for name, i in position.items()}
-    # int operands: "nv, rows, start = op[10], op[11], op[9]" / "k = op[7]"
-    for targets, values in re.findall(r"^\s*([\w, ]+) = (op\[\d+\](?:, op\[\d+\])*)\s*$", block, re.M):
-        for name, value in zip(targets.split(","), values.split(","), strict=True):
-            index = int(re.search(r"\d+", value).group())
-            assert names_at[index] == name.strip() and shape_of[name.strip()] is None, (spec.name, name, index)
-    # array operands: _vector(addresses, op[k], n) / _matrix(addresses, op[k], rows, columns)
-    reads = re.findall(r"_(vector|matrix)\(addresses, op\[(\d+)\], ([^()]+?)\)", block)
-    assert reads, spec.name
-    arrays = {i for i, (_, shape) in enumerate(spec.operands, start=1) if shape is not None}
-    assert {int(index) for _, index, _ in reads} == arrays, spec.name
-    for _, index, dims in reads:
-        shape = shape_of[names_at[int(index)]]
-        declared = [str(dim).replace(" ", "") for dim in shape]
-        read = [_normal(dim, names_at) for dim in ast.literal_eval(f"[{dims!r}]")[0].split(",")]
-        assert read == declared, (spec.name, names_at[int(index)], read, declared)
-    # ints used directly as kernel arguments (x, y, heading, first row, ...) are ints in the schema
-    for index in map(int, re.findall(r"(?<![\w\[])op\[(\d+)\](?!\])", block)):
-        assert index in names_at, (spec.name, index)
+def _chain() -> np.ndarray:
+    """A universe row and two joints (revolute about z, then prismatic along x) of CHAIN_COLUMNS."""
+    chain = np.zeros((3, kernels.CHAIN_COLUMNS))
+    for j, (parent, kind, axis) in enumerate([(0, 0.0, (0, 0, 1)), (1, kernels.CHAIN_PRISMATIC, (1, 0, 0))], start=1):
+        chain[j, :7] = (parent, kind, j - 1, j - 1, *axis)
+        chain[j, 7:16] = np.eye(3).ravel()
+        chain[j, 16:19] = (0.1 * j, 0.0, 0.2)
+    return chain
+
+
+def _operands(op: ops.Op, rng: np.random.Generator) -> dict:
+    """Operands of ``op`` by name: its ints from INTS, random arrays of the declared shapes (valid
+    where the kernel indexes with the values)."""
+    ints = INTS[op.spec.name]
+    operands: dict = dict(ints)
+    for name, shape in op.spec.operands:
+        if shape is None or name == ops.FLAGS:
+            continue
+        dims = tuple(dim if isinstance(dim, int) else eval(dim, {}, ints) for dim in shape)  # noqa: S307
+        operands[name] = rng.normal(size=dims)
+    if op.spec.name == "FORWARD_KINEMATICS":
+        operands["chain"] = _chain()
+    if op.spec.name == "HIERARCHY_PREVIEW":
+        operands["ranges"] = np.array([0.0, 2.0, 2.0, 6.0])
+    if op.spec.name == "HAS_NAN":
+        operands["data"][3] = np.inf
+    if op.spec.name in ("BAND", "LIFT_CHECK"):  # a successful solve: band rows written, stationarity checked
+        operands["control"][[kernels.DAQP_CONTROL_EXITFLAG, kernels.DAQP_CONTROL_DEFECT]] = (1.0, 0.0)
+    if op.spec.name == "BAND":
+        operands["settings"][0] = 1.0
+    if op.spec.name in ("LM_DAMPING_LEVEL", "LM_DAMPING_ROWS", "LM_TASK"):  # damping that acts
+        operands["mu"][0] = 2.0
+        if "scaling" in operands:
+            operands["scaling"] = np.array([0.5, 0.1])
+    if op.spec.name == "LM_TASK":
+        operands["lm"][0] = 0.3
+    if op.spec.name in ("MANIPULABILITY_BARRIER", "FRAME_TASK", "POSITION_TASK"):
+        operands["support"] = (rng.random(operands["support"].size) > 0.3).astype(float)
+    return operands
+
+
+@pytest.fixture(scope="module", autouse=True)
+def loaded():
+    kernels.load()
+
+
+def test_every_declared_op_is_numbered_and_bound():
+    assert DECLARED and set(DECLARED) == set(INTS)  # a new op gets a case here
+    codes = sorted(op.code for op in DECLARED.values())
+    assert codes == list(range(1, len(DECLARED) + 1))  # unique, none is OP_EXTERNAL
+    assert ops.OP_EXTERNAL not in codes
+    for name, op in DECLARED.items():
+        assert getattr(kernels, name) is op and op.spec.name == name
+
+
+@pytest.mark.parametrize("name", sorted(set(DECLARED) - {"DAQP_SOLVE"}))
+def test_the_generated_decoder_calls_the_kernel_with_the_declared_operands(name):
+    """One row run by run_program changes every array exactly as the kernel called directly on
+    copies of the same arrays (operands in declaration order, then dt)."""
+    op = DECLARED[name]
+    operands = _operands(op, np.random.default_rng(len(name)))
+    direct = {key: value.copy() if isinstance(value, np.ndarray) else value for key, value in operands.items()}
+    flags = np.zeros(ops.FLAG_COUNT, dtype=np.int64)
+    op.kernel(*(flags if key == ops.FLAGS else direct[key] for key, _ in op.spec.operands), DT)
+    program = TickProgram()
+    program.add(op, **operands)
+    found_nan = program.run(DT)
+    assert found_nan == bool(flags[ops.FLAG_FOUND_NAN])
+    changed = False
+    for key, value in operands.items():
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, direct[key], err_msg=f"{name}: operand {key}")
+            changed = changed or not np.array_equal(value, _operands(op, np.random.default_rng(len(name)))[key],
+                                                    equal_nan=True)
+    assert changed or found_nan, f"{name}: the run wrote nothing"
+
+
+def _daqp_operands(control: np.ndarray) -> dict:
+    """DAQP_SOLVE operands whose function addresses are dummies: the row must be skipped."""
+    operands = _operands(DECLARED["DAQP_SOLVE"], np.random.default_rng(0))
+    operands["control"] = control
+    return operands
+
+
+def test_a_nan_screen_skips_the_solves_after_it():
+    program = TickProgram()
+    data, control = np.array([0.0, np.nan]), np.full(kernels.DAQP_CONTROL_SIZE, 7.0)
+    program.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
+    program.add(kernels.DAQP_SOLVE, **_daqp_operands(control))  # would jump to address 1 if run
+    assert program.run(DT) is True
+    assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
+    screen = TickProgram()  # the flags start from 0 at every run: a clean tick after a NaN is clean
+    screen.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
+    assert screen.run(DT) is True
+    data[1] = 0.0
+    assert screen.run(DT) is False
+
+
+def test_a_failed_level_stops_the_solves_below_it():
+    operands = _operands(DECLARED["BAND"], np.random.default_rng(1))
+    operands["control"][kernels.DAQP_CONTROL_EXITFLAG] = -1.0  # the level's solve failed
+    target = operands["target"].copy()
+    program = TickProgram()
+    program.add(kernels.BAND, **operands)
+    control = np.full(kernels.DAQP_CONTROL_SIZE, 7.0)
+    program.add(kernels.DAQP_SOLVE, **_daqp_operands(control))
+    assert program.run(DT) is False  # a stop is no NaN
+    assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
+    np.testing.assert_array_equal(operands["target"], target)  # no band rows written
 
 
 def test_misnamed_misshapen_or_out_of_range_operands_are_refused():
     program = TickProgram()
     Hc, factor, preview = np.zeros((5, 4)), np.zeros((4, 4)), np.zeros(4)
-    program.add(kernels.OP_PREVIEW, Hc=Hc, factor=factor, preview=preview, nv=4)
+    program.add(kernels.PREVIEW, Hc=Hc, factor=factor, preview=preview, nv=4)
     with pytest.raises(TypeError, match="missing operands \\['preview'\\]"):
-        program.add(kernels.OP_PREVIEW, Hc=Hc, factor=factor, preveiw=preview, nv=4)
+        program.add(kernels.PREVIEW, Hc=Hc, factor=factor, preveiw=preview, nv=4)
     with pytest.raises(TypeError, match="operand factor must have shape \\(4, 4\\)"):
-        program.add(kernels.OP_PREVIEW, Hc=Hc, factor=np.zeros((4, 5)), preview=preview, nv=4)
+        program.add(kernels.PREVIEW, Hc=Hc, factor=np.zeros((4, 5)), preview=preview, nv=4)
     with pytest.raises(TypeError, match="C-contiguous float64"):
-        program.add(kernels.OP_PREVIEW, Hc=Hc, factor=factor, preview=np.zeros(8)[::2], nv=4)
+        program.add(kernels.PREVIEW, Hc=Hc, factor=factor, preview=np.zeros(8)[::2], nv=4)
     stack = np.zeros((5, 10))
     with pytest.raises(TypeError, match="start \\+ 6 <= rows"):  # a block past the end of the stack
-        program.add(kernels.OP_FRAME_TASK, joint_jacobians_t=np.zeros((4, 6)), rotation_t=np.zeros((3, 3)),
+        program.add(kernels.FRAME_TASK, joint_jacobians_t=np.zeros((4, 6)), rotation_t=np.zeros((3, 3)),
                     translation=np.zeros(3), support=np.zeros(4), settings=np.zeros(kernels.FRAME_SETTINGS),
                     frame=np.zeros(kernels.FRAME_DATA), error=np.zeros(6), stack=stack, start=5, nv=4, rows=10)
+    with pytest.raises(TypeError, match="unknown operands \\['flags'\\]"):  # the flags are the program's own
+        program.add(kernels.HAS_NAN, data=np.zeros(3), size=3, infinite=0, flags=np.zeros(2, dtype=np.int64))
     assert len(program) == 1  # nothing half-added
+
+
+def test_an_op_declared_outside_the_kernels_package_is_refused():
+    stray = ops.Op("STRAY", kernels.PREVIEW.kernel, kernels.PREVIEW.spec.operands)  # not numbered by load
+    with pytest.raises(TypeError, match="STRAY op: not one of wbc.runtime.kernels' ops"):
+        TickProgram().add(stray, Hc=np.zeros((3, 2)), factor=np.zeros((2, 2)), preview=np.zeros(2), nv=2)
+
+
+def test_declarations_are_checked_when_made():
+    with pytest.raises(TypeError, match="shape of G uses \\['cols'\\], not int operands"):
+        ops.Op("BAD", None, (("G", ("rows", "cols")), ("rows", None)))
+    with pytest.raises(TypeError, match="operand name 'op' is reserved"):
+        ops.Op("BAD", None, (("op", None),))
+    with pytest.raises(TypeError, match="operand name 'flags' is reserved"):  # a CompiledOp's callback has none
+        ops.parse("BAD", (ops.FLAGS_OPERAND,))
+    with pytest.raises(TypeError, match="kernel's parameters must be the operands in declaration order"):
+        ops.Op("BAD", kernels.PREVIEW.kernel, (("Hc", ("nv + 1", "nv")), ("preview", ("nv",)),
+                                               ("factor", ("nv", "nv")), ("nv", None)))  # factor and preview swapped
+    with pytest.raises(TypeError, match="operand names repeat"):
+        ops.Op("BAD", None, (("n", None), ("n", None)))
+
+
+def test_compiled_ops_use_the_same_declaration_format():
+    from numba import njit
+
+    @njit(nogil=True)
+    def scale(x, factor, n, dt):
+        for i in range(n):
+            x[i] *= factor[0] * dt
+
+    declaration = (("x", ("n",)), ("factor", (1,)), ("n", None))
+    external = CompiledOp("SCALE", scale, declaration)
+    assert external.spec == ops.Op("SCALE", scale, declaration).spec
+    x = np.arange(3.0)
+    program = TickProgram()
+    program.add(external, x=x, factor=np.array([2.0]), n=3)
+    program.run(0.5)
+    np.testing.assert_array_equal(x, [0.0, 1.0, 2.0])
+
+
+_NEW_KERNEL_FILE = '''
+import numpy as np
+from numba import njit
+
+from . import prepare_cache
+from .ops import STACK, Op
+
+CACHE = prepare_cache()
+
+
+@njit("void(float64[:], float64[:], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
+def centering_rows(q, middle, settings, dt, target):
+    for i in range(len(q)):
+        target[i] = settings[0] / dt * (middle[i] - q[i])
+
+
+@njit(inline="always")
+def _centering(q, middle, settings, stack, start, dim, nv, rows, dt):
+    centering_rows(q, middle, settings, dt, stack[nv, start:start + dim])
+
+
+CENTERING = Op("CENTERING", _centering, (
+    ("q", ("dim",)), ("middle", ("dim",)), ("settings", (1,)), STACK, ("start", None), ("dim", None), ("nv", None),
+    ("rows", None)), checks=("0 <= start", "start + dim <= rows"))
+'''
+
+
+@pytest.mark.slow  # compiles a copy of every kernel (~25 s)
+def test_a_new_op_is_its_kernel_file_alone(tmp_path):
+    """A copy of the kernels package plus one file declaring an op -- no opcode, no edit of
+    __init__.py, ops.py or tick.py -- runs that op in the generated interpreter."""
+    package = tmp_path / "kernels_copy"
+    shutil.copytree(Path(kernels.__file__).parent, package, ignore=shutil.ignore_patterns("__pycache__"))
+    (package / "centering.py").write_text(_NEW_KERNEL_FILE)
+    code = textwrap.dedent("""
+        import numpy as np
+        import kernels_copy
+        import kernels_copy.ops
+        from wbc.runtime import program
+
+        program.kernels, program.Op = kernels_copy, kernels_copy.ops.Op  # the program on the copy
+        tick = program.TickProgram()
+        stack = np.zeros((3, 4))
+        tick.add(kernels_copy.CENTERING, q=np.array([1.0, 2.0]), middle=np.zeros(2), settings=np.array([0.5]),
+                 stack=stack, start=1, dim=2, nv=2, rows=4)
+        tick.run(0.1)
+        print(stack[2].tolist())
+    """)
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
+                            cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(tmp_path),
+                                               "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[-2] == str([0.0, 0.5 / 0.1 * -1.0, 0.5 / 0.1 * -2.0, 0.0])

@@ -32,5 +32,5 @@ class HeadingRows:
 
     def add_op(self, program: TickProgram, kin: Kinematics, G: np.ndarray) -> None:
         """The same as a compiled op (``G``: C-contiguous rows of the QP)."""
-        program.add(kernels.OP_HEADING_ROWS, cos_part=self._cos_part, sin_part=self._sin_part, q=kin.q,
+        program.add(kernels.HEADING_ROWS, cos_part=self._cos_part, sin_part=self._sin_part, q=kin.q,
                     heading=self._heading, G=G, rows=G.shape[0], nq=len(kin.q), nv=G.shape[1], x=self._x, y=self._y)

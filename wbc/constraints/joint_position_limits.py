@@ -86,7 +86,7 @@ class JointPositionLimitsData(ConstraintData):
         if self._slices is None:
             return False
         q_slice, v_slice = self._slices
-        program.add(kernels.OP_POSITION_LIMITS, q=kin.q[q_slice], lower_limit=self._lower_limit,
+        program.add(kernels.POSITION_LIMITS, q=kin.q[q_slice], lower_limit=self._lower_limit,
                     upper_limit=self._upper_limit, gain=self.constraint._gain, lower=rows.lower[v_slice],
                     upper=rows.upper[v_slice], k=len(self._q_index))
         return True

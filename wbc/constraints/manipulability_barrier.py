@@ -91,7 +91,7 @@ class ManipulabilityBarrierData(ConstraintData):
         if not self._manipulability.compiled:
             return False  # multi-DOF joints on the chain: the Hessian path, in Python
         selected = row_selection(self.constraint.rows)
-        program.add(kernels.OP_MANIPULABILITY_BARRIER, **self._manipulability.operands(kin), G=rows.G[0],
+        program.add(kernels.MANIPULABILITY_BARRIER, **self._manipulability.operands(kin), G=rows.G[0],
                     h=rows.h[0:1], settings=self.constraint._settings, value=self._value, first=selected.start,
                     last=selected.stop, nv=kin.model.nv)
         return True

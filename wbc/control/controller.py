@@ -299,7 +299,7 @@ class Controller:
         kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
         stack, rows = self._stack_t, self._stack_t.shape[1]
         program = TickProgram()
-        program.add(kernels.OP_HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
+        program.add(kernels.HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
         kin.add_op(program)  # the compiled forward kinematics (native chains), before every item
         # items whose subclass overrides compute keep their own rows: no inherited ops for them
         self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
@@ -322,23 +322,23 @@ class Controller:
         if self._lm.add_task_ops(program, stack, self._task_blocks, 0):  # sqrt(max(damping, mu)) I: the damping rows
             self._lm.add_rows_op(program, stack, self._n_plain - nv, self._cost_scaling)
         if self._lifted is None:
-            program.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain,
+            program.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain,
                         reset=1, Hc=qp.Hc)
         self._python_preview = []
         rest = program
         if self._preview_blocks:  # tasks needing the holonomic relaxation -H^-1 c of the others
-            program.add(kernels.OP_PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
+            program.add(kernels.PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
             self._python_preview = [(task, jacobian, target) for task, jacobian, target, start in self._preview_blocks
                                     if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
                                             and task.add_preview_ops(program, kin, stack, start, self._preview))]
             if self._python_preview:
                 rest = TickProgram()  # runs after the Python preview tasks
-            rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain, last=rows,
+            rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain, last=rows,
                      reset=0, Hc=qp.Hc)
         self._bound_policy.add_op(rest, qp)
         if self._lifted is None:
-            rest.add(kernels.OP_NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
-            rest.add(kernels.OP_HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+            rest.add(kernels.NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
+            rest.add(kernels.HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
             self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
         else:
             self._lifted.add_op(rest, stack, self._cost_scaling)

@@ -205,7 +205,7 @@ class Hierarchy:
         size = stack.shape[1]
         python_preview, rest = [], program
         if b.task_stack.preview_blocks:
-            program.add(kernels.OP_HIERARCHY_PREVIEW, stack=stack, ranges=self.rows.ranges, scaling=scaling_last,
+            program.add(kernels.HIERARCHY_PREVIEW, stack=stack, ranges=self.rows.ranges, scaling=scaling_last,
                         preview=b.preview, nv=nv, rows=size, count=self.rows.ranges.size)
             python_preview = [(task, jacobian, target) for task, jacobian, target, start in b.task_stack.preview_blocks
                               if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
@@ -216,7 +216,7 @@ class Hierarchy:
         for k, qp in enumerate(self.qps):
             for (first, last), reset in ((self.rows.normal[k], 1), (self.rows.preview[k], 0)):
                 if last > first or reset:
-                    rest.add(kernels.OP_NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
+                    rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
                              reset=reset, Hc=qp.Hc)
             if lm.add_task_ops(rest, stack, self._blocks[k], k):  # the error-scaled damping of the level's tasks
                 lm.add_level_op(rest, k, qp.Hc, scaling_last if k == self.count - 1 else self._upper_scaling)
@@ -224,13 +224,13 @@ class Hierarchy:
         b.bounds.add_op(rest, first_qp)
         for k, qp in enumerate(self.qps):
             if k:
-                rest.add(kernels.OP_LEVEL_CONSTRAINTS, source=first_qp.data, target=qp.data, n=nv,
+                rest.add(kernels.LEVEL_CONSTRAINTS, source=first_qp.data, target=qp.data, n=nv,
                          p=first_qp.n_ineq, e=first_qp.n_eq, band=qp.n_ineq - first_qp.n_ineq,
                          source_size=first_qp.data.size, target_size=qp.data.size)
             scaling = scaling_last if k == self.count - 1 else self._upper_scaling
-            rest.add(kernels.OP_NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
+            rest.add(kernels.NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
             screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
-            rest.add(kernels.OP_HAS_NAN, data=screened, size=screened.size, infinite=0)
+            rest.add(kernels.HAS_NAN, data=screened, size=screened.size, infinite=0)
         solver = self.solver = backend.for_levels() if isinstance(backend, DaqpBackend) else backend
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else scaling_last[1]
         self._workspaces = workspaces = None
@@ -251,7 +251,7 @@ class Hierarchy:
     def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
         stack, nv = self._buffers.task_stack.stack_t, self._buffers.nv
         (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
-        program.add(kernels.OP_BAND, stack=stack, first=first, last=last, first_preview=first_p,
+        program.add(kernels.BAND, stack=stack, first=first, last=last, first_preview=first_p,
                     last_preview=last_p, x=workspace.x, lower=self.qps[0].lb, upper=self.qps[0].ub,
                     control=workspace.control, settings=self._settings, target=target.data, nv=nv,
                     rows=stack.shape[1], size=target.data.size, row=self.band_start[k],

@@ -36,7 +36,7 @@ class LMDamping:
             feedforward = task.feedforward
             if feedforward is None:
                 feedforward = self._no_feedforward.setdefault(task.dim, np.zeros(task.dim))
-            program.add(kernels.OP_LM_TASK, stack=stack_t, feedforward=feedforward, mu=self.mu[level:level + 1],
+            program.add(kernels.LM_TASK, stack=stack_t, feedforward=feedforward, mu=self.mu[level:level + 1],
                         lm=self.lm, start=start, dim=task.dim, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1],
                         reset=int(i == 0))
         return bool(damped)
@@ -45,10 +45,10 @@ class LMDamping:
         """Append the op writing ``sqrt(max(damping, mu)) I`` (level 0's mu; ``scaling = (damping,
         floor)``) into the damping rows ``first:first + nv`` of the stack."""
         nv = stack_t.shape[0] - 1
-        program.add(kernels.OP_LM_DAMPING_ROWS, stack=stack_t, mu=self.mu[0:1], scaling=scaling, nv=nv,
+        program.add(kernels.LM_DAMPING_ROWS, stack=stack_t, mu=self.mu[0:1], scaling=scaling, nv=nv,
                     rows=stack_t.shape[1], first=first)
 
     def add_level_op(self, program: TickProgram, level: int, Hc: np.ndarray, scaling: np.ndarray) -> None:
         """Append the op raising the damping of level ``level`` (``scaling[0]``, of ``scaling =
         (damping, floor)``) to its mu in ``Hc = [H; c]``."""
-        program.add(kernels.OP_LM_DAMPING_LEVEL, mu=self.mu[level:level + 1], scaling=scaling, Hc=Hc, nv=Hc.shape[1])
+        program.add(kernels.LM_DAMPING_LEVEL, mu=self.mu[level:level + 1], scaling=scaling, Hc=Hc, nv=Hc.shape[1])

@@ -100,7 +100,7 @@ class Kinematics:
         """Append the compiled forward kinematics to a tick program (native mode; False otherwise)."""
         if self.chain is None:
             return False
-        program.add(kernels.OP_FORWARD_KINEMATICS, q=self.q, chain=self.chain, placements=self.placements,
+        program.add(kernels.FORWARD_KINEMATICS, q=self.q, chain=self.chain, placements=self.placements,
                     jacobians_t=self._jacobians_t, nq=self.q.size, joints=self.chain.shape[0],
                     nv=self._jacobians_t.shape[0])
         return True

@@ -40,5 +40,5 @@ class BoundPolicy:
     def add_op(self, program: TickProgram, qp: QP) -> None:
         """The merge into ``qp.lb, qp.ub`` as an op of ``program``."""
         count, _, nv = self.bounds.shape
-        program.add(kernels.OP_MERGE_BOUNDS, bounds=self.bounds.reshape(2 * count, nv), count=count,
+        program.add(kernels.MERGE_BOUNDS, bounds=self.bounds.reshape(2 * count, nv), count=count,
                     n_hard=self.n_hard, nv=nv, upper=qp.ub, lower=qp.lb)

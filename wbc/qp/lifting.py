@@ -19,7 +19,7 @@ through its dual, whose conditioning is not the v-problem's: with costs and damp
 (e.g. a posture weight 1e12 next to coordinates held only by the damping floor) DAQP was seen
 to stop on the lifted QP 0.2 rad/s from the optimum, or at its iteration limit, where the dense
 QP of the same tick is solved exactly. So every lifted answer is certified in the tick
-program (:data:`~wbc.runtime.kernels.OP_LIFT_CHECK`): its stationarity *in v*
+program (:data:`~wbc.runtime.kernels.assembly.LIFT_CHECK`): its stationarity *in v*
 (:func:`wbc.runtime.kernels.lifted_stationarity`, relative) joins its defect, both held to
 :data:`wbc.control.fallback.ANSWER_TOLERANCE`. A lifted solve that fails or is not certified is
 followed, in the same tick, by the dense QP (:meth:`LiftedQP.fill_dense`) solved by the same
@@ -83,7 +83,7 @@ class LiftedQP:
         """Append the certificate of the answer of ``workspace`` (the native DAQP solve of
         :attr:`qp`, appended before): its stationarity in v joins its defect."""
         source, qp = self.source, self.qp
-        program.add(kernels.OP_LIFT_CHECK, lifted=qp.data, x=workspace.x, lam=workspace.lam, scratch=self._scratch,
+        program.add(kernels.LIFT_CHECK, lifted=qp.data, x=workspace.x, lam=workspace.lam, scratch=self._scratch,
                     control=workspace.control, nv=source.n, k=self.k, p=source.n_ineq, e=source.n_eq,
                     lifted_size=qp.data.size)
 
@@ -100,6 +100,6 @@ class LiftedQP:
         """Fill :attr:`qp` from the stack and the v-QP's limits every tick (a NaN met counts
         as the NaN screen's); ``scaling`` = (damping, damping floor)."""
         source, qp = self.source, self.qp
-        program.add(kernels.OP_LIFT, stack=stack_t, diagonal=self.diagonal, source=source.data, lifted=qp.data,
+        program.add(kernels.LIFT, stack=stack_t, diagonal=self.diagonal, source=source.data, lifted=qp.data,
                     scaling=scaling, nv=source.n, stack_rows=stack_t.shape[1], rows=self.diagonal.size, k=self.k,
                     p=source.n_ineq, e=source.n_eq, source_size=source.data.size, lifted_size=qp.data.size)

@@ -3,11 +3,11 @@
 Tasks and constraints that have a kernel (:mod:`wbc.runtime.kernels`) register their rows here
 once, when the controller is built (``TaskData.add_ops`` / ``ConstraintData.add_ops``);
 the controller appends the assembly (normal equations, bound clip, cost normalisation, NaN
-screen). Each tick then costs one call of :func:`wbc.runtime.kernels.run_program` for all of it.
+screen). Each tick then costs one call of ``run_program`` (:mod:`wbc.runtime.kernels.tick`) for all of it.
 
 Operands are passed by address. Memory safety rests on two rules, both enforced here when
 an op is added: every array operand is checked against the op's declared schema
-(:data:`wbc.runtime.kernels.ops.OP_SPECS`: name, float64, C-contiguous, exact shape in terms of the
+(:class:`wbc.runtime.kernels.ops.Op`: name, float64, C-contiguous, exact shape in terms of the
 op's int operands, range conditions on those ints), and the program keeps a reference to
 every array it was given, so none is freed or reallocated while the program can run
 (views keep their base alive; Pinocchio's buffers live in the controller's ``Kinematics``;
@@ -24,22 +24,20 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import kernels
-from .kernels.ops import OP_SPECS
+from .kernels.ops import FLAGS, OP_EXTERNAL, PROGRAM_HEADER, Op
 
 if TYPE_CHECKING:  # pragma: no cover
     from .compiled_op import CompiledOp
 
-_WIDTH = 1 + max(len(spec.operands) for spec in OP_SPECS.values())  # opcode + the longest operand list
-
 
 class TickProgram:
-    """Rows ``[opcode, operands...]`` over registered arrays (see :func:`wbc.runtime.kernels.run_program`)."""
+    """Rows ``[opcode, operands...]`` over registered arrays (see :mod:`wbc.runtime.kernels.tick`)."""
 
     def __init__(self) -> None:
         self._arrays: list[np.ndarray] = []
         self._rows: list[list[int]] = []
-        self._packed = np.array([0, _WIDTH], dtype=np.int64)
-        self._program = np.zeros((0, _WIDTH), dtype=np.int64)
+        self._packed = np.zeros(PROGRAM_HEADER, dtype=np.int64)
+        self._program = np.zeros((0, 1), dtype=np.int64)  # the rows, a view into _packed
         self._owners: list[Any] = []
         self._address_list: list[int] = []
 
@@ -59,20 +57,27 @@ class TickProgram:
         self._address_list.append(array.__array_interface__["data"][0])
         return len(self._arrays) - 1
 
-    def add(self, opcode: int | CompiledOp, **operands: Any) -> None:
-        """Append one op, its operands given by name: one of wbc's (:data:`wbc.runtime.kernels.ops.OP_SPECS`)
-        or a third-party :class:`wbc.runtime.compiled_op.CompiledOp`.
+    def add(self, op: Op | CompiledOp, **operands: Any) -> None:
+        """Append one op, its operands given by name: one of wbc's (:class:`wbc.runtime.kernels.ops.Op`,
+        e.g. ``kernels.FRAME_TASK``) or a third-party :class:`wbc.runtime.compiled_op.CompiledOp`.
 
         Raises TypeError for a missing or unknown operand, an array that is not C-contiguous
         float64 (or the declared dtype) of the declared shape, or int operands that break the
-        op's conditions.
+        op's conditions. The program's flags (operand ``flags``) are the program's own.
         """
         row: list[int]
-        if isinstance(opcode, int):
-            spec, dtypes, row = OP_SPECS[opcode], {}, [opcode]
-        else:  # a CompiledOp: its callback's address in the row
-            spec, dtypes, row = opcode.spec, opcode.dtypes, [kernels.OP_EXTERNAL, opcode.address]
-        names = [name for name, _ in spec.operands]
+        if isinstance(op, Op):
+            kernels.load()  # numbers the ops
+            if op.code <= 0:
+                raise TypeError(f"{op.spec.name} op: not one of wbc.runtime.kernels' ops (declare a built-in op as "
+                                "an attribute of its kernel module there; a third-party op is a CompiledOp)")
+            row = [op.code]
+        elif hasattr(op, "address"):  # a CompiledOp: its callback's address in the row
+            row = [OP_EXTERNAL, op.address]
+        else:
+            raise TypeError(f"program ops are wbc.runtime.kernels ops or CompiledOps, got {op!r}")
+        spec, dtypes = op.spec, op.dtypes
+        names = [name for name, _ in spec.operands if name != FLAGS]
         if set(operands) != set(names):
             missing, unknown = sorted(set(names) - set(operands)), sorted(set(operands) - set(names))
             raise TypeError(f"{spec.name} op: missing operands {missing}, unknown operands {unknown}")
@@ -82,6 +87,8 @@ class TickProgram:
                 raise TypeError(f"{spec.name} op: {check} does not hold for {sizes}")
         arrays = []
         for name, shape in spec.operands:
+            if name == FLAGS:
+                continue
             if shape is None:
                 row.append(sizes[name])
                 continue
@@ -98,18 +105,18 @@ class TickProgram:
             row.append(-1)
         for position, array, dtype in arrays:  # registered only once the whole op checks
             row[position] = self.array(array, dtype)
-        if not isinstance(opcode, int):
-            self.keep_alive(opcode)  # its callback's address is in the row
+        if not isinstance(op, Op):
+            self.keep_alive(op)  # its callback's address is in the row
         self._rows.append(row)
         self._pack()
 
     def _pack(self) -> None:
-        width = max(_WIDTH, *(len(row) for row in self._rows)) if self._rows else _WIDTH
+        width = max(len(row) for row in self._rows)
         rows = [row + [0] * (width - len(row)) for row in self._rows]
-        #: what the native call receives, one array: [rows, width, the rows..., the addresses...]
-        self._packed = np.array([len(rows), width, *(value for row in rows for value in row), *self._address_list],
-                                dtype=np.int64)
-        self._program = self._packed[2:2 + len(rows) * width].reshape(-1, width)
+        #: what the native call receives, one array: [rows, width, the flags, the rows..., the addresses...]
+        self._packed = np.array([len(rows), width, *[0] * (PROGRAM_HEADER - 2),
+                                 *(value for row in rows for value in row), *self._address_list], dtype=np.int64)
+        self._program = self._packed[PROGRAM_HEADER:PROGRAM_HEADER + len(rows) * width].reshape(-1, width)
 
     def __len__(self) -> int:
         return len(self._rows)

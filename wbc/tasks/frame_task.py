@@ -138,7 +138,7 @@ class FrameTaskData(TaskData):
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
         nv = stack_t.shape[0] - 1
         # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views
-        program.add(kernels.OP_FRAME_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
+        program.add(kernels.FRAME_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
                     translation=translation, support=self._support, settings=self.task._settings, frame=self._frame,
                     error=self.error, stack=stack_t, start=start, nv=nv, rows=stack_t.shape[1])
         return True

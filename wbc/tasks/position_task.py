@@ -98,7 +98,7 @@ class PositionTaskData(TaskData):
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
-        program.add(kernels.OP_POSITION_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
+        program.add(kernels.POSITION_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
                     translation=translation, support=self._support, settings=self.task._settings, frame=self._frame,
                     error=self.error, stack=stack_t, start=start, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1],
                     jacobian=self._jacobian, feedforward=self.feedforward)

@@ -134,7 +134,7 @@ class PostureTaskData(TaskData):
         if self._q_slice is None:
             return False  # pin.difference over general joints: computed in Python
         nv = stack_t.shape[0] - 1
-        program.add(kernels.OP_POSTURE, q=kin.q[self._q_slice], reference=self._target_selected,
+        program.add(kernels.POSTURE, q=kin.q[self._q_slice], reference=self._target_selected,
                     weights=self._weights, settings=self.task._settings, error=self.error, stack=stack_t,
                     start=start, dim=self.dim, nv=nv, rows=stack_t.shape[1])
         return True

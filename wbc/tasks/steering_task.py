@@ -103,7 +103,7 @@ class SteeringTaskData(TaskData):
 
     def add_preview_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int,
                         preview: np.ndarray) -> bool:
-        program.add(kernels.OP_STEERING, preview=preview, q=kin.q, x=self._x, y=self._y, heading=self._heading,
+        program.add(kernels.STEERING, preview=preview, q=kin.q, x=self._x, y=self._y, heading=self._heading,
                     settings=self.task._parameters, error=self.error, stack=stack_t, start=start,
                     nv=stack_t.shape[0] - 1, rows=stack_t.shape[1], nq=len(kin.q))
         return True

@@ -7,17 +7,19 @@ enter). Pinocchio still computes the kinematics: the kernels read its joint plac
 and joint Jacobians in place (see :class:`wbc.model.kinematics.Kinematics`).
 
 This package module holds only pure Python: the layouts the kernels share with the tasks
-(``FRAME_*``, ``POSITION_*``, ``POSE_*``), the opcodes of the tick program (``OP_*``) and
-``GRAM_CONDITION``. The kernels themselves live in topic modules -- :mod:`.frames` (SO(3),
-pose check, frame Jacobian, FrameTask / PositionTask rows), :mod:`.joints` (posture,
-steering, position-limit and heading rows), :mod:`.manipulability`, :mod:`.assembly`
-(normal equations, preview solve, bound clip, cost normalisation, NaN screen, answer
-check), :mod:`.hierarchy` (the levels of strict priorities) and :mod:`.tick` (the
-program interpreter) -- imported by :func:`load` on the first access of a
-compiled function (``kernels.run_program``; :class:`~wbc.model.kinematics.Kinematics`
-calls :func:`load`, so building a controller does), never by ``import wbc``. :func:`load`
-binds every compiled function into this namespace, so later ``kernels.x`` lookups are
-plain attribute hits (the module ``__getattr__`` runs only before the first load).
+(``FRAME_*``, ``POSITION_*``, ``POSE_*``) and ``GRAM_CONDITION``. The kernels themselves
+live in topic modules -- :mod:`.frames` (SO(3), pose check, frame Jacobian, FrameTask /
+PositionTask rows), :mod:`.joints` (posture, steering, position-limit and heading rows),
+:mod:`.manipulability`, :mod:`.assembly` (normal equations, preview solve, bound clip, cost
+normalisation, NaN screen, answer check), :mod:`.hierarchy` (the levels of strict
+priorities), ... -- each with the declarations of its tick-program ops (:class:`.ops.Op`:
+operands, checks, kernel; every ``*.py`` file of this package not starting with ``_`` is a
+topic module). :func:`load` imports them on the first access of a compiled function or an op
+(``kernels.run_program``, ``kernels.FRAME_TASK``; :class:`~wbc.model.kinematics.Kinematics` calls
+:func:`load`, so building a controller does), never ``import wbc``; it numbers the ops,
+generates the interpreter ``run_program`` from their declarations (:mod:`.tick`) and binds
+every compiled function and op into this namespace, so later ``kernels.x`` lookups are plain
+attribute hits (the module ``__getattr__`` runs only before the first load).
 
 Each kernel has one explicit signature, so it compiles when its module is imported --
 never inside a control tick -- and is cached on disk (``cache=CACHE``): only the first load
@@ -35,7 +37,9 @@ stale (tested). Before any topic module compiles, :func:`prepare_cache` therefor
 every ``*.py`` file of this package (and the numba version), compares the hash with the
 one recorded in numba's cache directory for the package (:func:`wbc.runtime.kernels._cache.cache_dir`)
 and, when they differ, deletes all of the package's cache entries: a change to any kernel
-file recompiles every kernel. Kernel code belongs in this package only (a jitted function
+file recompiles every kernel. The generated interpreter is a file named by the hash of its
+source, which holds that stamp: a changed kernel file gives a new interpreter file, compiled
+afresh (:func:`.tick.interpreter`). Kernel code belongs in this package only (a jitted function
 elsewhere that calls these kernels is not covered by the rule).
 
 Conventions: as in :mod:`wbc.model.robot` -- world-aligned axes, twists (linear; angular),
@@ -45,6 +49,8 @@ rotation matrices row-major 3x3.
 from __future__ import annotations
 
 import importlib
+import pkgutil
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -77,25 +83,6 @@ POSITION_SETTINGS = 11
 
 #: closed form accepted while det(gram) > GRAM_CONDITION * (mean eigenvalue)^size
 GRAM_CONDITION = 1e-8
-
-# ------------------------------------------------------------- tick program
-
-#: opcodes of the tick program (:func:`run_program`)
-(OP_FRAME_TASK, OP_POSTURE, OP_POSITION_LIMITS, OP_NORMAL_EQUATIONS, OP_MERGE_BOUNDS, OP_HAS_NAN, OP_HEADING_ROWS,
- OP_MANIPULABILITY_BARRIER, OP_POSITION_TASK, OP_PREVIEW, OP_STEERING, OP_NORMALISE_COST, OP_DAQP_SOLVE,
- OP_LIFT) = range(1, 15)
-#: a third-party op (wbc.runtime.compiled_op.CompiledOp): row [OP_EXTERNAL, callback address, operands...]
-OP_EXTERNAL = 100
-#: forward kinematics of a chain of 1-DOF joints (wbc.model.kinematics' native mode)
-OP_FORWARD_KINEMATICS = 15
-#: strict task priorities (wbc.control.hierarchy, kernels in .hierarchy)
-OP_LEVEL_CONSTRAINTS, OP_NORMALISE_LEVEL, OP_BAND, OP_HIERARCHY_PREVIEW = range(16, 20)
-#: the optimality certificate of a lifted QP's answer (wbc.qp.lifting)
-OP_LIFT_CHECK = 20
-#: the error-scaled (Levenberg-Marquardt) damping of the tasks (Controller.lm_damping): each task's
-#: mu summed per level, then written into the damping rows of one weighted level, or added to the
-#: Hessian of one level of a hierarchy
-OP_LM_TASK, OP_LM_DAMPING_ROWS, OP_LM_DAMPING_LEVEL = 21, 22, 23
 
 # ------------------------------------------------------------------ chains
 
@@ -134,15 +121,21 @@ COMPILED = {
     "native_qp": ("daqp_solve",),
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),
-    "tick": ("run_program",),
 }
-_MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}
+#: the modules of this package that hold no cached kernel (the declaration format, the interpreter's generator)
+_UNCACHED = ("ops", "tick")
+_MODULE_OF = {name: module for module, names in COMPILED.items() for name in names} | {"run_program": "tick"}
 
 _prepared = False
 _loaded = False
 #: numba's cache directory of this package, known after the first :func:`prepare_cache`
 #: (None: numba found no writable place and compiles on every load)
 cache_directory: Path | None = None
+
+
+def topic_modules() -> tuple[str, ...]:
+    """The modules of this package (every ``*.py`` file not starting with ``_``), sorted."""
+    return tuple(sorted(module.name for module in pkgutil.iter_modules(__path__) if not module.name.startswith("_")))
 
 
 def prepare_cache() -> bool:
@@ -154,30 +147,62 @@ def prepare_cache() -> bool:
     if not _prepared:
         from . import _cache
 
-        cache_directory = _cache.prepare(Path(__file__).parent, tuple(COMPILED))
+        modules = topic_modules()
+        cache_directory = _cache.prepare(Path(__file__).parent, modules,
+                                         cold=tuple(name for name in modules if name not in _UNCACHED))
         _prepared = True
     return cache_directory is not None
 
 
 def load() -> None:
-    """Import (compile or load from the cache) every kernel and bind it into this namespace."""
+    """Import (compile or load from the cache) every kernel module, bind its compiled functions
+    and its declared ops (:class:`.ops.Op`, opcodes 1, 2, ... by name) into this namespace, and
+    generate the interpreter ``run_program`` for those ops (:mod:`.tick`)."""
     global _loaded
     if _loaded:
         return
     prepare_cache()
+    import numba
+
+    from . import _cache
+    from .ops import Op
+
     namespace = globals()
-    for module_name, names in COMPILED.items():
+    declared: dict[str, Op] = {}
+    for module_name in topic_modules():
         module = importlib.import_module(f"{__name__}.{module_name}")
-        for name in names:
+        for name in COMPILED.get(module_name, ()):
             namespace[name] = getattr(module, name)
+        for name, value in vars(module).items():
+            if not isinstance(value, Op) or declared.get(name) is value:  # not an op, or imported from another module
+                continue
+            if value.spec.name != name or name in declared or name in namespace:
+                raise TypeError(f"op {value.spec.name} ({module.__name__}.{name}): an op is declared once, as the "
+                                f"module attribute of its own name, unique among the ops and names of {__name__}")
+            declared[name] = value
+    ops = [declared[name] for name in sorted(declared)]
+    for op in ops:  # the generated interpreter imports each kernel by its module and name
+        kernel = getattr(op.kernel, "py_func", None)
+        if kernel is None or getattr(sys.modules[kernel.__module__], kernel.__name__, None) is not op.kernel:
+            raise TypeError(f"op {op.spec.name}: its kernel must be an @njit function defined at module level in "
+                            f"a module of {__name__}")
+    for code, op in enumerate(ops, start=1):
+        op.code = code
+    from .tick import interpreter
+
+    stamp = _cache.source_stamp(Path(__file__).parent, numba.__version__)
+    namespace["run_program"] = interpreter(ops, stamp, cache_directory)
+    namespace.update(declared)
     _loaded = True
 
 
 def __getattr__(name: str) -> Any:
-    """A compiled function, loading the kernels on first access (PEP 562)."""
-    if name in _MODULE_OF:
+    """A compiled function or a declared op (an upper-case name), loading the kernels on first
+    access (PEP 562)."""
+    if name in _MODULE_OF or (name.isupper() and not _loaded):
         load()
-        return globals()[name]
+        if name in globals():
+            return globals()[name]
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -120,10 +120,12 @@ def is_cold(directory: Path, modules: Sequence[str]) -> bool:
     return not set(modules) <= indexed
 
 
-def prepare(folder: Path, modules: Sequence[str], stream: TextIO | None = None) -> Path | None:
+def prepare(folder: Path, modules: Sequence[str], stream: TextIO | None = None,
+            cold: Sequence[str] | None = None) -> Path | None:
     """Before the modules ``modules`` of the package ``folder`` are imported (their kernels
     compile or load at import): drop stale cache entries (:func:`invalidate`) and, when
-    something will be compiled, say so in one line on ``stream`` (default stderr). Returns
+    something will be compiled (a module of ``cold``, default ``modules``, has no cache index),
+    say so in one line on ``stream`` (default stderr). Returns
     numba's cache directory for the package; None, said on ``stream``, when numba has nowhere
     to write one (the kernels must then be compiled with ``cache=False``: numba refuses
     ``cache=CACHE`` there)."""
@@ -134,6 +136,30 @@ def prepare(folder: Path, modules: Sequence[str], stream: TextIO | None = None) 
         print(NO_CACHE_MESSAGE.format(folder=folder), file=stream or sys.stderr, flush=True)
         return None
     changed = invalidate(directory, source_stamp(folder, numba.__version__), modules)
-    if is_cold(directory, modules):
+    if is_cold(directory, modules if cold is None else cold):
         print(CHANGED_MESSAGE if changed else COLD_MESSAGE, file=stream or sys.stderr, flush=True)
     return directory
+
+
+def write_generated(directory: Path, prefix: str, source: str) -> Path | None:
+    """``source`` as the file ``directory/<prefix><sha256 of source>.py`` (written once, so its
+    stamp, which numba's cache index checks, never changes), the other ``<prefix>*.py`` files of
+    ``directory`` and their numba entries deleted (generated from other sources); None when
+    ``directory`` cannot be written."""
+    path = directory / f"{prefix}{hashlib.sha256(source.encode()).hexdigest()[:20]}.py"
+    try:
+        if not (path.is_file() and path.read_text() == source):
+            temporary = path.with_name(f"{path.name}.{os.getpid()}")
+            temporary.write_text(source)
+            os.replace(temporary, path)
+    except OSError:
+        return None
+    for other in directory.glob(f"{prefix}*.py"):
+        if other != path:
+            entries = cache_dir(other)
+            for stale in [other, *(_entries(entries, (other.stem,), (".nbi", ".nbc")) if entries else [])]:
+                try:
+                    stale.unlink()
+                except OSError:
+                    pass
+    return path

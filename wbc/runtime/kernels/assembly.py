@@ -9,7 +9,8 @@ import math
 import numpy as np
 from numba import njit
 
-from . import prepare_cache
+from . import DAQP_CONTROL_DEFECT, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_SIZE, prepare_cache
+from .ops import FLAG_FOUND_NAN, FLAGS_OPERAND, STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -385,3 +386,134 @@ def lifted_stationarity(lifted: np.ndarray, x: np.ndarray, lam: np.ndarray, scra
         if size[i] > 0.0:
             worst = max(worst, abs(value[i]) / size[i])
     return worst
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _normal_equations(stack: np.ndarray, nv: int, rows: int, first: int, last: int, reset: int, Hc: np.ndarray,
+                      dt: float) -> None:
+    normal_equations(stack, first, last, reset != 0, Hc)
+
+
+#: [H; c] of the stack's rows first:last, added to Hc (or written, reset = 1)
+NORMAL_EQUATIONS = Op("NORMAL_EQUATIONS", _normal_equations, (
+    STACK, ("nv", None), ("rows", None), ("first", None), ("last", None), ("reset", None),
+    ("Hc", ("nv + 1", "nv"))), checks=("0 <= first", "first <= last", "last <= rows"))
+
+
+@njit(inline="always")
+def _preview(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray, nv: int, dt: float) -> None:
+    preview_solve(Hc, factor, preview)
+
+
+#: the holonomic preview H^-1 c (factor: scratch)
+PREVIEW = Op("PREVIEW", _preview, (("Hc", ("nv + 1", "nv")), ("factor", ("nv", "nv")), ("preview", ("nv",)),
+                                   ("nv", None)))
+
+
+@njit(inline="always")
+def _merge_bounds(bounds: np.ndarray, count: int, n_hard: int, nv: int, upper: np.ndarray, lower: np.ndarray,
+                  dt: float) -> None:
+    merge_bounds(bounds, n_hard, upper, lower)
+
+
+#: the QP's bounds from the (upper, lower) pairs of count bounded constraints, the first n_hard hard
+MERGE_BOUNDS = Op("MERGE_BOUNDS", _merge_bounds, (
+    ("bounds", ("2 * count", "nv")), ("count", None), ("n_hard", None), ("nv", None), ("upper", ("nv",)),
+    ("lower", ("nv",))), checks=("1 <= count", "0 <= n_hard <= count"))
+
+
+@njit(inline="always")
+def _has_nan(data: np.ndarray, size: int, infinite: int, flags: np.ndarray, dt: float) -> None:
+    if flags[FLAG_FOUND_NAN] == 0 and (has_non_finite(data) if infinite else has_nan(data)):
+        flags[FLAG_FOUND_NAN] = 1
+
+
+#: the NaN screen (infinite = 1: infinite entries count too): sets the found-NaN flag, which skips
+#: every later DAQP_SOLVE and makes run_program return True
+HAS_NAN = Op("HAS_NAN", _has_nan, (("data", ("size",)), ("size", None), ("infinite", None), FLAGS_OPERAND),
+             checks=("0 <= infinite <= 1",))
+
+
+@njit(inline="always")
+def _lm_task(stack: np.ndarray, feedforward: np.ndarray, mu: np.ndarray, lm: np.ndarray, start: int, dim: int,
+             nv: int, rows: int, reset: int, dt: float) -> None:
+    if reset:
+        mu[0] = 0.0
+    if lm[0] > 0.0:
+        mu[0] += lm[0] * lm_curvature(stack, feedforward, dt, start, dim)
+
+
+#: adds lm_damping times the task's lm_curvature to mu (reset = 1: mu starts from 0)
+LM_TASK = Op("LM_TASK", _lm_task, (
+    STACK, ("feedforward", ("dim",)), ("mu", (1,)), ("lm", (1,)), ("start", None), ("dim", None), ("nv", None),
+    ("rows", None), ("reset", None)), checks=("0 <= start", "start + dim <= rows", "0 <= reset <= 1"))
+
+
+@njit(inline="always")
+def _lm_damping_rows(stack: np.ndarray, mu: np.ndarray, scaling: np.ndarray, nv: int, rows: int, first: int,
+                     dt: float) -> None:
+    lm_damping_rows(stack[:nv, first:first + nv], scaling[0], mu[0])
+
+
+#: the damping rows (first:first + nv of the stack) of a weighted level; scaling = (damping, floor)
+LM_DAMPING_ROWS = Op("LM_DAMPING_ROWS", _lm_damping_rows, (
+    STACK, ("mu", (1,)), ("scaling", (2,)), ("nv", None), ("rows", None), ("first", None)),
+    checks=("0 <= first", "first + nv <= rows"))
+
+
+@njit(inline="always")
+def _lm_damping_level(mu: np.ndarray, scaling: np.ndarray, Hc: np.ndarray, nv: int, dt: float) -> None:
+    lm_damping_level(Hc, scaling[0], mu[0])
+
+
+#: the damping added to the Hessian of one level of a hierarchy
+LM_DAMPING_LEVEL = Op("LM_DAMPING_LEVEL", _lm_damping_level, (
+    ("mu", (1,)), ("scaling", (2,)), ("Hc", ("nv + 1", "nv")), ("nv", None)))
+
+
+@njit(inline="always")
+def _normalise_cost(Hc: np.ndarray, scaling: np.ndarray, nv: int, dt: float) -> None:
+    normalise_cost(Hc, scaling[0], scaling[1])
+
+
+#: the cost normalisation; scaling = (damping, damping floor)
+NORMALISE_COST = Op("NORMALISE_COST", _normalise_cost, (("Hc", ("nv + 1", "nv")), ("scaling", (2,)),
+                                                         ("nv", None)))
+
+
+@njit(inline="always")
+def _lift(stack: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifted: np.ndarray, scaling: np.ndarray,
+          nv: int, stack_rows: int, rows: int, k: int, p: int, e: int, source_size: int, lifted_size: int,
+          flags: np.ndarray, dt: float) -> None:
+    if lift_qp(stack, diagonal, source, lifted, nv, k, p, e, scaling[0], scaling[1]):
+        flags[FLAG_FOUND_NAN] = 1
+
+
+#: the lifted QP (wbc.qp.lifting) from the stack and the source QP; a NaN met sets the found-NaN flag
+LIFT = Op("LIFT", _lift, (
+    ("stack", ("nv + 1", "stack_rows")), ("diagonal", ("rows",)), ("source", ("source_size",)),
+    ("lifted", ("lifted_size",)), ("scaling", (2,)), ("nv", None), ("stack_rows", None), ("rows", None),
+    ("k", None), ("p", None), ("e", None), ("source_size", None), ("lifted_size", None), FLAGS_OPERAND),
+    checks=("1 <= nv", "0 <= k <= rows <= stack_rows", "0 <= p", "0 <= e",
+            "source_size == nv * nv + 3 * nv + (p + e) * (nv + 2)",
+            "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)"))
+
+
+@njit(inline="always")
+def _lift_check(lifted: np.ndarray, x: np.ndarray, lam: np.ndarray, scratch: np.ndarray, control: np.ndarray,
+                nv: int, k: int, p: int, e: int, lifted_size: int, dt: float) -> None:
+    if control[DAQP_CONTROL_EXITFLAG] >= 1:
+        stationarity = lifted_stationarity(lifted, x, lam, scratch, nv, k, p, e)
+        control[DAQP_CONTROL_DEFECT] = max(control[DAQP_CONTROL_DEFECT], stationarity)
+
+
+#: after a successful solve of the lifted QP, its defect becomes the larger of the answer's defect
+#: and its stationarity in v (lifted_stationarity)
+LIFT_CHECK = Op("LIFT_CHECK", _lift_check, (
+    ("lifted", ("lifted_size",)), ("x", ("nv + k",)), ("lam", ("nv + k + p + e + k",)), ("scratch", ("2 * nv",)),
+    ("control", (DAQP_CONTROL_SIZE,)), ("nv", None), ("k", None), ("p", None), ("e", None), ("lifted_size", None)),
+    checks=("1 <= nv", "0 <= k", "0 <= p", "0 <= e",
+            "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)"))

@@ -10,7 +10,8 @@ import math
 import numpy as np
 from numba import njit
 
-from . import CHAIN_PRISMATIC, prepare_cache
+from . import CHAIN_COLUMNS, CHAIN_PRISMATIC, prepare_cache
+from .ops import Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -83,3 +84,18 @@ def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray,
         jacobians_t[iv, 1] = pz * wx - px * wz
         jacobians_t[iv, 2] = px * wy - py * wx
         jacobians_t[iv, 3], jacobians_t[iv, 4], jacobians_t[iv, 5] = wx, wy, wz
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray, nq: int,
+                        joints: int, nv: int, dt: float) -> None:
+    forward_kinematics(q, chain, placements, jacobians_t)
+
+
+#: the joint placements and joint Jacobians of a chain of 1-DOF joints (wbc.model.kinematics' native mode)
+FORWARD_KINEMATICS = Op("FORWARD_KINEMATICS", _forward_kinematics, (
+    ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),
+    ("jacobians_t", ("nv", 6)), ("nq", None), ("joints", None), ("nv", None)), checks=("1 <= joints",))

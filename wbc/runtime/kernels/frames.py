@@ -12,7 +12,17 @@ import math
 import numpy as np
 from numba import njit
 
-from . import POSE_LAST_ROW, POSE_NOT_FINITE, POSE_NOT_ROTATION, POSE_OK, prepare_cache
+from . import (
+    FRAME_DATA,
+    FRAME_SETTINGS,
+    POSE_LAST_ROW,
+    POSE_NOT_FINITE,
+    POSE_NOT_ROTATION,
+    POSE_OK,
+    POSITION_SETTINGS,
+    prepare_cache,
+)
+from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -199,3 +209,38 @@ def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, 
             jacobian[a, k] = weights[a] * frame_jacobian_scratch[a, k]
         weighted_feedforward[a] = weights[a] * feedforward[a]
         target[a] = weights[a] * (scale * error[a]) + weighted_feedforward[a]
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _frame_task(joint_jacobians_t: np.ndarray, rotation_t: np.ndarray, translation: np.ndarray, support: np.ndarray,
+                settings: np.ndarray, frame: np.ndarray, error: np.ndarray, stack: np.ndarray, start: int, nv: int,
+                rows: int, dt: float) -> None:
+    frame_task_rows(joint_jacobians_t.T, rotation_t.T, translation, support, settings, frame, dt, error,
+                    stack[:nv, start:start + 6].T, stack[nv, start:start + 6])
+
+
+#: FrameTask's rows into columns start:start + 6 of the stack (joint Jacobians and joint rotation
+#: transposed: Pinocchio's column-major buffers)
+FRAME_TASK = Op("FRAME_TASK", _frame_task, (
+    ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
+    ("settings", (FRAME_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (6,)), STACK,
+    ("start", None), ("nv", None), ("rows", None)), checks=("0 <= start", "start + 6 <= rows"))
+
+
+@njit(inline="always")
+def _position_task(joint_jacobians_t: np.ndarray, rotation_t: np.ndarray, translation: np.ndarray,
+                   support: np.ndarray, settings: np.ndarray, frame: np.ndarray, error: np.ndarray, stack: np.ndarray,
+                   start: int, nv: int, rows: int, jacobian: np.ndarray, feedforward: np.ndarray, dt: float) -> None:
+    position_task_rows(joint_jacobians_t.T, rotation_t.T, translation, support, settings, frame, dt, error,
+                       stack[:nv, start:start + 3].T, stack[nv, start:start + 3], jacobian, feedforward)
+
+
+#: PositionTask's rows into columns start:start + 3 of the stack; its weighted feed-forward out
+POSITION_TASK = Op("POSITION_TASK", _position_task, (
+    ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
+    ("settings", (POSITION_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (3,)), STACK,
+    ("start", None), ("nv", None), ("rows", None), ("jacobian", (6, "nv")), ("feedforward", (3,))),
+    checks=("0 <= start", "start + 3 <= rows"))

@@ -14,9 +14,10 @@ import math
 import numpy as np
 from numba import njit
 
-from . import prepare_cache
+from . import DAQP_CONTROL_DEFECT, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_SIZE, prepare_cache
 from .assembly import normalise_cost
 from .manipulability import _jacobi_eigenvectors
+from .ops import FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -212,3 +213,68 @@ def hierarchy_preview(stack_t: np.ndarray, ranges: np.ndarray, floor: float, pre
             for a in range(kept):
                 basis[j, a] = remaining[j, a]
         free = kept
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e: int, band: int, source_size: int,
+                       target_size: int, dt: float) -> None:
+    level_constraints(source, target, n, p, e, band)
+
+
+#: a level's QP constraints from the first level's, with room for band rows
+LEVEL_CONSTRAINTS = Op("LEVEL_CONSTRAINTS", _level_constraints, (
+    ("source", ("source_size",)), ("target", ("target_size",)), ("n", None), ("p", None), ("e", None),
+    ("band", None), ("source_size", None), ("target_size", None)),
+    checks=("1 <= n", "0 <= p", "0 <= e", "0 <= band", "source_size == n * n + 3 * n + (p + e) * (n + 2)",
+            "target_size == n * n + 3 * n + (p + band + e) * (n + 2)"))
+
+
+@njit(inline="always")
+def _normalise_level(Hc: np.ndarray, scaling: np.ndarray, nv: int, dt: float) -> None:
+    normalise_level(Hc, scaling[0], scaling[1])
+
+
+#: a level's cost normalisation; scaling = (damping, damping floor)
+NORMALISE_LEVEL = Op("NORMALISE_LEVEL", _normalise_level, (("Hc", ("nv + 1", "nv")), ("scaling", (2,)),
+                                                           ("nv", None)))
+
+
+@njit(inline="always")
+def _band(stack: np.ndarray, first: int, last: int, first_preview: int, last_preview: int, x: np.ndarray,
+          lower: np.ndarray, upper: np.ndarray, control: np.ndarray, settings: np.ndarray, target: np.ndarray, nv: int,
+          rows: int, size: int, row: int, target_rows: int, flags: np.ndarray, dt: float) -> None:
+    if (flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED] or control[DAQP_CONTROL_EXITFLAG] < 1
+            or not control[DAQP_CONTROL_DEFECT] <= settings[0]):
+        flags[FLAG_STOPPED] = 1
+    else:
+        start = nv * nv + nv
+        band_rows(stack, first, last, first_preview, last_preview, x, lower, upper, settings[1], target,
+                  start + row * nv, start + target_rows * nv + nv + row)
+
+
+#: the band rows of a solved level into the next level's QP (settings = (answer tolerance, relative
+#: band)); when the level's solve failed (exit flag < 1, or its answer's defect above the tolerance)
+#: nothing is written and the stopped flag skips every later DAQP_SOLVE
+BAND = Op("BAND", _band, (
+    STACK, ("first", None), ("last", None), ("first_preview", None), ("last_preview", None), ("x", ("nv",)),
+    ("lower", ("nv",)), ("upper", ("nv",)), ("control", (DAQP_CONTROL_SIZE,)), ("settings", (2,)),
+    ("target", ("size",)), ("nv", None), ("rows", None), ("size", None), ("row", None), ("target_rows", None),
+    FLAGS_OPERAND),
+    checks=("1 <= nv", "0 <= first <= last <= rows", "0 <= first_preview <= last_preview <= rows", "0 <= row",
+            "row + 2 * (last - first + last_preview - first_preview) <= target_rows",
+            "size == nv * nv + 3 * nv + target_rows * (nv + 2)"))
+
+
+@njit(inline="always")
+def _hierarchy_preview(stack: np.ndarray, ranges: np.ndarray, scaling: np.ndarray, preview: np.ndarray, nv: int,
+                       rows: int, count: int, dt: float) -> None:
+    hierarchy_preview(stack, ranges, scaling[1], preview)
+
+
+#: the holonomic preview of a hierarchy (the cascade of its levels' row ranges)
+HIERARCHY_PREVIEW = Op("HIERARCHY_PREVIEW", _hierarchy_preview, (
+    STACK, ("ranges", ("count",)), ("scaling", (2,)), ("preview", ("nv",)), ("nv", None), ("rows", None),
+    ("count", None)), checks=("1 <= nv", "2 <= count", "count % 2 == 0"))

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from . import prepare_cache
+from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -74,3 +75,57 @@ def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, head
     for r in range(G.shape[0]):
         G[r, x] = c * cos_part[r, 0] + s * sin_part[r, 0]
         G[r, y] = c * cos_part[r, 1] + s * sin_part[r, 1]
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _posture(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, error: np.ndarray,
+             stack: np.ndarray, start: int, dim: int, nv: int, rows: int, dt: float) -> None:
+    posture_rows(q, reference, weights, settings, dt, error, stack[nv, start:start + dim])
+
+
+#: PostureTask's targets into columns start:start + dim of the stack (its W J is static)
+POSTURE = Op("POSTURE", _posture, (
+    ("q", ("dim",)), ("reference", ("dim",)), ("weights", ("dim",)), ("settings", (1,)), ("error", ("dim",)),
+    STACK, ("start", None), ("dim", None), ("nv", None), ("rows", None)),
+    checks=("0 <= start", "start + dim <= rows"))
+
+
+@njit(inline="always")
+def _steering(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, settings: np.ndarray,
+              error: np.ndarray, stack: np.ndarray, start: int, nv: int, rows: int, nq: int, dt: float) -> None:
+    steering_row(preview, q, x, y, heading, settings, dt, error, stack[:nv, start], stack[nv, start:start + 1])
+
+
+#: SteeringTask's row into column start of the stack, from the holonomic preview
+STEERING = Op("STEERING", _steering, (
+    ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None), ("settings", (3,)),
+    ("error", (1,)), STACK, ("start", None), ("nv", None), ("rows", None), ("nq", None)),
+    checks=("0 <= start", "start < rows", "0 <= x < nv", "0 <= y < nv", "0 <= heading < nq"))
+
+
+@njit(inline="always")
+def _position_limits(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: np.ndarray,
+                     lower: np.ndarray, upper: np.ndarray, k: int, dt: float) -> None:
+    position_limit_bounds(q, lower_limit, upper_limit, gain[0], dt, lower, upper)
+
+
+#: JointPositionLimits' velocity bounds of k joints
+POSITION_LIMITS = Op("POSITION_LIMITS", _position_limits, (
+    ("q", ("k",)), ("lower_limit", ("k",)), ("upper_limit", ("k",)), ("gain", (1,)), ("lower", ("k",)),
+    ("upper", ("k",)), ("k", None)))
+
+
+@njit(inline="always")
+def _heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray, rows: int,
+                  nq: int, nv: int, x: int, y: int, dt: float) -> None:
+    heading_rows(cos_part, sin_part, q, heading, G, x, y)
+
+
+#: base-frame rows: columns x, y of G rotated by the heading q[heading]
+HEADING_ROWS = Op("HEADING_ROWS", _heading_rows, (
+    ("cos_part", ("rows", 2)), ("sin_part", ("rows", 2)), ("q", ("nq",)), ("heading", None),
+    ("G", ("rows", "nv")), ("rows", None), ("nq", None), ("nv", None), ("x", None), ("y", None)),
+    checks=("0 <= heading < nq", "0 <= x < nv", "0 <= y < nv"))

@@ -11,6 +11,7 @@ from numba import njit
 
 from . import GRAM_CONDITION, prepare_cache
 from .frames import frame_jacobian
+from .ops import Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -239,3 +240,24 @@ def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_t
     for i in range(len(gradient)):
         G[i] = -gradient[i]
     h[0] = settings[0] * (m - settings[1]) / dt
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _manipulability_barrier(joint_jacobians_t: np.ndarray, rotation_t: np.ndarray, translation: np.ndarray,
+                            local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
+                            origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray,
+                            settings: np.ndarray, value: np.ndarray, first: int, last: int, nv: int,
+                            dt: float) -> None:
+    barrier_row(joint_jacobians_t.T, rotation_t.T, translation, local, support, ancestor, jacobian, origin, gradient,
+                G, h, settings, value, first, last, dt)
+
+
+#: ManipulabilityBarrier's row G v <= h (Jacobian rows first:last)
+MANIPULABILITY_BARRIER = Op("MANIPULABILITY_BARRIER", _manipulability_barrier, (
+    ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("local", (12,)),
+    ("support", ("nv",)), ("ancestor", ("nv", "nv")), ("jacobian", (6, "nv")), ("origin", (3,)),
+    ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (2,)), ("value", (1,)),
+    ("first", None), ("last", None), ("nv", None)), checks=("0 <= first < last <= 6",))

@@ -21,12 +21,18 @@ from . import (
     DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_ITERATIONS,
     DAQP_CONTROL_MASK,
+    DAQP_CONTROL_SIZE,
     DAQP_CONTROL_TIME,
+    DAQP_PROBLEM_WORDS,
     DAQP_RESULT_EXITFLAG,
     DAQP_RESULT_ITERATIONS,
+    DAQP_RESULT_WORDS,
+    DAQP_SKIPPED,
+    DAQP_WORKSPACE_WORDS,
     prepare_cache,
 )
 from .assembly import qp_defect
+from .ops import FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -107,3 +113,28 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     control[DAQP_CONTROL_DEFECT] = defect
     control[DAQP_CONTROL_ITERATIONS] = iterations
     control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
+
+
+# ------------------------------------------------------- tick-program ops
+
+
+@njit(inline="always")
+def _daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
+                data: np.ndarray, x: np.ndarray, n: int, size: int, update_ldp: int, solve: int, clock_gettime: int,
+                clock_id: int, steady_mask: int, flags: np.ndarray, dt: float) -> None:
+    if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
+        control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
+    else:
+        daqp_solve(problem, workspace, result, control, data, x, update_ldp, solve, clock_gettime, clock_id,
+                   steady_mask)
+
+
+#: the compiled DAQP solve (wbc.solvers.daqp.native); skipped (exit flag DAQP_SKIPPED) when a NaN screen
+#: before it found a NaN, or a BAND row stopped
+DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
+    ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
+    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("n", None), ("size", None),
+    ("update_ldp", None), ("solve", None), ("clock_gettime", None), ("clock_id", None), ("steady_mask", None),
+    FLAGS_OPERAND),
+    checks=("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0", "update_ldp != 0",
+            "solve != 0", "clock_gettime != 0"))

@@ -1,56 +1,60 @@
-"""Operand schemas of the tick program's ops: the one place an op's operand order is written.
+"""Op declarations of the tick program: an op's operands are written once, next to its kernel.
 
-Each entry of :data:`OP_SPECS` lists an op's operands in row order: an *int* operand
-(``None`` shape) or an *array* operand with its shape, whose entries are ints or
-expressions over the op's int operands (``"nv + 1"``). :meth:`wbc.runtime.program.TickProgram.add`
-takes the operands by name, checks every array against its declared shape (float64,
-C-contiguous) and every ``checks`` expression (e.g. that a block of rows lies inside the
-stack), and packs the row in this order -- so a misnamed, misshapen or out-of-range operand
-raises when the controller is built, never corrupts memory at tick time. The interpreter
-(:func:`wbc.runtime.kernels.tick.run_program`) reads the rows in the same order; ``tests/
-test_program.py`` checks that every spec matches its decoder's positions and sizes.
+An op is declared in its kernel's module as an :class:`Op` (wbc's own, in a module of this
+package) or a :class:`wbc.runtime.compiled_op.CompiledOp` (a third party's, anywhere), both in
+the same format: a name, the operands in row order -- an *int* operand ``(name, None)`` or an
+*array* operand ``(name, shape)`` / ``(name, shape, dtype)`` whose shape entries are ints or
+expressions over the op's int operands (``"nv + 1"``) -- the ``checks`` on the int operands
+(e.g. that a block of rows lies inside the stack), and a kernel that takes the operands in
+that order, then ``dt``::
+
+    FRAME_TASK = Op("FRAME_TASK", _frame_task, (
+        ("joint_jacobians_t", ("nv", 6)), ..., ("start", None), ("nv", None), ("rows", None)),
+        checks=("0 <= start", "start + 6 <= rows"))
+
+:meth:`wbc.runtime.program.TickProgram.add` takes the operands by name, checks every array
+against its declared shape and dtype (C-contiguous) and every check, and packs the row in
+this order -- so a misnamed, misshapen or out-of-range operand raises when the controller
+is built, never corrupts memory at tick time. The interpreter that reads the rows back
+(``run_program``) is *generated* from these declarations (:mod:`.tick`), so no second copy
+of an operand order exists. An :class:`Op` is found by :func:`wbc.runtime.kernels.load` as a
+module attribute of its own name; its opcode is assigned there.
+
+Control flow between ops goes through the program's *flags* (:data:`FLAGS`): a built-in op
+that declares the operand ``("flags", (FLAG_COUNT,), "int64")`` receives them (the program
+supplies them, the caller does not): ``flags[FLAG_FOUND_NAN]`` (a NaN screen found a NaN:
+``run_program`` returns True, and the solves after it are skipped) and
+``flags[FLAG_STOPPED]`` (a level of a hierarchy failed: the levels below it are not solved).
+Both are 0 when a run starts.
 """
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
-from . import (
-    CHAIN_COLUMNS,
-    DAQP_CONTROL_SIZE,
-    DAQP_PROBLEM_WORDS,
-    DAQP_RESULT_WORDS,
-    DAQP_WORKSPACE_WORDS,
-    FRAME_DATA,
-    FRAME_SETTINGS,
-    OP_BAND,
-    OP_DAQP_SOLVE,
-    OP_FORWARD_KINEMATICS,
-    OP_FRAME_TASK,
-    OP_HAS_NAN,
-    OP_HEADING_ROWS,
-    OP_HIERARCHY_PREVIEW,
-    OP_LEVEL_CONSTRAINTS,
-    OP_LIFT,
-    OP_LIFT_CHECK,
-    OP_LM_DAMPING_LEVEL,
-    OP_LM_DAMPING_ROWS,
-    OP_LM_TASK,
-    OP_MANIPULABILITY_BARRIER,
-    OP_MERGE_BOUNDS,
-    OP_NORMAL_EQUATIONS,
-    OP_NORMALISE_COST,
-    OP_NORMALISE_LEVEL,
-    OP_POSITION_LIMITS,
-    OP_POSITION_TASK,
-    OP_POSTURE,
-    OP_PREVIEW,
-    OP_STEERING,
-    POSITION_SETTINGS,
-)
+import inspect
+from typing import Any, NamedTuple
 
 #: an operand's shape: ints and expressions over the op's int operands; None for an int operand
 Shape = tuple[int | str, ...] | None
+
+#: the dtypes of array operands
+DTYPES = ("float64", "int64")
+#: the operand through which a built-in op reads and sets the program's flags
+FLAGS = "flags"
+#: the program's flags: a NaN screen found a NaN; a level of a hierarchy failed
+FLAG_FOUND_NAN, FLAG_STOPPED = 0, 1
+#: the number of the program's flags
+FLAG_COUNT = 2
+#: the declaration of the flags operand
+FLAGS_OPERAND = (FLAGS, (FLAG_COUNT,), "int64")
+#: words before the rows in the program's packed array: rows, width, the flags
+PROGRAM_HEADER = 2 + FLAG_COUNT
+#: the opcode of a third-party op (a CompiledOp): row [OP_EXTERNAL, callback address, operands...];
+#: wbc's own ops get the opcodes 1, 2, ... (by name) when the kernels load
+OP_EXTERNAL = 0
+#: the task stack A^T ((nv + 1) x rows: W J in rows :nv, W r in row nv), an operand of many ops
+STACK = ("stack", ("nv + 1", "rows"))
+#: names the generated decoders use for themselves
+_RESERVED = {"addresses", "op", "dt", "carray", "kernel", "unpack", "np", FLAGS}
 
 
 class OpSpec(NamedTuple):
@@ -61,94 +65,85 @@ class OpSpec(NamedTuple):
     checks: tuple[str, ...] = ()
 
 
-_STACK = ("stack", ("nv + 1", "rows"))  # the controller's task stack A^T ((nv + 1) x rows)
+def parse(name: str, operands: tuple[tuple[Any, ...], ...], checks: tuple[str, ...] = (),
+          flags: bool = False) -> tuple[OpSpec, dict[str, str]]:
+    """The :class:`OpSpec` and the array dtypes of a declaration; TypeError naming the fault
+    for a malformed one. ``flags``: the operand :data:`FLAGS_OPERAND` may be declared."""
+    declared: list[tuple[str, Shape]] = []
+    dtypes: dict[str, str] = {}
+    ints = {entry[0] for entry in operands if isinstance(entry, tuple) and len(entry) >= 2 and entry[1] is None}
+    for entry in operands:
+        if not (isinstance(entry, tuple) and len(entry) in (2, 3) and isinstance(entry[0], str)
+                and entry[0].isidentifier()):
+            raise TypeError(f"{name}: each operand is (name, shape) or (name, shape, dtype), got {entry!r}")
+        if flags and entry == FLAGS_OPERAND:
+            declared.append((FLAGS, (FLAG_COUNT,)))
+            dtypes[FLAGS] = "int64"
+            continue
+        if entry[0] in _RESERVED or entry[0].startswith("_"):
+            raise TypeError(f"{name}: operand name {entry[0]!r} is reserved (and names may not start with _)")
+        operand, shape = entry[0], entry[1]
+        dtype = entry[2] if len(entry) == 3 else "float64"
+        if shape is not None and dtype not in DTYPES:
+            raise TypeError(f"{name}: operand {operand} has dtype {dtype!r}; array operands are {DTYPES}")
+        for dim in shape or ():
+            names = set() if isinstance(dim, int) else set(compile(dim, "<shape>", "eval").co_names)
+            if not names <= ints:
+                raise TypeError(f"{name}: shape of {operand} uses {sorted(names - ints)}, not int operands")
+        declared.append((operand, shape))
+        dtypes[operand] = dtype
+    if len({entry[0] for entry in declared}) != len(declared):
+        raise TypeError(f"{name}: operand names repeat")
+    return OpSpec(name, tuple(declared), tuple(checks)), dtypes
 
-#: the schema of every op of wbc's tick program, by opcode (checked by :meth:`wbc.runtime.program.TickProgram.add`)
-OP_SPECS: dict[int, OpSpec] = {
-    OP_FRAME_TASK: OpSpec("FRAME_TASK", (
-        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
-        ("settings", (FRAME_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (6,)), _STACK,
-        ("start", None), ("nv", None), ("rows", None)), ("0 <= start", "start + 6 <= rows")),
-    OP_POSTURE: OpSpec("POSTURE", (
-        ("q", ("dim",)), ("reference", ("dim",)), ("weights", ("dim",)), ("settings", (1,)), ("error", ("dim",)),
-        _STACK, ("start", None), ("dim", None), ("nv", None), ("rows", None)),
-        ("0 <= start", "start + dim <= rows")),
-    OP_POSITION_LIMITS: OpSpec("POSITION_LIMITS", (
-        ("q", ("k",)), ("lower_limit", ("k",)), ("upper_limit", ("k",)), ("gain", (1,)), ("lower", ("k",)),
-        ("upper", ("k",)), ("k", None))),
-    OP_NORMAL_EQUATIONS: OpSpec("NORMAL_EQUATIONS", (
-        _STACK, ("nv", None), ("rows", None), ("first", None), ("last", None), ("reset", None),
-        ("Hc", ("nv + 1", "nv"))), ("0 <= first", "first <= last", "last <= rows")),
-    OP_PREVIEW: OpSpec("PREVIEW", (
-        ("Hc", ("nv + 1", "nv")), ("factor", ("nv", "nv")), ("preview", ("nv",)), ("nv", None))),
-    OP_STEERING: OpSpec("STEERING", (
-        ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None), ("settings", (3,)),
-        ("error", (1,)), _STACK, ("start", None), ("nv", None), ("rows", None), ("nq", None)),
-        ("0 <= start", "start < rows", "0 <= x < nv", "0 <= y < nv", "0 <= heading < nq")),
-    OP_MERGE_BOUNDS: OpSpec("MERGE_BOUNDS", (
-        ("bounds", ("2 * count", "nv")), ("count", None), ("n_hard", None), ("nv", None), ("upper", ("nv",)),
-        ("lower", ("nv",))), ("1 <= count", "0 <= n_hard <= count")),
-    OP_HAS_NAN: OpSpec("HAS_NAN", (("data", ("size",)), ("size", None), ("infinite", None)), ("0 <= infinite <= 1",)),
-    OP_LM_TASK: OpSpec("LM_TASK", (
-        _STACK, ("feedforward", ("dim",)), ("mu", (1,)), ("lm", (1,)), ("start", None), ("dim", None), ("nv", None),
-        ("rows", None), ("reset", None)), ("0 <= start", "start + dim <= rows", "0 <= reset <= 1")),
-    OP_LM_DAMPING_ROWS: OpSpec("LM_DAMPING_ROWS", (
-        _STACK, ("mu", (1,)), ("scaling", (2,)), ("nv", None), ("rows", None), ("first", None)),
-        ("0 <= first", "first + nv <= rows")),
-    OP_LM_DAMPING_LEVEL: OpSpec("LM_DAMPING_LEVEL", (
-        ("mu", (1,)), ("scaling", (2,)), ("Hc", ("nv + 1", "nv")), ("nv", None))),
-    OP_NORMALISE_COST: OpSpec("NORMALISE_COST", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
-    OP_HEADING_ROWS: OpSpec("HEADING_ROWS", (
-        ("cos_part", ("rows", 2)), ("sin_part", ("rows", 2)), ("q", ("nq",)), ("heading", None),
-        ("G", ("rows", "nv")), ("rows", None), ("nq", None), ("nv", None), ("x", None), ("y", None)),
-        ("0 <= heading < nq", "0 <= x < nv", "0 <= y < nv")),
-    OP_POSITION_TASK: OpSpec("POSITION_TASK", (
-        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
-        ("settings", (POSITION_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (3,)), _STACK,
-        ("start", None), ("nv", None), ("rows", None), ("jacobian", (6, "nv")), ("feedforward", (3,))),
-        ("0 <= start", "start + 3 <= rows")),
-    OP_MANIPULABILITY_BARRIER: OpSpec("MANIPULABILITY_BARRIER", (
-        ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("local", (12,)),
-        ("support", ("nv",)), ("ancestor", ("nv", "nv")), ("jacobian", (6, "nv")), ("origin", (3,)),
-        ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (2,)), ("value", (1,)),
-        ("first", None), ("last", None), ("nv", None)), ("0 <= first < last <= 6",)),
-    OP_DAQP_SOLVE: OpSpec("DAQP_SOLVE", (
-        ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
-        ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("n", None), ("size", None),
-        ("update_ldp", None), ("solve", None), ("clock_gettime", None), ("clock_id", None), ("steady_mask", None)),
-        ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0", "update_ldp != 0",
-         "solve != 0", "clock_gettime != 0")),
-    OP_LIFT: OpSpec("LIFT", (
-        ("stack", ("nv + 1", "stack_rows")), ("diagonal", ("rows",)), ("source", ("source_size",)),
-        ("lifted", ("lifted_size",)), ("scaling", (2,)), ("nv", None), ("stack_rows", None), ("rows", None),
-        ("k", None), ("p", None), ("e", None), ("source_size", None), ("lifted_size", None)),
-        ("1 <= nv", "0 <= k <= rows <= stack_rows", "0 <= p", "0 <= e",
-         "source_size == nv * nv + 3 * nv + (p + e) * (nv + 2)",
-         "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
-    OP_LIFT_CHECK: OpSpec("LIFT_CHECK", (
-        ("lifted", ("lifted_size",)), ("x", ("nv + k",)), ("lam", ("nv + k + p + e + k",)), ("scratch", ("2 * nv",)),
-        ("control", (DAQP_CONTROL_SIZE,)), ("nv", None), ("k", None), ("p", None), ("e", None),
-        ("lifted_size", None)),
-        ("1 <= nv", "0 <= k", "0 <= p", "0 <= e",
-         "lifted_size == (nv + k) * (nv + k) + 3 * (nv + k) + (p + e + k) * (nv + k + 2)")),
-    OP_FORWARD_KINEMATICS: OpSpec("FORWARD_KINEMATICS", (
-        ("q", ("nq",)), ("chain", ("joints", CHAIN_COLUMNS)), ("placements", ("joints", 12)),
-        ("jacobians_t", ("nv", 6)), ("nq", None), ("joints", None), ("nv", None)), ("1 <= joints",)),
-    # strict priorities (wbc.control.hierarchy)
-    OP_LEVEL_CONSTRAINTS: OpSpec("LEVEL_CONSTRAINTS", (
-        ("source", ("source_size",)), ("target", ("target_size",)), ("n", None), ("p", None), ("e", None),
-        ("band", None), ("source_size", None), ("target_size", None)),
-        ("1 <= n", "0 <= p", "0 <= e", "0 <= band", "source_size == n * n + 3 * n + (p + e) * (n + 2)",
-         "target_size == n * n + 3 * n + (p + band + e) * (n + 2)")),
-    OP_NORMALISE_LEVEL: OpSpec("NORMALISE_LEVEL", (("Hc", ("nv + 1", "nv")), ("scaling", (2,)), ("nv", None))),
-    OP_BAND: OpSpec("BAND", (
-        _STACK, ("first", None), ("last", None), ("first_preview", None), ("last_preview", None), ("x", ("nv",)),
-        ("lower", ("nv",)), ("upper", ("nv",)), ("control", (DAQP_CONTROL_SIZE,)), ("settings", (2,)),
-        ("target", ("size",)), ("nv", None), ("rows", None), ("size", None), ("row", None), ("target_rows", None)),
-        ("1 <= nv", "0 <= first <= last <= rows", "0 <= first_preview <= last_preview <= rows", "0 <= row",
-         "row + 2 * (last - first + last_preview - first_preview) <= target_rows",
-         "size == nv * nv + 3 * nv + target_rows * (nv + 2)")),
-    OP_HIERARCHY_PREVIEW: OpSpec("HIERARCHY_PREVIEW", (
-        _STACK, ("ranges", ("count",)), ("scaling", (2,)), ("preview", ("nv",)), ("nv", None), ("rows", None),
-        ("count", None)), ("1 <= nv", "2 <= count", "count % 2 == 0")),
-}
+
+class Op:
+    """One of wbc's ops, declared in its kernel's module of :mod:`wbc.runtime.kernels` (see the
+    module docstring); run by the generated interpreter.
+
+    Args:
+        name: the op's name, also the module attribute it is assigned to.
+        kernel: an ``@njit`` function of the same module whose parameters are the operands in
+            declaration order, then ``dt`` (checked: the names too); a thin
+            ``inline="always"`` adapter where the arithmetic wants slices or transposes.
+        operands: ``(name, shape)`` or ``(name, shape, dtype)``; ``shape`` None for an int
+            operand, else a tuple of ints and expressions over the int operands;
+            :data:`FLAGS_OPERAND` for the program's flags.
+        checks: conditions on the int operands, checked when the op is added.
+    """
+
+    def __init__(self, name: str, kernel: Any, operands: tuple[tuple[Any, ...], ...],
+                 checks: tuple[str, ...] = ()) -> None:
+        self.spec, self.dtypes = parse(name, operands, checks, flags=True)
+        parameters = [*(operand for operand, _ in self.spec.operands), "dt"]
+        if kernel is not None and list(inspect.signature(getattr(kernel, "py_func", kernel)).parameters) != parameters:
+            raise TypeError(f"{name}: the kernel's parameters must be the operands in declaration order, then dt: "
+                            f"{parameters}")
+        self.kernel = kernel
+        #: the opcode, assigned by wbc.runtime.kernels.load (0 until then)
+        self.code = 0
+
+    def __repr__(self) -> str:
+        return f"Op({self.spec.name!r}, {[name for name, _ in self.spec.operands]})"
+
+
+def decoder_source(spec: OpSpec, dtypes: dict[str, str], function: str, parameters: str, first: int,
+                   kernel: str) -> list[str]:
+    """Source lines of ``def function(parameters)`` (parameters among ``op``, ``addresses``,
+    ``flags``, ``dt``): the op's operands read from its row ``op`` (the first at position
+    ``first``; flags not in the row), each array viewed at its address (``_float64_at`` /
+    ``_int64_at``, ``carray``) with its declared shape, then ``kernel(operands..., dt)``."""
+    lines = [f"def {function}({parameters}):"]
+    positions = {name: first + i for i, name in enumerate(name for name, _ in spec.operands if name != FLAGS)}
+    arguments = []
+    for operand, shape in spec.operands:
+        if shape is None:
+            lines.append(f"    {operand} = op[{positions[operand]}]")
+    for operand, shape in spec.operands:
+        if shape is not None and operand != FLAGS:
+            pointer = "_float64_at" if dtypes[operand] == "float64" else "_int64_at"
+            dims = ", ".join(str(dim) for dim in shape)
+            lines.append(f"    _{operand} = carray({pointer}(addresses[op[{positions[operand]}]]), ({dims},))")
+        arguments.append(operand if shape is None or operand == FLAGS else f"_{operand}")
+    lines.append(f"    {kernel}({', '.join([*arguments, 'dt'])})")
+    return lines

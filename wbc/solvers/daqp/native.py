@@ -74,7 +74,7 @@ class NativeWorkspace:
         self._neutral_lower = -self._neutral_upper
         self._finalizer = weakref.finalize(self, _free, library.lib, self.work)
         self._program = TickProgram()  # the solve alone, for solve()
-        self._program.add(kernels.OP_DAQP_SOLVE, **self.operands())
+        self._program.add(kernels.DAQP_SOLVE, **self.operands())
         self.reset()
 
     def reset(self) -> None:
@@ -105,7 +105,7 @@ class NativeWorkspace:
         problem.A = A.ctypes.data if A.size else None
 
     def operands(self) -> dict[str, Any]:
-        """The operands of the compiled solve (:data:`wbc.runtime.kernels.ops.OP_SPECS`, DAQP_SOLVE)."""
+        """The operands of the compiled solve (the declaration of `wbc.runtime.kernels.native_qp.DAQP_SOLVE`)."""
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
                     control=self.control, data=self.qp.data, x=self.x, n=self.qp.n, size=self.qp.data.size,
@@ -115,7 +115,7 @@ class NativeWorkspace:
     def add_op(self, program: TickProgram) -> None:
         """Append the solve to ``program``: it runs after the program's NaN screen, and only
         when that found none (exit flag ``kernels.DAQP_SKIPPED``)."""
-        program.add(kernels.OP_DAQP_SOLVE, **self.operands())
+        program.add(kernels.DAQP_SOLVE, **self.operands())
         program.keep_alive(self)
 
     def solve(self) -> tuple[int, float, float]:
