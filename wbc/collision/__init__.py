@@ -1,0 +1,13 @@
+"""Collision geometry: the robot's collision shapes, obstacles, signed distances with their
+gradient rows.
+
+* :mod:`~wbc.collision.geometry` -- :class:`RobotGeometry`: the URDF's ``<collision>`` shapes and
+  the robot's self-collision pairs.
+* :mod:`~wbc.collision.obstacles` -- :class:`Sphere`, :class:`Box`, :class:`Capsule`,
+  :class:`Plane` in the world frame, movable between ticks.
+"""
+
+from .geometry import ExcludedPair, RobotGeometry
+from .obstacles import Box, Capsule, Obstacle, Plane, Sphere
+
+__all__ = ["RobotGeometry", "ExcludedPair", "Obstacle", "Sphere", "Box", "Capsule", "Plane"]
