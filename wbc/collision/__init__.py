@@ -5,9 +5,16 @@ gradient rows.
   the robot's self-collision pairs.
 * :mod:`~wbc.collision.obstacles` -- :class:`Sphere`, :class:`Box`, :class:`Capsule`,
   :class:`Plane` in the world frame, movable between ticks.
+* :mod:`~wbc.collision.distances` -- :class:`Distances`: per configuration, every pair closer than
+  a detection distance, its signed distance, witness points and row ``grad d(q)^T``.
+
+Only the compiled kernels (:mod:`~wbc.collision.kernels`) import numba, when a :class:`Distances`
+is first built.
 """
 
+from .distances import Distances, PairBuffers
 from .geometry import ExcludedPair, RobotGeometry
 from .obstacles import Box, Capsule, Obstacle, Plane, Sphere
 
-__all__ = ["RobotGeometry", "ExcludedPair", "Obstacle", "Sphere", "Box", "Capsule", "Plane"]
+__all__ = ["RobotGeometry", "ExcludedPair", "Obstacle", "Sphere", "Box", "Capsule", "Plane", "Distances",
+           "PairBuffers"]
