@@ -10,6 +10,7 @@ Conventions: see :mod:`wbc.robot` (frames, Jacobians, twists) and :mod:`wbc.base
 """
 
 from .base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     Constraint,
     JointPositionLimits,
@@ -44,6 +45,7 @@ __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
     "NonholonomicBase", "WheelSpeedLimits",
+    "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
     "InvalidInputError", "ModelError", "PlanningError", "ScenarioError", "SolverError", "UnknownFrameError",

@@ -152,7 +152,7 @@ class Distances:
         kinematics = self._kinematics
         kinematics.update(self.robot.check_configuration(q))
         if not kinematics.native:
-            _fill_kinematics(kinematics.data, self._placements, self._jacobians_t)
+            fill_kinematics(kinematics.data, self._placements, self._jacobians_t)
         return self.compute_from(self._placements, self._jacobians_t, out)
 
     def compute_from(self, placements: NDArray[np.float64], jacobians_t: NDArray[np.float64],
@@ -251,7 +251,7 @@ def _support(model: pin.Model) -> NDArray[np.float64]:
     return support
 
 
-def _fill_kinematics(data: pin.Data, placements: NDArray[np.float64], jacobians_t: NDArray[np.float64]) -> None:
+def fill_kinematics(data: pin.Data, placements: NDArray[np.float64], jacobians_t: NDArray[np.float64]) -> None:
     """Pinocchio's joint placements and Jacobians in the layouts of :class:`wbc.kinematics.Kinematics`."""
     for joint, placement in enumerate(data.oMi):
         placements[joint, :9] = placement.rotation.ravel(order="F")
