@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..errors import InvalidInputError
+from ..references import rpy_matrix
 from ..validation import as_pose, as_positive, as_vector
 from . import layout
 
@@ -274,4 +275,52 @@ class Plane(Obstacle):
         return f"normal={self.normal.tolist()}, offset={self.offset}"
 
 
-__all__ = ["Obstacle", "Sphere", "Box", "Capsule", "Plane"]
+#: the keys of an obstacle's table in a scenario file, by type (besides ``type`` and ``name``)
+TABLE_KEYS = {"Sphere": ("center", "radius"), "Box": ("center", "size", "rpy"), "Capsule": ("p0", "p1", "radius"),
+              "Plane": ("normal", "offset")}
+
+
+def obstacle_from_table(table: object, label: str = "obstacle") -> Obstacle:
+    """An obstacle from its table in a scenario file (world frame, [m], [rad])::
+
+        { type = "Sphere", center = [x, y, z], radius = r }
+        { type = "Box", center = [x, y, z], size = [sx, sy, sz], rpy = [roll, pitch, yaw] }   (rpy optional)
+        { type = "Capsule", p0 = [x, y, z], p1 = [x, y, z], radius = r }
+        { type = "Plane", normal = [nx, ny, nz], offset = h }
+
+    each with an optional ``name``.
+
+    Raises:
+        InvalidInputError: not a table, an unknown type or key, a missing key, a bad value
+            (named, with ``label``).
+    """
+    if not isinstance(table, dict):
+        raise InvalidInputError(f"{label}: expected a table such as {{ type = \"Sphere\", center = [0.5, 0, 0.4], "
+                                f"radius = 0.1 }}, got {table!r}")
+    kind = table.get("type")
+    if kind not in TABLE_KEYS:
+        raise InvalidInputError(f"{label}: type {kind!r} unknown (known: {', '.join(TABLE_KEYS)})")
+    allowed = (*TABLE_KEYS[kind], "type", "name")
+    for key in table:
+        if key not in allowed:
+            raise InvalidInputError(f"{label} ({kind}): unknown key {key!r} (keys: {', '.join(allowed)})")
+    required = [key for key in TABLE_KEYS[kind] if key != "rpy" and key not in table]
+    if required:
+        raise InvalidInputError(f"{label} ({kind}): required key {required[0]!r} missing")
+    name = table.get("name")
+    try:
+        if kind == "Sphere":
+            return Sphere(table["center"], table["radius"], name=name)
+        if kind == "Capsule":
+            return Capsule(table["p0"], table["p1"], table["radius"], name=name)
+        if kind == "Plane":
+            return Plane(table["normal"], table["offset"], name=name)
+        pose = np.eye(4)
+        pose[:3, 3] = _point(table["center"], "Box center")
+        pose[:3, :3] = rpy_matrix(*_point(table.get("rpy", (0.0, 0.0, 0.0)), "Box rpy"))
+        return Box(pose, table["size"], name=name)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{label}: {exc}") from exc
+
+
+__all__ = ["Obstacle", "Sphere", "Box", "Capsule", "Plane", "obstacle_from_table", "TABLE_KEYS"]
