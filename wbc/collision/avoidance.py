@@ -18,7 +18,8 @@ from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
-#: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
+#: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
+#: value of ``wbc.collision.kernels.INERT``, which imports numba)
 INERT = 1.0
 
 
@@ -133,6 +134,9 @@ class CollisionAvoidanceData(ConstraintData):
         self.n_inequalities = self.distances.capacity
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
+        #: (detection_distance, min_distance, gain), copied from the constraint every tick
+        self._settings = np.zeros(3)
+        self._G = np.zeros((self.n_inequalities, robot.nv))  # used when the controller's G rows are not C-contiguous
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
         self._jacobians_t = np.zeros((robot.nv, 6))
@@ -143,18 +147,27 @@ class CollisionAvoidanceData(ConstraintData):
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         avoidance, distances, pairs = self.constraint, self.distances, self.pairs
-        distances.detection_distance = avoidance.detection_distance
+        settings = self._settings
+        settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
         if kin.native:
             placements, jacobians_t = kin.placements, kin.joint_jacobians.T
         else:
             placements, jacobians_t = self._placements, self._jacobians_t
             fill_kinematics(kin.data, placements, jacobians_t)
-        count = distances.compute_from(placements, jacobians_t, pairs)
-        np.negative(pairs.rows[:count], out=rows.G[:count])
-        np.subtract(pairs.distance[:count], avoidance.min_distance, out=rows.h[:count])
-        rows.h[:count] *= avoidance.gain / dt
-        rows.G[count:] = 0.0
-        rows.h[count:] = INERT
+        G, h = rows.G, rows.h
+        if not G.flags.c_contiguous:  # the kernels write C-contiguous rows
+            G = self._G
+        kernels = distances._kernels
+        packed = kernels.avoidance_rows(distances.table, distances.pairs, placements, jacobians_t, distances._support,
+                                        distances._world, pairs.pair, pairs.distance, pairs.witness_a, pairs.witness_b,
+                                        pairs.normal, pairs.rows, pairs.pending, distances._scratch, G, h, settings, dt)
+        if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
+            pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
+            kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
+        else:
+            pairs.count = packed
+        if G is not rows.G:
+            rows.G[:] = G
 
     @property
     def min_distance(self) -> float:

@@ -174,11 +174,14 @@ class Distances:
         packed = self._kernels.pair_distances(
             self.table, self.pairs, placements, jacobians_t, self._support, self._world, self.detection_distance,
             out.pair, out.distance, out.witness_a, out.witness_b, out.normal, out.rows, out.pending, self._scratch)
+        out.count = self.finish_with_coal(out, packed, jacobians_t) if packed > self.capacity else packed
+        return out.count
+
+    def finish_with_coal(self, out: PairBuffers, packed: int, jacobians_t: NDArray[np.float64]) -> int:
+        """After a kernel call that returned ``packed`` (count and pairs left for coal): measure
+        those pairs with coal, add the ones within the detection distance; returns the count."""
         count, pending = packed % (self.capacity + 1), packed // (self.capacity + 1)
-        if pending:
-            count = self._measure_with_coal(out, count, pending, jacobians_t)
-        out.count = count
-        return count
+        return self._measure_with_coal(out, count, pending, jacobians_t)
 
     # ------------------------------------------------------------ the coal path
     def _measure_with_coal(self, out: PairBuffers, count: int, pending: int, jacobians_t: NDArray[np.float64]) -> int:

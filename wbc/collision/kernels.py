@@ -331,7 +331,8 @@ def pair_distance(table, world, a, b, out, scratch):
 @njit(cache=CACHE, nogil=True, inline="always")
 def bound_distance(table, world, a, b):
     """A lower bound of the distance of shapes a and b from their bounding spheres (a plane: its
-    half-space)."""
+    half-space; a box: the box itself against the other's bounding sphere, much tighter for a
+    flat box such as a mobile platform)."""
     if table[b, KIND] == PLANE:
         a, b = b, a
     if table[a, KIND] == PLANE:
@@ -339,7 +340,18 @@ def bound_distance(table, world, a, b):
                   + world[a, 8] * (world[b, 14] - world[a, 11]))
         return height - table[b, BOUND_RADIUS]
     dx, dy, dz = world[b, 12] - world[a, 12], world[b, 13] - world[a, 13], world[b, 14] - world[a, 14]
-    return math.sqrt(dx * dx + dy * dy + dz * dz) - table[a, BOUND_RADIUS] - table[b, BOUND_RADIUS]
+    bound = math.sqrt(dx * dx + dy * dy + dz * dz) - table[a, BOUND_RADIUS] - table[b, BOUND_RADIUS]
+    if table[b, KIND] == BOX:
+        a, b = b, a
+    if table[a, KIND] == BOX:
+        # the other's bounding centre in the box frame: R^T (c - p)
+        cx, cy, cz = world[b, 12] - world[a, 9], world[b, 13] - world[a, 10], world[b, 14] - world[a, 11]
+        h = (table[a, _HX], table[a, _HX + 1], table[a, _HX + 2])
+        inside = _box_sd(world[a, 0] * cx + world[a, 3] * cy + world[a, 6] * cz,
+                         world[a, 1] * cx + world[a, 4] * cy + world[a, 7] * cz,
+                         world[a, 2] * cx + world[a, 5] * cy + world[a, 8] * cz, h) - table[b, BOUND_RADIUS]
+        bound = max(bound, inside)
+    return bound
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -394,19 +406,9 @@ def _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, dista
     return count + 1 if slot == count else count
 
 
-@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
-def pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
-                   slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
-    """Every candidate pair within ``detection``: distances, witness points, normals and rows.
-
-    Writes entries 0..count-1 of the output arrays (capacity = their length; when more pairs are
-    within ``detection``, the closest are kept) and returns ``count + (capacity + 1) * n_pending``:
-    ``pending[:n_pending]`` lists the pairs (indices of ``pairs``) that passed the broad phase
-    but have no compiled distance; coal measures them and :func:`insert_pair` adds them.
-    ``pending``: one entry per pair; ``scratch``: >= 64 floats.
-    """
+@njit(cache=CACHE, nogil=True, inline="always")
+def _pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
+                    slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
     world_poses(table, placements, world)
     count = 0
     n_pending = 0
@@ -422,6 +424,66 @@ def pair_distances(table, pairs, placements, jacobians_t, support, world, detect
             count = _store(k, out, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a,
                            witness_b, normal, rows)
     return count + (distance.size + 1) * n_pending
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
+def pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
+                   slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
+    """Every candidate pair within ``detection``: distances, witness points, normals and rows.
+
+    Writes entries 0..count-1 of the output arrays (capacity = their length; when more pairs are
+    within ``detection``, the closest are kept) and returns ``count + (capacity + 1) * n_pending``:
+    ``pending[:n_pending]`` lists the pairs (indices of ``pairs``) that passed the broad phase
+    but have no compiled distance; coal measures them and :func:`insert_pair` adds them.
+    ``pending``: one entry per pair; ``scratch``: >= 64 floats.
+    """
+    return _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, slot_pair, distance,
+                           witness_a, witness_b, normal, rows, pending, scratch)
+
+
+#: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
+INERT = 1.0
+#: slots of the settings vector of :func:`avoidance_rows`
+DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _damper_rows(count, distance, rows, G, h, settings, dt):
+    scale = settings[GAIN] / dt
+    for i in range(G.shape[0]):
+        if i < count:
+            for k in range(G.shape[1]):
+                G[i, k] = -rows[i, k]
+            h[i] = scale * (distance[i] - settings[MIN_DISTANCE])
+        else:
+            for k in range(G.shape[1]):
+                G[i, k] = 0.0
+            h[i] = INERT
+
+
+@njit("void(int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+      cache=CACHE, nogil=True)
+def damper_rows(count, distance, rows, G, h, settings, dt):
+    """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
+    ``G``, ``h`` (``settings = (detection, d_min, gain)``); the other rows inert (``0 <= 1``)."""
+    _damper_rows(count, distance, rows, G, h, settings, dt)
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+      cache=CACHE, nogil=True)
+def avoidance_rows(table, pairs, placements, jacobians_t, support, world, slot_pair, distance, witness_a,
+                   witness_b, normal, rows, pending, scratch, G, h, settings, dt):
+    """:func:`pair_distances` (``detection = settings[0]``) and, when no pair waits for coal,
+    :func:`damper_rows`, in one call; returns what :func:`pair_distances` returns."""
+    packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], slot_pair,
+                             distance, witness_a, witness_b, normal, rows, pending, scratch)
+    if packed <= distance.size:
+        _damper_rows(packed, distance, rows, G, h, settings, dt)
+    return packed
 
 
 @njit("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "
