@@ -40,7 +40,7 @@ class CollisionAvoidance(Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
-    **Rows.** The QP has a fixed number of rows, :attr:`CollisionAvoidanceData.n_inequalities`
+    **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
     = ``capacity`` (default: every candidate pair, so no pair within ``detection_distance`` is
     ever left out); each tick the pairs within ``detection_distance`` fill the first rows and the
     others are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and

@@ -113,7 +113,7 @@ class Distances:
         pairs = list(geometry.pairs) if self_collision else []
         moving = [s for s in range(robot_rows) if geometry.table[s, layout.JOINT] != 0]
         pairs += [(s, robot_rows + index) for index in range(len(self.obstacles)) for s in moving]
-        #: candidate pairs: rows of :attr:`table` (a, b); an obstacle is always b
+        #: candidate pairs: rows of ``table`` (a, b); an obstacle is always b
         self.pairs = np.array([(a, b, k) for k, (a, b) in enumerate(pairs)], dtype=np.int64).reshape(-1, 3)
         #: "link_a↔link_b" (an obstacle by its name, or kind and index: "sphere0")
         self.labels = [f"{names[a]}↔{names[b]}" for a, b in pairs]
@@ -214,7 +214,7 @@ class Distances:
         return float(result.min_distance)
 
     def coal_shape(self, shape: int) -> coal.CollisionGeometry:
-        """coal's geometry of row ``shape`` of :attr:`table`, in its local frame (the coal path,
+        """coal's geometry of row ``shape`` of ``table``, in its local frame (the coal path,
         and the oracle of the tests)."""
         if shape < self.geometry.size:
             return self.geometry.model.geometryObjects[int(shape)].geometry

@@ -87,7 +87,7 @@ class RobotGeometry:
         self.excluded: list[ExcludedPair] = []
         candidates = self._adjacency_filter()
         candidates = self._srdf_filter(candidates, srdf)
-        #: the candidate self-collision pairs, as indices of shapes (rows of :attr:`table`)
+        #: the candidate self-collision pairs, as indices of shapes (rows of ``table``)
         self.pairs: list[tuple[int, int]] = self._contact_filter(candidates, samples, seed)
 
     @property

@@ -1,4 +1,4 @@
-"""The shape table that the distance kernels read: one row of :data:`ROW` floats per shape.
+"""The shape table that the distance kernels read: one row of ``ROW`` floats per shape.
 
 Pure Python (no numba): the obstacles write their rows, :class:`~wbc.collision.geometry.RobotGeometry`
 the robot's, and :mod:`wbc.collision.kernels` reads both. Every shape is a pose in the frame of

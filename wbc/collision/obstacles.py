@@ -234,8 +234,8 @@ class Capsule(Obstacle):
 
 
 class Plane(Obstacle):
-    """The plane ``normal . x = offset`` (world); the obstacle is the half-space below it,
-    ``normal . x <= offset``, and ``normal`` points to the free side (a floor:
+    """The plane ``normal·x = offset`` (world); the obstacle is the half-space below it,
+    ``normal·x <= offset``, and ``normal`` points to the free side (a floor:
     ``Plane((0, 0, 1), height)``). A normal that is not of unit length is normalised, and the
     offset with it (the same plane). Its pose has z along the normal and its origin at the plane's
     point nearest the world origin.
@@ -251,7 +251,7 @@ class Plane(Obstacle):
         self.set(normal, offset)
 
     def set(self, normal: ArrayLike, offset: float) -> None:
-        """Move the plane to ``normal . x = offset``."""
+        """Move the plane to ``normal·x = offset``."""
         direction = _point(normal, "Plane normal")
         length = float(np.linalg.norm(direction))
         if not (length > 0.0 and math.isfinite(length)):
@@ -268,7 +268,7 @@ class Plane(Obstacle):
 
     @property
     def offset(self) -> float:
-        """``normal . x`` of the plane's points [m]."""
+        """``normal·x`` of the plane's points [m]."""
         return float(self.normal @ self._row[layout.TRANSLATION])
 
     def _describe(self) -> str:
