@@ -250,13 +250,14 @@ def read_disabled_pairs(srdf: str | Path, links: set[str]) -> set[frozenset[str]
         root = ElementTree.parse(Path(srdf)).getroot()
     except (OSError, ElementTree.ParseError) as exc:
         raise ModelError(f"cannot read the SRDF {srdf}: {exc}") from exc
-    pairs = set()
+    pairs: set[frozenset[str]] = set()
     for element in root.iter("disable_collisions"):
-        names = element.get("link1"), element.get("link2")
-        for name in names:
-            if name not in links:
-                raise ModelError(f"{srdf}: <disable_collisions> names link {name!r}, which the robot does not have")
-        pairs.add(frozenset(names))
+        names = [element.get("link1"), element.get("link2")]
+        known = [name for name in names if name is not None and name in links]
+        if len(known) != 2:
+            missing = next(name for name in names if name not in known)
+            raise ModelError(f"{srdf}: <disable_collisions> names link {missing!r}, which the robot does not have")
+        pairs.add(frozenset(known))
     return pairs
 
 
