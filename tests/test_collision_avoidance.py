@@ -264,3 +264,20 @@ def test_nonholonomic_base_keeps_the_margin(reduced):
     unguarded = wbc.Controller(robot, tasks, constraints[:-1], reduced=reduced)
     _, through, _ = _run(unguarded, q0, 400, oracle, excluded)
     assert through.min() < 0.0
+
+
+def test_rows_written_into_a_strided_block_are_the_same():
+    """A controller's G block that is not C-contiguous gets the same rows (through a buffer)."""
+    sphere = wbc.Sphere(EE + (0.1, 0.0, 0.0), 0.05)
+    data = wbc.CollisionAvoidance([sphere]).bind(YOUBOT)
+    n, nv = data.n_inequalities, YOUBOT.nv
+    kin = Kinematics(YOUBOT)
+    kin.update(NEUTRAL)
+    blocks = []
+    for G in (np.zeros((n, nv)), np.zeros((n, 2 * nv))[:, ::2]):
+        rows = ConstraintRows(np.zeros(nv), np.zeros(nv), G, np.zeros(n), np.zeros((0, nv)), np.zeros(0))
+        data.compute(kin, 0.01, rows)
+        blocks.append((G.copy(), rows.h.copy()))
+    np.testing.assert_array_equal(blocks[0][0], blocks[1][0])
+    np.testing.assert_array_equal(blocks[0][1], blocks[1][1])
+    assert np.any(blocks[0][0] != 0.0)
