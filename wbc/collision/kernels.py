@@ -303,6 +303,39 @@ def _flip(out):
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
+def box_box(table, world, a, b, out, scratch):
+    """Two boxes that do not overlap: ``out`` as in :func:`segment_segment`, False when they
+    overlap (coal measures the penetration). The closest points of two disjoint convex polytopes
+    include a point on an edge of one of them (vertex-face, edge-edge; a face-face contact
+    contains an edge's point too), so the distance is the smallest of the 24 edge-to-box
+    distances (:func:`box_segment` with radius 0, exact). ``scratch``: >= 42 floats."""
+    best = np.inf
+    edge = scratch[32:42]
+    for which in range(2):
+        src, box = (a, b) if which == 0 else (b, a)
+        for axis in range(3):
+            j, k = (axis + 1) % 3, (axis + 2) % 3
+            for corner in range(4):
+                local_j = table[src, _HX + j] * (1.0 if corner & 1 else -1.0)
+                local_k = table[src, _HX + k] * (1.0 if corner & 2 else -1.0)
+                half = table[src, _HX + axis]
+                # the edge's middle c and half-vector u (world): ends c - u, c + u
+                cx = world[src, 9] + world[src, j] * local_j + world[src, k] * local_k
+                cy = world[src, 10] + world[src, 3 + j] * local_j + world[src, 3 + k] * local_k
+                cz = world[src, 11] + world[src, 6 + j] * local_j + world[src, 6 + k] * local_k
+                ux, uy, uz = world[src, axis] * half, world[src, 3 + axis] * half, world[src, 6 + axis] * half
+                p = (cx - ux, cy - uy, cz - uz, cx + ux, cy + uy, cz + uz)
+                box_segment(table, world, box, p, 0.0, edge, scratch)  # (d, on box, on edge, box -> edge)
+                if edge[0] < best:
+                    best = edge[0]
+                    for m in range(10):
+                        out[m] = edge[m]
+                    if which == 0:  # the edge is on a: make it (d, w_a, w_b, a -> b)
+                        _flip(out)
+    return best > 0.0
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
 def pair_distance(table, world, a, b, out, scratch):
     """Signed distance of shapes a and b (rows of ``table``, world poses in ``world``) into ``out``;
     returns False for a pair that has no compiled distance (coal measures it)."""
@@ -310,9 +343,12 @@ def pair_distance(table, world, a, b, out, scratch):
     swapped = ka > kb
     if swapped:
         a, b, ka, kb = b, a, kb, ka
-    if kb == COAL or ka == PLANE or (ka == BOX and kb == BOX):
+    if kb == COAL or ka == PLANE:
         return False
-    if ka == BOX:  # against a plane
+    if ka == BOX and kb == BOX:
+        if not box_box(table, world, a, b, out, scratch):
+            return False
+    elif ka == BOX:  # against a plane
         box_plane(table, world, a, b, out)
     else:
         p = _segment(table, world, a)
