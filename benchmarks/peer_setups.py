@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pinocchio as pin
@@ -271,13 +272,14 @@ class PinkSetup:
 class MinkSetup:
     """mink on ``models/youbot/youbot.xml`` (site ``ee``), DAQP through qpsolvers."""
 
-    def __init__(self, spec: StackSpec, name: str = "mink", mjcf: Path = MJCF) -> None:
+    def __init__(self, spec: StackSpec, name: str = "mink", mjcf: Path = MJCF, model: Any = None) -> None:
+        """``model``: an ``mujoco.MjModel`` to use instead of loading ``mjcf`` (e.g. with obstacles added)."""
         import mink
         import mujoco
 
         self.name = name
         self._mink = mink
-        model = mujoco.MjModel.from_xml_path(str(mjcf))
+        self.model = model = mujoco.MjModel.from_xml_path(str(mjcf)) if model is None else model
         names = [model.joint(i).name for i in range(model.njnt)]
         if names != spec.joint_names:
             raise ValueError(f"MJCF joints {names} differ from the URDF's {spec.joint_names}")

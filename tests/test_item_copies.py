@@ -66,6 +66,17 @@ def _position_task(robot: wbc.Robot = YOUBOT, q: np.ndarray = Q_YOUBOT) -> wbc.P
     return task
 
 
+def _ball_ahead() -> wbc.Sphere:
+    """A ball 0.054 m ahead of the gripper at Q_YOUBOT."""
+    return wbc.Sphere(YOUBOT.frame_pose(Q_YOUBOT, "ee")[:3, 3] + [0.12, 0.0, 0.0], 0.05)
+
+
+def _toward_ball() -> wbc.PositionTask:
+    task = wbc.PositionTask("ee", cost=1.0, gain=0.5)
+    task.set_target(YOUBOT.frame_pose(Q_YOUBOT, "ee")[:3, 3] + [0.3, 0.0, 0.0])  # through the ball
+    return task
+
+
 def _base_velocity_task() -> wbc.BaseVelocityTask:
     task = wbc.BaseVelocityTask(cost=1e-2)
     task.set_target([0.2, -0.1, 0.3])
@@ -147,6 +158,11 @@ EXAMPLES: dict[type, Example] = {
                                   stack=lambda: [_base_velocity_task(), wbc.PostureTask(1e-3)]),
     wbc.MecanumWheelLimits: Example(YOUBOT, Q_YOUBOT, lambda: wbc.MecanumWheelLimits(max_speed=2.0), {},
                                     stack=lambda: [_base_velocity_task(), wbc.PostureTask(1e-3)]),
+    wbc.CollisionAvoidance: Example(YOUBOT, Q_YOUBOT, lambda: wbc.CollisionAvoidance([_ball_ahead()]), {
+        "gain": lambda c: setattr(c, "gain", 0.1),
+        "min_distance": lambda c: setattr(c, "min_distance", 0.04),
+        "detection_distance": lambda c: setattr(c, "detection_distance", 0.05),  # the ball's pair (0.054 m) leaves
+    }, stack=lambda: [_toward_ball(), wbc.PostureTask(1e-2)]),
     wbc.NonholonomicBase: Example(DELUCA, Q_DELUCA, wbc.NonholonomicBase, {},
                                   stack=lambda: [_position_task(DELUCA, Q_DELUCA), wbc.PostureTask(1e-3)]),
 }

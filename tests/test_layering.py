@@ -16,7 +16,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("wbc.runtime",),
     ("wbc.core",),
     ("wbc.model",),
-    ("wbc.item", "wbc.tasks", "wbc.constraints"),
+    ("wbc.item", "wbc.tasks", "wbc.constraints", "wbc.collision"),
     ("wbc.qp",),
     ("wbc.solvers",),
     ("wbc.control",),

@@ -56,7 +56,7 @@ autosummary_generate = False  # the summary tables link to the module pages; no 
 nitpicky = True
 #: targets outside wbc (no network at build time, so no intersphinx): shown as text, never resolved
 nitpick_ignore_regex = [
-    (r"py:.*", r"(numpy|np|pinocchio|pin|pydantic|pydantic_core|qpsolvers|numba|ctypes|_ctypes|collections|abc"
+    (r"py:.*", r"(numpy|np|pinocchio|pin|coal|pydantic|pydantic_core|qpsolvers|numba|ctypes|_ctypes|collections|abc"
                r"|numbers|threading|pathlib|concurrent|multiprocessing|matplotlib|mujoco|viser|argparse|enum|types"
                r"|json|io|os|annotated_types)(\..*)?"),
     (r"py:.*", r"(NDArray|ArrayLike|Path|Enum|Generator|Iterator|Iterable|Sequence|Mapping|Callable|Buffer|Figure"

@@ -26,16 +26,6 @@ class ReferenceMotion(Protocol):
     def __call__(self, t: float, /) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
-    """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF convention)."""
-    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
-
-
 @dataclass
 class ConstantPose:
     """A fixed target pose (zero feed-forward twist)."""

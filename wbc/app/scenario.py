@@ -16,7 +16,9 @@ wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are
                       level = 0 (optional, an integer >= 0): the task's priority level, 0 highest
                       (strict priorities, wbc.control.hierarchy; all at 0: one weighted level); levels
                       must be 0, 1, ... without gaps
-    [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise
+    [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise; ``CollisionAvoidance`` takes
+                      ``obstacles = [{ type = "Sphere", center = [...], radius = ... }, ...]``
+                      (:func:`wbc.collision.obstacles.obstacle_from_table`)
                       (``target = "initial"`` in a PostureTask means initial_configuration)
     [reference]       type = "circle" (radius, period [s], normal, start_axis, ramp_time [s])
                       | "pose" | "line" (speed [m/s], ramp_time [s]) for the first FrameTask,
@@ -49,6 +51,8 @@ from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_vali
 
 from .. import constraints as constraint_module
 from .. import tasks as task_module
+from ..collision import CollisionAvoidance
+from ..collision.obstacles import obstacle_from_table
 from ..constraints import Constraint
 from ..control.controller import DEFAULT_LM_DAMPING, Controller
 from ..core.errors import ScenarioError, WbcError
@@ -63,6 +67,7 @@ TASK_TYPES: dict[str, type[Task]] = {name: getattr(task_module, name) for name i
 CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module, name)
                                                  for name in constraint_module.__all__
                                                  if name not in ("Constraint", "ConstraintRows")}
+CONSTRAINT_TYPES["CollisionAvoidance"] = CollisionAvoidance
 MAX_TICKS = 10**7  #: longest run a scenario may ask for (duration / dt)
 _Item = TypeVar("_Item", Task, Constraint)
 
@@ -322,6 +327,8 @@ def _instantiate(entry: Entry, registry: dict[str, type[_Item]], label: str, rob
     cls, label = registry[entry.type], f"{label} ({entry.type})"
     arguments = dict(entry.model_extra or {})
     _check_arguments(cls, arguments, label)
+    if cls is CollisionAvoidance:  # obstacles are tables: { type = "Sphere", center = [...], radius = ... }
+        arguments["obstacles"] = _obstacles(arguments.get("obstacles", []), label)
     if cls is PostureTask and arguments.get("target") == "initial":
         arguments["target"] = q0
     try:
@@ -329,6 +336,16 @@ def _instantiate(entry: Entry, registry: dict[str, type[_Item]], label: str, rob
         item.bind(robot)  # frames, joints and target sizes checked against the robot here, naming this entry
         return item
     except (WbcError, TypeError, ValueError) as exc:
+        raise ScenarioError(f"{label}: {exc}") from exc
+
+
+def _obstacles(tables: object, label: str) -> list[Any]:
+    if not isinstance(tables, list):
+        raise ScenarioError(f"{label} obstacles: expected an array of tables, e.g. obstacles = "
+                            f"[{{ type = \"Sphere\", center = [0.5, 0.0, 0.4], radius = 0.1 }}], got {tables!r}")
+    try:
+        return [obstacle_from_table(table, f"obstacles[{k}]") for k, table in enumerate(tables)]
+    except WbcError as exc:
         raise ScenarioError(f"{label}: {exc}") from exc
 
 
@@ -345,6 +362,8 @@ def _check_arguments(cls: type[Any], arguments: dict[str, Any], label: str) -> N
         raise ScenarioError(f"{label}: required key {missing[0]!r} missing; add `{missing[0]} = ...`")
     hints = typing.get_type_hints(cls.__init__)
     for key, value in arguments.items():
+        if cls is CollisionAvoidance and key == "obstacles":
+            continue  # tables, checked by _obstacles
         hint = _toml_hint(hints[key]) if key in hints else _Numbers
         if cls is PostureTask and key == "target":
             hint = Literal["initial"] | hint

@@ -52,6 +52,16 @@ _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 MAX_VELOCITY_DOF = 300
 
 
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
+    """Rotation ``Rz(yaw) Ry(pitch) Rx(roll)`` (URDF convention)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
 @dataclass
 class Robot:
     """A kinematic robot model.
@@ -667,4 +677,4 @@ def _detect_planar_base(model: pin.Model) -> MobileBase:
     return FIXED_BASE
 
 
-__all__ = ["Robot", "load_robot", "shipped_models", "model_path"]
+__all__ = ["Robot", "load_robot", "shipped_models", "model_path", "rpy_matrix"]

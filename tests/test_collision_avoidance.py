@@ -1,0 +1,283 @@
+"""wbc.CollisionAvoidance in wbc.Controller: the rows (a formula written out against coal's
+distances), closed loops checked every tick against coal (Pinocchio computeDistances on the
+URDF's raw shapes), a robot pushed out of the margin, bad input."""
+
+import copy
+import pickle
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import wbc
+from test_collision_distances import Oracle
+from wbc.collision import RobotGeometry
+from wbc.constraints.constraint import ConstraintRows
+from wbc.model.kinematics import Kinematics
+
+MIN_DISTANCE = 0.02
+#: the damper holds d >= min_distance to first order; the second-order term of a tick at the
+#: speeds of these tests (joints up to ~1.5 rad/s, dt = 0.01) costs up to this much [m]
+TOLERANCE = 2e-3
+YOUBOT = wbc.load_robot("youbot")
+NEUTRAL = YOUBOT.neutral()
+EE = YOUBOT.frame_pose(NEUTRAL, "ee")[:3, 3]
+LIMITS = (wbc.JointPositionLimits(), wbc.JointVelocityLimits())
+
+
+def _closest(oracle, excluded, q):
+    """The smallest coal distance over the pairs the constraint covers (excluded pairs left out)."""
+    return min(d for key, d in oracle.distances(q).items() if key not in excluded)
+
+
+def _excluded(robot):
+    return {frozenset((e.link_a, e.link_b)) for e in RobotGeometry(robot).excluded}
+
+
+def _run(controller, q, ticks, oracle, excluded):
+    """Closed loop (Euler); the coal distance after every tick and the statuses seen."""
+    closest, statuses = [], set()
+    for _ in range(ticks):
+        q = controller.robot.integrate(q, controller.step(q), 0.01)
+        statuses.add(controller.last.status)
+        closest.append(_closest(oracle, excluded, q))
+    return q, np.array(closest), statuses
+
+
+def _reach(target, avoidance, solver="daqp"):
+    ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.0, gain=0.5, max_speed=0.5)
+    pose = YOUBOT.frame_pose(NEUTRAL, "ee")
+    pose[:3, 3] = target
+    ee.set_target(pose)
+    constraints = [*LIMITS, avoidance] if avoidance is not None else list(LIMITS)
+    return wbc.Controller(YOUBOT, [ee, wbc.PostureTask(cost=1e-3, gain=0.05)], constraints, solver=solver)
+
+
+def test_rows_are_the_velocity_damper_of_each_close_pair():
+    sphere = wbc.Sphere(EE + (0.1, 0.0, 0.0), 0.05)
+    avoidance = wbc.CollisionAvoidance([sphere], min_distance=0.02, detection_distance=0.3, gain=0.4)
+    data = avoidance.bind(YOUBOT)
+    n = data.n_inequalities
+    rows = ConstraintRows(np.full(YOUBOT.nv, -np.inf), np.full(YOUBOT.nv, np.inf), np.full((n, YOUBOT.nv), 7.0),
+                          np.full(n, 7.0), np.zeros((0, YOUBOT.nv)), np.zeros(0))
+    data.write_static(rows)
+    kin = Kinematics(YOUBOT)
+    q = YOUBOT.random_configuration(np.random.default_rng(5), base_range=0.2) * 0.3
+    kin.update(q)
+    dt = 0.02
+    data.compute(kin, dt, rows)
+    count = data.pairs.count
+    assert 0 < count < n
+    oracle = Oracle(YOUBOT, [sphere]).distances(q)
+    for i, label in enumerate(data.active_labels()):
+        key = frozenset(label.replace("sphere0", "obstacle0").split("↔"))
+        # the oracle has the closest shapes of the two links (the gripper has two shapes)
+        assert data.pairs.distance[i] >= oracle[key] - 1e-6
+        assert rows.h[i] == pytest.approx(0.4 * (data.pairs.distance[i] - 0.02) / dt)
+        np.testing.assert_array_equal(rows.G[i], -data.pairs.rows[i])
+    assert np.all(rows.G[count:] == 0.0) and np.all(rows.h[count:] == 1.0)  # inert: 0 <= 1
+
+
+def test_every_pair_within_detection_gets_a_row_and_no_other():
+    sphere = wbc.Sphere(EE + (0.15, 0.0, 0.0), 0.05)
+    avoidance = wbc.CollisionAvoidance([sphere], detection_distance=0.12)
+    controller = _reach(EE, avoidance)
+    data = controller.data(avoidance)
+    controller.step(NEUTRAL)
+    expected = {key for key, d in Oracle(YOUBOT, [sphere]).distances(NEUTRAL).items()
+                if d < 0.12 and key not in _excluded(YOUBOT)}
+    found = {frozenset(label.replace("sphere0", "obstacle0").split("↔")) for label in data.active_labels()}
+    assert found == expected and len(expected) >= 2
+
+
+def test_the_row_count_is_fixed():
+    sphere = wbc.Sphere((5.0, 0.0, 0.0), 0.1)
+    avoidance = wbc.CollisionAvoidance([sphere])
+    controller = _reach(EE + (0.2, 0.0, -0.2), avoidance)
+    data = controller.data(avoidance)
+    geometry = RobotGeometry(YOUBOT)
+    candidates = len(geometry.pairs) + geometry.size  # self pairs + every moving shape against the sphere
+    assert data.n_inequalities == candidates
+    q = NEUTRAL.copy()
+    for _ in range(3):
+        q = YOUBOT.integrate(q, controller.step(q), 0.01)
+    assert data.pairs.count == data.distances.compute(q, data.distances.buffers())  # far sphere: self pairs only
+    sphere.center = EE  # moved between ticks: now in contact with the gripper
+    controller.step(q)
+    assert any("sphere0" in label for label in data.active_labels())
+    assert data.n_inequalities == candidates
+
+
+@pytest.mark.parametrize("solver", wbc.available_solvers())
+def test_gripper_path_straight_through_a_sphere_keeps_the_margin(solver):
+    sphere = wbc.Sphere(EE + (0.15, 0.0, -0.05), 0.05)
+    target = EE + (0.3, 0.0, -0.1)  # the straight path passes through the sphere's centre
+    oracle, excluded = Oracle(YOUBOT, [sphere]), _excluded(YOUBOT)
+    q, closest, statuses = _run(_reach(target, wbc.CollisionAvoidance([sphere])), NEUTRAL, 300, oracle, excluded)
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+    assert "optimal" in statuses  # (ProxQP: a few ticks from the elastic fallback, 1e-6 off optimal)
+    assert np.linalg.norm(YOUBOT.frame_pose(q, "ee")[:3, 3] - target) < 1e-3  # it went around
+    _, unguarded, _ = _run(_reach(target, None), NEUTRAL, 300, oracle, excluded)
+    assert unguarded.min() < 0.0  # without the constraint the gripper goes through the sphere
+
+
+@pytest.mark.parametrize("target", [(1.5, 2.5, 0.0), (1.5, 1.2, 1.5), (-1.1, -2.5, -1.7)])
+def test_youbot_arm_folded_onto_its_platform_stops_short(target):
+    posture = wbc.PostureTask(cost=1.0, gain=0.3, target=np.array([0, 0, 0, 0, *target, 0.0]))
+    oracle, excluded = Oracle(YOUBOT, []), _excluded(YOUBOT)
+    guarded = wbc.Controller(YOUBOT, [posture], [*LIMITS, wbc.CollisionAvoidance()])
+    _, closest, _ = _run(guarded, NEUTRAL, 250, oracle, excluded)
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+    assert closest[-1] < MIN_DISTANCE + 0.01  # it went as far as the margin lets it
+    _, unguarded, _ = _run(wbc.Controller(YOUBOT, [posture], list(LIMITS)), NEUTRAL, 250, oracle, excluded)
+    assert unguarded.min() < 0.0
+
+
+@pytest.mark.parametrize("solver", ["daqp", "quadprog"])
+def test_a_robot_inside_the_margin_is_pushed_out(solver):
+    sphere = wbc.Sphere(EE + (0.05, 0.0, -0.06), 0.05)  # overlaps the gripper from the side: d < 0
+    oracle, excluded = Oracle(YOUBOT, [sphere]), _excluded(YOUBOT)
+    start = _closest(oracle, excluded, NEUTRAL)
+    assert start < 0.0
+    hold = wbc.PostureTask(cost=1e-2, gain=0.5, target=NEUTRAL)  # pulls back toward the start
+    controller = wbc.Controller(YOUBOT, [hold], [*LIMITS, wbc.CollisionAvoidance([sphere])], solver=solver)
+    _, closest, _ = _run(controller, NEUTRAL, 100, oracle, excluded)
+    assert closest[0] > start  # moving from the first tick on, not frozen
+    assert closest[-1] >= MIN_DISTANCE - TOLERANCE
+    later = np.flatnonzero(closest >= MIN_DISTANCE - TOLERANCE)[0]
+    assert np.all(closest[later:] >= MIN_DISTANCE - TOLERANCE)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
+@given(st.floats(0.05, 0.3), st.floats(-0.15, 0.15), st.floats(-0.25, 0.05), st.floats(0.03, 0.1),
+       st.sampled_from(["sphere", "box", "capsule"]))
+def test_random_obstacles_are_never_entered(x, y, z, size, kind):
+    centre = EE + (x, y, z)
+    if kind == "sphere":
+        obstacle = wbc.Sphere(centre, size)
+    elif kind == "box":
+        pose = np.eye(4)
+        pose[:3, 3] = centre
+        obstacle = wbc.Box(pose, (size, 2 * size, size))
+    else:
+        obstacle = wbc.Capsule(centre - (0.0, size, 0.0), centre + (0.0, size, 0.0), size / 2)
+    oracle, excluded = Oracle(YOUBOT, [obstacle]), _excluded(YOUBOT)
+    if _closest(oracle, excluded, NEUTRAL) < MIN_DISTANCE:
+        return  # starts inside the margin: test_a_robot_inside_the_margin_is_pushed_out
+    controller = _reach(EE + (0.3, 0.0, -0.15), wbc.CollisionAvoidance([obstacle]))
+    _, closest, _ = _run(controller, NEUTRAL, 150, oracle, excluded)
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+
+
+def test_moving_obstacle_pushes_the_arm_away():
+    sphere = wbc.Sphere(EE + (0.3, 0.0, 0.0), 0.05)
+    hold = wbc.PostureTask(cost=1e-2, gain=0.5, target=NEUTRAL)
+    controller = wbc.Controller(YOUBOT, [hold], [*LIMITS, wbc.CollisionAvoidance([sphere])])
+    oracle_q, q = [], NEUTRAL.copy()
+    for k in range(150):
+        sphere.center = EE + (0.3 - 0.002 * k, 0.0, 0.0)  # 0.2 m/s toward the gripper
+        q = YOUBOT.integrate(q, controller.step(q), 0.01)
+        oracle_q.append(_closest(Oracle(YOUBOT, [sphere]), _excluded(YOUBOT), q))
+    # the damper assumes a still obstacle: the approach speed of 2 mm per tick is the slack it needs
+    assert min(oracle_q) >= MIN_DISTANCE - TOLERANCE - 0.002
+    assert _closest(Oracle(YOUBOT, [sphere]), _excluded(YOUBOT), NEUTRAL) < 0.0  # it would have been hit
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(wbc.InvalidInputError, match="min_distance"):
+        wbc.CollisionAvoidance(min_distance=-0.01)
+    with pytest.raises(wbc.InvalidInputError, match="below detection_distance"):
+        wbc.CollisionAvoidance(min_distance=0.3, detection_distance=0.2)
+    with pytest.raises(wbc.InvalidInputError, match="gain"):
+        wbc.CollisionAvoidance(gain=0.0)
+    with pytest.raises(wbc.InvalidInputError, match="obstacles"):
+        wbc.CollisionAvoidance(obstacles=[(0, 0, 0)])
+    with pytest.raises(wbc.InvalidInputError, match="self_collision"):
+        wbc.CollisionAvoidance(self_collision="yes")
+    with pytest.raises(wbc.InvalidInputError, match="capacity"):
+        wbc.CollisionAvoidance(capacity=0)
+    with pytest.raises(wbc.InvalidInputError, match="Sphere center"):
+        wbc.Sphere((np.nan, 0, 0), 0.1)
+    with pytest.raises(wbc.InvalidInputError, match="Sphere radius"):
+        wbc.Sphere((0, 0, 0), -0.1)
+    with pytest.raises(wbc.InvalidInputError, match="Box size"):
+        wbc.Box(np.eye(4), (0.1, 0.0, 0.1))
+    with pytest.raises(wbc.InvalidInputError, match="Plane normal"):
+        wbc.Plane((0, 0, 0), 1.0)
+    avoidance = wbc.CollisionAvoidance()
+    with pytest.raises(wbc.InvalidInputError, match="below detection_distance"):
+        avoidance.min_distance = 0.5
+    assert avoidance.min_distance == 0.02  # unchanged
+    sphere = wbc.Sphere((0, 0, 0), 0.1)
+    with pytest.raises(wbc.InvalidInputError, match="Sphere center"):
+        sphere.center = (0, np.inf, 0)
+    np.testing.assert_array_equal(sphere.center, (0, 0, 0))  # kept its place
+
+
+def test_a_urdf_without_collision_geometry_is_refused_when_the_controller_is_built(tmp_path):
+    source = Path(YOUBOT.source).read_text()
+    (tmp_path / "bare.urdf").write_text(re.sub(r"<collision>\s*<.*?</collision>", "", source, flags=re.S))
+    bare = wbc.load_robot(tmp_path / "bare.urdf")
+    with pytest.raises(wbc.ModelError, match="no collision geometry"):
+        wbc.Controller(bare, [wbc.PostureTask(cost=1.0)], [wbc.CollisionAvoidance()])
+
+
+def test_copies_carry_their_own_obstacles():
+    sphere = wbc.Sphere((0.5, 0.0, 0.3), 0.1)
+    avoidance = wbc.CollisionAvoidance([sphere], min_distance=0.05)
+    for duplicate in (copy.deepcopy(avoidance), pickle.loads(pickle.dumps(avoidance))):
+        assert duplicate.min_distance == 0.05 and duplicate.obstacles[0].radius == 0.1
+        duplicate.obstacles[0].center = (1.0, 0.0, 0.0)
+        np.testing.assert_array_equal(sphere.center, (0.5, 0.0, 0.3))
+
+
+def test_strict_priorities_keep_the_margin():
+    sphere = wbc.Sphere(EE + (0.15, 0.0, -0.05), 0.05)
+    ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.0, gain=0.5, max_speed=0.5)
+    pose = YOUBOT.frame_pose(NEUTRAL, "ee")
+    pose[:3, 3] = EE + (0.3, 0.0, -0.1)
+    ee.set_target(pose)
+    controller = wbc.Controller(YOUBOT, [[ee], [wbc.PostureTask(cost=1e-3, gain=0.05)]],
+                                [*LIMITS, wbc.CollisionAvoidance([sphere])])
+    q, closest, _ = _run(controller, NEUTRAL, 300, Oracle(YOUBOT, [sphere]), _excluded(YOUBOT))
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+    assert np.linalg.norm(YOUBOT.frame_pose(q, "ee")[:3, 3] - pose[:3, 3]) < 1e-3
+
+
+@pytest.mark.parametrize("reduced", [False, True])
+def test_nonholonomic_base_keeps_the_margin(reduced):
+    robot = wbc.load_robot("deluca_mm")  # synchro base: the reduced form solves over its real inputs
+    q0 = robot.neutral()
+    wrist = robot.frame_pose(q0, "wrist_center")[:3, 3]
+    sphere = wbc.Sphere(wrist + (0.3, 0.0, 0.0), 0.08)  # ahead of the wrist, on the way to its target
+    reach = wbc.PositionTask("wrist_center", cost=1.0, gain=0.3, max_speed=0.5)
+    reach.set_target(wrist + (0.6, 0.0, 0.0))
+    tasks = [reach, wbc.PostureTask(cost=1e-3, gain=0.05), wbc.SteeringTask(cost=1e-2, gain=1.0, speed_scale=0.5)]
+    constraints = [*LIMITS, wbc.NonholonomicBase(), wbc.CollisionAvoidance([sphere])]
+    controller = wbc.Controller(robot, tasks, constraints, reduced=reduced)
+    oracle, excluded = Oracle(robot, [sphere]), _excluded(robot)
+    _, closest, _ = _run(controller, q0, 400, oracle, excluded)
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+    unguarded = wbc.Controller(robot, tasks, constraints[:-1], reduced=reduced)
+    _, through, _ = _run(unguarded, q0, 400, oracle, excluded)
+    assert through.min() < 0.0
+
+
+def test_rows_written_into_a_strided_block_are_the_same():
+    """A controller's G block that is not C-contiguous gets the same rows (through a buffer)."""
+    sphere = wbc.Sphere(EE + (0.1, 0.0, 0.0), 0.05)
+    data = wbc.CollisionAvoidance([sphere]).bind(YOUBOT)
+    n, nv = data.n_inequalities, YOUBOT.nv
+    kin = Kinematics(YOUBOT)
+    kin.update(NEUTRAL)
+    blocks = []
+    for G in (np.zeros((n, nv)), np.zeros((n, 2 * nv))[:, ::2]):
+        rows = ConstraintRows(np.zeros(nv), np.zeros(nv), G, np.zeros(n), np.zeros((0, nv)), np.zeros(0))
+        data.compute(kin, 0.01, rows)
+        blocks.append((G.copy(), rows.h.copy()))
+    np.testing.assert_array_equal(blocks[0][0], blocks[1][0])
+    np.testing.assert_array_equal(blocks[0][1], blocks[1][1])
+    assert np.any(blocks[0][0] != 0.0)

@@ -1,0 +1,68 @@
+"""tasks/youbot_obstacle.toml and CollisionAvoidance in scenario files: the run keeps the margin
+(coal on the URDF's raw shapes as the oracle, every tick), obstacle tables are checked."""
+
+import numpy as np
+import pytest
+
+import wbc
+from conftest import TASKS
+from test_collision_avoidance import MIN_DISTANCE, TOLERANCE, _excluded
+from test_collision_distances import Oracle
+from wbc import closed_loop
+from wbc.app.scenario import load_scenario
+
+SCENARIO = TASKS / "youbot_obstacle.toml"
+
+
+def _closest_per_tick(scenario, obstacles, qs):
+    oracle, excluded = Oracle(scenario.robot, obstacles), _excluded(scenario.robot)
+    return np.array([min(d for key, d in oracle.distances(q).items() if key not in excluded) for q in qs])
+
+
+def test_youbot_obstacle_goes_around_the_ball():
+    scenario = load_scenario(SCENARIO)
+    avoidance = scenario.constraints[-1]
+    assert isinstance(avoidance, wbc.CollisionAvoidance)
+    assert [type(o).__name__ for o in avoidance.obstacles] == ["Sphere", "Box", "Plane"]
+    assert avoidance.obstacles[0].name == "ball" and avoidance.obstacles[0].radius == 0.05
+    result = closed_loop.run(scenario)
+    closest = _closest_per_tick(scenario, avoidance.obstacles, result.q)
+    assert closest.min() >= MIN_DISTANCE - TOLERANCE
+    assert result.fallback_ticks == 0
+    end = scenario.robot.frame_pose(result.q[-1], "ee")[:3, 3]
+    np.testing.assert_allclose(end, (0.9, 0.0, 0.1), atol=0.01)  # the goal behind the ball
+
+
+def test_without_the_constraint_the_gripper_goes_through_the_ball():
+    scenario = load_scenario(SCENARIO)
+    obstacles = scenario.constraints.pop().obstacles
+    result = closed_loop.run(scenario)
+    assert _closest_per_tick(scenario, obstacles, result.q).min() < 0.0
+
+
+@pytest.mark.parametrize(("obstacle", "message"), [
+    ('{ type = "Cube", center = [0, 0, 0] }', "type 'Cube' unknown"),
+    ('{ type = "Sphere", center = [0.7, 0, 0.1] }', "required key 'radius' missing"),
+    ('{ type = "Sphere", center = [0.7, 0, 0.1], radius = 0.05, colour = 1 }', "unknown key 'colour'"),
+    ('{ type = "Sphere", center = [nan, 0, 0.1], radius = 0.05 }', "Sphere center"),
+    ('{ type = "Box", center = [0.7, 0, 0.1], size = [0.1, -0.1, 0.1] }', "Box size"),
+    ('{ type = "Plane", normal = [0, 0, 0], offset = 0.0 }', "Plane normal"),
+    ('"ball"', "expected a table"),
+])
+def test_bad_obstacle_tables_name_the_entry(tmp_path, obstacle, message):
+    text = SCENARIO.read_text()
+    start = text.index("obstacles = [")
+    end = text.index("]\n\n[reference]")
+    path = tmp_path / "bad.toml"
+    path.write_text(text[:start] + f"obstacles = [{obstacle}" + text[end:])
+    with pytest.raises(wbc.ScenarioError, match=r"\[\[constraints\]\] #4 \(CollisionAvoidance\).*obstacles\[0\]"):
+        load_scenario(path)
+    with pytest.raises(wbc.ScenarioError, match=message):
+        load_scenario(path)
+
+
+def test_bad_collision_settings_are_scenario_errors(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text(SCENARIO.read_text().replace("min_distance = 0.02 ", "min_distance = 0.5 "))
+    with pytest.raises(wbc.ScenarioError, match="below detection_distance"):
+        load_scenario(path)

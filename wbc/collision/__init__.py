@@ -1,0 +1,23 @@
+"""Collision geometry: the robot's collision shapes, obstacles, signed distances with their
+gradient rows.
+
+* :mod:`~wbc.collision.geometry` -- :class:`RobotGeometry`: the URDF's ``<collision>`` shapes and
+  the robot's self-collision pairs.
+* :mod:`~wbc.collision.obstacles` -- :class:`Sphere`, :class:`Box`, :class:`Capsule`,
+  :class:`Plane` in the world frame, movable between ticks.
+* :mod:`~wbc.collision.distances` -- :class:`Distances`: per configuration, every pair closer than
+  a detection distance, its signed distance, witness points and row ``grad d(q)^T``.
+* :mod:`~wbc.collision.avoidance` -- :class:`CollisionAvoidance`: the constraint of the control
+  QP, a velocity damper per pair.
+
+Only the compiled kernels (:mod:`~wbc.collision.kernels`) import numba, when a :class:`Distances`
+is first built.
+"""
+
+from .avoidance import CollisionAvoidance, CollisionAvoidanceData
+from .distances import Distances, PairBuffers
+from .geometry import ExcludedPair, RobotGeometry
+from .obstacles import Box, Capsule, Obstacle, Plane, Sphere
+
+__all__ = ["CollisionAvoidance", "CollisionAvoidanceData", "RobotGeometry", "ExcludedPair", "Obstacle", "Sphere",
+           "Box", "Capsule", "Plane", "Distances", "PairBuffers"]

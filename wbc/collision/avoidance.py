@@ -1,0 +1,184 @@
+"""Collision avoidance as a constraint of the control QP: a velocity damper on every pair of
+shapes closer than a detection distance."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
+from ..core.errors import InvalidInputError
+from ..core.settings import Setting
+from ..core.validation import as_flag, as_gain, as_items, as_nonnegative, as_positive
+from ..model.kinematics import Kinematics
+from ..model.robot import Robot
+from .distances import Distances, PairBuffers, fill_kinematics
+from .geometry import RobotGeometry
+from .obstacles import Obstacle
+
+#: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
+#: value of ``wbc.collision.kernels.INERT``, which imports numba)
+INERT = 1.0
+
+
+class CollisionAvoidance(Constraint):
+    """Keep every pair of collision shapes at least ``min_distance`` apart: the robot's own
+    shapes (``self_collision``) and the robot against ``obstacles`` (world frame, movable
+    between ticks). One inequality row per pair closer than ``detection_distance``, the
+    velocity damper on the signed distance d of the pair (witness points ``w_a``, ``w_b``,
+    unit normal n from a to b)::
+
+        d_dot = n . (J_b(w_b) - J_a(w_a)) v  >=  -gain (d - min_distance) / dt
+
+    With Euler integration, to first order ``d+ - min_distance >= (1 - gain)(d - min_distance)``:
+    the margin shrinks at most geometrically and never changes sign, so d never drops below
+    ``min_distance`` (up to the second-order term, ``O(dt^2 |v|^2)`` per tick, as for
+    :class:`~wbc.ManipulabilityBarrier`). A robot that starts closer than ``min_distance`` (or
+    in contact, d < 0) gets ``d_dot >= gain (min_distance - d) / dt > 0``: it is pushed out at
+    that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
+    limits in the controller's elastic fallback when both cannot hold.
+
+    **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
+    = ``capacity`` (default: every candidate pair, so no pair within ``detection_distance`` is
+    ever left out); each tick the pairs within ``detection_distance`` fill the first rows and the
+    others are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and
+    nothing is allocated. With a smaller ``capacity``, the closest pairs get the rows.
+
+    Args:
+        obstacles: :class:`~wbc.Sphere`, :class:`~wbc.Box`, :class:`~wbc.Capsule`,
+            :class:`~wbc.Plane` objects; move them between ticks with their setters.
+        self_collision: also keep the robot's own non-adjacent links apart
+            (:class:`~wbc.collision.RobotGeometry`: adjacent and always-touching pairs excluded).
+        min_distance: [m] >= 0, the distance the pairs keep.
+        detection_distance: [m] > ``min_distance``: pairs farther apart get no row (a bounding-
+            sphere broad phase skips them at ~10 flops each).
+        gain: fraction (0, 1] of the margin ``d - min_distance`` that one tick may consume.
+        capacity: rows of the constraint (None: one per candidate pair).
+        srdf: an SRDF whose ``<disable_collisions>`` pairs are excluded too.
+
+    Raises:
+        InvalidInputError: an argument out of range (named), ``min_distance`` not below
+            ``detection_distance``, obstacles that are not obstacles.
+        ModelError: when a controller is built, a robot whose URDF has no ``<collision>``
+            elements (the message says how to add them).
+    """
+
+    gain = Setting(as_gain)
+    hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
+
+    def __init__(self, obstacles: Sequence[Obstacle] = (), self_collision: bool = True, min_distance: float = 0.02,
+                 detection_distance: float = 0.3, gain: float = 0.5, capacity: int | None = None,
+                 srdf: str | Path | None = None, name: str | None = None) -> None:
+        super().__init__(name)
+        self.obstacles = as_items(list(obstacles) if isinstance(obstacles, tuple) else obstacles, Obstacle,
+                                  "obstacles")
+        self.self_collision = as_flag(self_collision, "self_collision")
+        self._min_distance = as_nonnegative(min_distance, "min_distance")
+        self._detection_distance = as_positive(detection_distance, "detection_distance")
+        _check_margins(self._min_distance, self._detection_distance)
+        self.gain = gain
+        if capacity is not None and (isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1):
+            raise InvalidInputError(f"capacity must be None or an int >= 1, got {capacity!r}")
+        self.capacity = capacity
+        self.srdf = srdf
+
+    @property
+    def min_distance(self) -> float:
+        """[m] the distance every pair keeps; below :attr:`detection_distance`."""
+        return self._min_distance
+
+    @min_distance.setter
+    def min_distance(self, value: float) -> None:
+        value = as_nonnegative(value, "min_distance")
+        _check_margins(value, self._detection_distance)
+        self._min_distance = value
+
+    @property
+    def detection_distance(self) -> float:
+        """[m] pairs farther apart get no row; above :attr:`min_distance`."""
+        return self._detection_distance
+
+    @detection_distance.setter
+    def detection_distance(self, value: float) -> None:
+        value = as_positive(value, "detection_distance")
+        _check_margins(self._min_distance, value)
+        self._detection_distance = value
+
+    def bind(self, robot: Robot) -> CollisionAvoidanceData:
+        return CollisionAvoidanceData(self, robot)
+
+    def __repr__(self) -> str:
+        return (f"CollisionAvoidance(obstacles={self.obstacles!r}, self_collision={self.self_collision}, "
+                f"min_distance={self.min_distance}, detection_distance={self.detection_distance}, gain={self.gain})")
+
+
+def _check_margins(min_distance: float, detection_distance: float) -> None:
+    if not min_distance < detection_distance:
+        raise InvalidInputError(f"min_distance ({min_distance} m) must be below detection_distance "
+                                f"({detection_distance} m): a pair must get its row before it reaches the margin")
+
+
+class CollisionAvoidanceData(ConstraintData):
+    """:class:`CollisionAvoidance` in one controller: the robot's shapes and the obstacles'
+    (:class:`~wbc.collision.Distances`) and this tick's pairs (:attr:`pairs`)."""
+
+    constraint: CollisionAvoidance
+
+    def __init__(self, avoidance: CollisionAvoidance, robot: Robot) -> None:
+        super().__init__(avoidance)
+        geometry = RobotGeometry(robot, srdf=avoidance.srdf)
+        self.distances = Distances(robot, avoidance.obstacles, avoidance.self_collision,
+                                   avoidance.detection_distance, avoidance.capacity, geometry)
+        self.n_inequalities = self.distances.capacity
+        #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
+        self.pairs: PairBuffers = self.distances.buffers()
+        #: (detection_distance, min_distance, gain), copied from the constraint every tick
+        self._settings = np.zeros(3)
+        self._G = np.zeros((self.n_inequalities, robot.nv))  # used when the controller's G rows are not C-contiguous
+        # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
+        self._placements = np.zeros((robot.model.njoints, 12))
+        self._jacobians_t = np.zeros((robot.nv, 6))
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        rows.G[:] = 0.0
+        rows.h[:] = INERT
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        avoidance, distances, pairs = self.constraint, self.distances, self.pairs
+        settings = self._settings
+        settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
+        if kin.native:
+            placements, jacobians_t = kin.placements, kin.joint_jacobians.T
+        else:
+            placements, jacobians_t = self._placements, self._jacobians_t
+            fill_kinematics(kin.data, placements, jacobians_t)
+        G, h = rows.G, rows.h
+        if not G.flags.c_contiguous:  # the kernels write C-contiguous rows
+            G = self._G
+        kernels = distances._kernels
+        packed = kernels.avoidance_rows(distances.table, distances.pairs, placements, jacobians_t, distances._support,
+                                        distances._world, pairs.pair, pairs.distance, pairs.witness_a, pairs.witness_b,
+                                        pairs.normal, pairs.rows, pairs.pending, distances._scratch, G, h, settings, dt)
+        if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
+            pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
+            kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
+        else:
+            pairs.count = packed
+        if G is not rows.G:
+            rows.G[:] = G
+
+    @property
+    def min_distance(self) -> float:
+        """The smallest signed distance of the last tick [m] (inf when no pair was within the
+        detection distance)."""
+        count = self.pairs.count
+        return float(self.pairs.distance[:count].min()) if count else float("inf")
+
+    def active_labels(self) -> list[str]:
+        """The pairs of the last tick's rows, in row order (``"link↔link"``, ``"link↔sphere0"``)."""
+        return [self.distances.labels[k] for k in self.pairs.pair[:self.pairs.count].tolist()]
+
+    def row_labels(self) -> list[str]:
+        return [f"{self.name}[row {i}]" for i in range(self.n_inequalities)]

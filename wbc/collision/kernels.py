@@ -1,0 +1,549 @@
+"""Compiled (numba) distances between the shapes of :mod:`wbc.collision.layout`, and their
+gradient rows.
+
+One call, :func:`pair_distances`, does a tick's work for every candidate pair: the shapes' world
+poses from the joint placements, the broad phase (bounding spheres: a pair whose spheres are
+``detection`` apart or more costs ~10 flops), the exact signed distance of the pairs that pass
+(sphere, capsule and box against each other, and against a plane; any other pair is flagged for
+coal), and the row ``grad d(q)^T`` of each. Nothing is allocated: the results go into the
+caller's arrays, at most ``capacity`` pairs (when more are within ``detection``, the closest are
+kept).
+
+Conventions: joint placements and joint Jacobians in the layouts of
+:class:`wbc.model.kinematics.Kinematics` (``placements[j] = (R_j column-major (9), p_j (3))``,
+``jacobians_t[k] = (v_O (3), w (3))``: the motion of velocity coordinate k at the world origin, world
+axes, Pinocchio's ``data.J``). For a pair (a, b): ``d`` is the signed distance (< 0: penetration
+depth), ``normal`` the unit vector from a to b along which d grows when b moves, witness points
+``w_a`` on a and ``w_b`` on b with ``w_b - w_a = d * normal``, and the row
+
+    grad d . v = normal . (v_b(w_b) - v_a(w_a)),   v_x(p) = sum_{k in support(x)} (v_O,k + w_k x p) v_k
+
+(``normal . (w_k x p) = w_k . (p x normal)``). The first-order change of the distance of two
+rigid shapes is that of the witness points along the normal (any point on the normal line of
+either body gives the same value), so this is the exact gradient wherever d is differentiable.
+
+All jitted code of the collision package lives in this one file, and its cache follows the cache
+rule of :mod:`wbc.runtime.kernels` applied to this package's folder: numba keys a cached function on its
+own source file only, so the constants it reads from :mod:`wbc.collision.layout` are covered by a
+hash of every ``*.py`` file of ``wbc/collision/`` (:func:`wbc.runtime.kernels._cache.prepare`): any edit
+there recompiles these kernels.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from ..runtime.kernels import _cache
+from .layout import (
+    BOUND_CENTER,
+    BOUND_RADIUS,
+    BOX,
+    CAPSULE,
+    COAL,
+    HALF_EXTENTS,
+    HALF_LENGTH,
+    JOINT,
+    KIND,
+    PAIR_A,
+    PAIR_B,
+    PLANE,
+    RADIUS,
+)
+
+CACHE = _cache.prepare(Path(__file__).parent, ("kernels",)) is not None
+
+_HX, _BC = HALF_EXTENTS.start, BOUND_CENTER.start
+#: columns of a shape's world pose: rotation row-major (9), translation (3), bounding-sphere centre (3)
+POSE_COLUMNS = 15
+
+
+@njit("void(float64[:, ::1], float64[:, ::1], float64[:, ::1])", cache=CACHE, nogil=True)
+def world_poses(table, placements, world):
+    """``world[s] = (R row-major (9), p (3), bounding centre (3))``: each shape's world pose."""
+    for s in range(table.shape[0]):
+        j = int(table[s, JOINT])
+        for a in range(3):
+            for b in range(3):
+                world[s, 3 * a + b] = (placements[j, a] * table[s, 2 + b] + placements[j, 3 + a] * table[s, 5 + b]
+                                       + placements[j, 6 + a] * table[s, 8 + b])
+        for a in range(3):
+            world[s, 9 + a] = (placements[j, a] * table[s, 11] + placements[j, 3 + a] * table[s, 12]
+                               + placements[j, 6 + a] * table[s, 13] + placements[j, 9 + a])
+        for a in range(3):
+            world[s, 12 + a] = (world[s, 9 + a] + world[s, 3 * a] * table[s, _BC] + world[s, 3 * a + 1]
+                                * table[s, _BC + 1] + world[s, 3 * a + 2] * table[s, _BC + 2])
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _segment(table, world, s):
+    """The core segment of a sphere (a point) or capsule ``s``, world: (x0, y0, z0, x1, y1, z1)."""
+    half = table[s, HALF_LENGTH] if table[s, KIND] == CAPSULE else 0.0
+    ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
+    return (world[s, 9] - ux, world[s, 10] - uy, world[s, 11] - uz,
+            world[s, 9] + ux, world[s, 10] + uy, world[s, 11] + uz)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _clamp01(x):
+    return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def segment_segment(p, ra, q, rb, out):
+    """Signed distance of two sphere-swept segments ``p = (x0, y0, z0, x1, y1, z1)`` (radius ra, a)
+    and ``q`` (rb, b): ``out[0:10] = (d, w_a (3), w_b (3), normal (3))``. Closest points of the
+    segments as in Ericson, Real-Time Collision Detection, section 5.1.9."""
+    d1x, d1y, d1z = p[3] - p[0], p[4] - p[1], p[5] - p[2]
+    d2x, d2y, d2z = q[3] - q[0], q[4] - q[1], q[5] - q[2]
+    rx, ry, rz = p[0] - q[0], p[1] - q[1], p[2] - q[2]
+    a = d1x * d1x + d1y * d1y + d1z * d1z
+    e = d2x * d2x + d2y * d2y + d2z * d2z
+    f = d2x * rx + d2y * ry + d2z * rz
+    if a <= 1e-24 and e <= 1e-24:
+        s = t = 0.0
+    elif a <= 1e-24:
+        s, t = 0.0, _clamp01(f / e)
+    else:
+        c = d1x * rx + d1y * ry + d1z * rz
+        if e <= 1e-24:
+            s, t = _clamp01(-c / a), 0.0
+        else:
+            b = d1x * d2x + d1y * d2y + d1z * d2z
+            denom = a * e - b * b
+            s = _clamp01((b * f - c * e) / denom) if denom > 1e-14 * a * e else 0.0
+            t = (b * s + f) / e
+            if t < 0.0:
+                t, s = 0.0, _clamp01(-c / a)
+            elif t > 1.0:
+                t, s = 1.0, _clamp01((b - c) / a)
+    ax, ay, az = p[0] + s * d1x, p[1] + s * d1y, p[2] + s * d1z
+    bx, by, bz = q[0] + t * d2x, q[1] + t * d2y, q[2] + t * d2z
+    nx, ny, nz = bx - ax, by - ay, bz - az
+    dist = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if dist > 1e-12:
+        nx, ny, nz = nx / dist, ny / dist, nz / dist
+    else:  # the cores meet: a direction across both (no unique normal there)
+        nx, ny, nz = d1y * d2z - d1z * d2y, d1z * d2x - d1x * d2z, d1x * d2y - d1y * d2x
+        norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if norm <= 1e-12:
+            ux, uy, uz = (d1x, d1y, d1z) if a > 1e-24 else (d2x, d2y, d2z)
+            nx, ny, nz = (0.0, -uz, uy) if abs(ux) < 0.9 else (-uy, ux, 0.0)
+            norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+            if norm <= 1e-12:
+                nx, ny, nz, norm = 0.0, 0.0, 1.0, 1.0
+        nx, ny, nz = nx / norm, ny / norm, nz / norm
+    out[0] = dist - ra - rb
+    out[1], out[2], out[3] = ax + ra * nx, ay + ra * ny, az + ra * nz
+    out[4], out[5], out[6] = bx - rb * nx, by - rb * ny, bz - rb * nz
+    out[7], out[8], out[9] = nx, ny, nz
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _box_sd(x, y, z, h):
+    """Signed distance of the point (x, y, z) to the box |x_i| <= h_i (local frame)."""
+    ex, ey, ez = abs(x) - h[0], abs(y) - h[1], abs(z) - h[2]
+    if ex <= 0.0 and ey <= 0.0 and ez <= 0.0:
+        return max(ex, max(ey, ez))
+    ex, ey, ez = max(ex, 0.0), max(ey, 0.0), max(ez, 0.0)
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _segment_box_parameter(a, d, h, scratch):
+    """The t in [0, 1] that minimises the box's signed distance along a + t d (box frame;
+    a, d, h: 3-tuples; scratch: >= 40 floats).
+
+    The signed distance of a convex set is convex, so along the segment it is a convex piecewise
+    smooth function of t: its minimum lies at an end, a kink or a stationary point of a smooth
+    piece. Kinks: the face planes x_i = +-h_i (6) and, inside, where two of the six linear
+    functions +-x_i(t) - h_i are equal (15); outside, each piece between consecutive face
+    crossings is the root of a quadratic (its vertex). All candidates are evaluated."""
+    n = 2
+    scratch[0] = 0.0
+    scratch[1] = 1.0
+    for i in range(3):
+        if d[i] != 0.0:
+            for sign in (-1.0, 1.0):
+                t = (sign * h[i] - a[i]) / d[i]
+                if 0.0 < t < 1.0:
+                    scratch[n] = t
+                    n += 1
+    crossings = n
+    # outside pieces: the crossings sorted with the ends (insertion sort, at most 8 values) ...
+    for k in range(1, crossings):
+        value = scratch[k]
+        m = k - 1
+        while m >= 0 and scratch[m] > value:
+            scratch[m + 1] = scratch[m]
+            m -= 1
+        scratch[m + 1] = value
+    # ... and on each, the vertex of |x - clamp(x)|^2 (a quadratic in t)
+    for k in range(crossings - 1):
+        low, high = scratch[k], scratch[k + 1]
+        if high <= low:
+            continue
+        middle = 0.5 * (low + high)
+        num = 0.0
+        den = 0.0
+        for i in range(3):
+            x = a[i] + middle * d[i]
+            if x > h[i]:
+                num += (a[i] - h[i]) * d[i]
+                den += d[i] * d[i]
+            elif x < -h[i]:
+                num += (a[i] + h[i]) * d[i]
+                den += d[i] * d[i]
+        if den > 0.0:
+            t = -num / den
+            scratch[n] = low if t < low else (high if t > high else t)
+            n += 1
+    # inside: where two of the six distances s x_i(t) - h_i (s = +-1) are equal
+    for k in range(6):
+        i, s = k // 2, 1.0 - 2.0 * (k % 2)
+        for m in range(k + 1, 6):
+            j, u = m // 2, 1.0 - 2.0 * (m % 2)
+            slope = s * d[i] - u * d[j]
+            if slope != 0.0:
+                t = (u * a[j] - h[j] - s * a[i] + h[i]) / slope
+                if 0.0 < t < 1.0:
+                    scratch[n] = t
+                    n += 1
+    best_t, best = 0.0, np.inf
+    for k in range(n):
+        t = scratch[k]
+        value = _box_sd(a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2], h)
+        if value < best:
+            best, best_t = value, t
+    return best_t
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def box_segment(table, world, box, p, radius, out, scratch):
+    """Signed distance of box ``box`` (a) and the sphere-swept segment ``p`` of ``radius`` (b,
+    world): ``out`` as in :func:`segment_segment`."""
+    h = (table[box, _HX], table[box, _HX + 1], table[box, _HX + 2])
+    cx, cy, cz = world[box, 9], world[box, 10], world[box, 11]
+    # a = R^T (p0 - c), d = R^T (p1 - p0)
+    a = (world[box, 0] * (p[0] - cx) + world[box, 3] * (p[1] - cy) + world[box, 6] * (p[2] - cz),
+         world[box, 1] * (p[0] - cx) + world[box, 4] * (p[1] - cy) + world[box, 7] * (p[2] - cz),
+         world[box, 2] * (p[0] - cx) + world[box, 5] * (p[1] - cy) + world[box, 8] * (p[2] - cz))
+    ux, uy, uz = p[3] - p[0], p[4] - p[1], p[5] - p[2]
+    d = (world[box, 0] * ux + world[box, 3] * uy + world[box, 6] * uz,
+         world[box, 1] * ux + world[box, 4] * uy + world[box, 7] * uz,
+         world[box, 2] * ux + world[box, 5] * uy + world[box, 8] * uz)
+    t = _segment_box_parameter(a, d, h, scratch)
+    x, y, z = a[0] + t * d[0], a[1] + t * d[1], a[2] + t * d[2]
+    sd = _box_sd(x, y, z, h)
+    qx, qy, qz = min(max(x, -h[0]), h[0]), min(max(y, -h[1]), h[1]), min(max(z, -h[2]), h[2])
+    if sd > 0.0:
+        nx, ny, nz = (x - qx) / sd, (y - qy) / sd, (z - qz) / sd
+    else:  # inside: out through the nearest face
+        ex, ey, ez = abs(x) - h[0], abs(y) - h[1], abs(z) - h[2]
+        nx = ny = nz = 0.0
+        if ex >= ey and ex >= ez:
+            nx = 1.0 if x >= 0.0 else -1.0
+            qx = nx * h[0]
+        elif ey >= ez:
+            ny = 1.0 if y >= 0.0 else -1.0
+            qy = ny * h[1]
+        else:
+            nz = 1.0 if z >= 0.0 else -1.0
+            qz = nz * h[2]
+    out[0] = sd - radius
+    for m in range(3):
+        normal = world[box, 3 * m] * nx + world[box, 3 * m + 1] * ny + world[box, 3 * m + 2] * nz
+        out[1 + m] = (world[box, 9 + m] + world[box, 3 * m] * qx + world[box, 3 * m + 1] * qy
+                      + world[box, 3 * m + 2] * qz)
+        out[4 + m] = p[m] + t * (p[3 + m] - p[m]) - radius * normal
+        out[7 + m] = normal
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def segment_plane(p, radius, world, plane, out):
+    """A sphere-swept segment ``p`` (a) and the half-space below plane ``plane`` (b): ``out`` as above."""
+    nx, ny, nz = world[plane, 2], world[plane, 5], world[plane, 8]
+    ox, oy, oz = world[plane, 9], world[plane, 10], world[plane, 11]
+    ha = nx * (p[0] - ox) + ny * (p[1] - oy) + nz * (p[2] - oz)
+    hb = nx * (p[3] - ox) + ny * (p[4] - oy) + nz * (p[5] - oz)
+    k, height = (0, ha) if ha <= hb else (3, hb)
+    out[0] = height - radius
+    out[1], out[2], out[3] = p[k] - radius * nx, p[k + 1] - radius * ny, p[k + 2] - radius * nz
+    out[4], out[5], out[6] = p[k] - height * nx, p[k + 1] - height * ny, p[k + 2] - height * nz
+    out[7], out[8], out[9] = -nx, -ny, -nz
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def box_plane(table, world, box, plane, out):
+    """Box ``box`` (a) and the half-space below plane ``plane`` (b): the box's vertex deepest
+    along -normal, ``c - sum_i h_i sign(n . R_i) R_i``."""
+    nx, ny, nz = world[plane, 2], world[plane, 5], world[plane, 8]
+    for m in range(3):
+        out[1 + m] = world[box, 9 + m]
+    for i in range(3):
+        along = nx * world[box, i] + ny * world[box, 3 + i] + nz * world[box, 6 + i]
+        step = -table[box, _HX + i] if along > 0.0 else table[box, _HX + i]
+        for m in range(3):
+            out[1 + m] += step * world[box, 3 * m + i]
+    height = nx * (out[1] - world[plane, 9]) + ny * (out[2] - world[plane, 10]) + nz * (out[3] - world[plane, 11])
+    out[0] = height
+    out[4], out[5], out[6] = out[1] - height * nx, out[2] - height * ny, out[3] - height * nz
+    out[7], out[8], out[9] = -nx, -ny, -nz
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _flip(out):
+    """Swap the roles of a and b in ``out``."""
+    for m in range(3):
+        out[1 + m], out[4 + m] = out[4 + m], out[1 + m]
+        out[7 + m] = -out[7 + m]
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def box_box(table, world, a, b, out, scratch):
+    """Two boxes that do not overlap: ``out`` as in :func:`segment_segment`, False when they
+    overlap (coal measures the penetration). The closest points of two disjoint convex polytopes
+    include a point on an edge of one of them (vertex-face, edge-edge; a face-face contact
+    contains an edge's point too), so the distance is the smallest of the 24 edge-to-box
+    distances (:func:`box_segment` with radius 0, exact). ``scratch``: >= 42 floats."""
+    best = np.inf
+    edge = scratch[32:42]
+    for which in range(2):
+        src, box = (a, b) if which == 0 else (b, a)
+        for axis in range(3):
+            j, k = (axis + 1) % 3, (axis + 2) % 3
+            for corner in range(4):
+                local_j = table[src, _HX + j] * (1.0 if corner & 1 else -1.0)
+                local_k = table[src, _HX + k] * (1.0 if corner & 2 else -1.0)
+                half = table[src, _HX + axis]
+                # the edge's middle c and half-vector u (world): ends c - u, c + u
+                cx = world[src, 9] + world[src, j] * local_j + world[src, k] * local_k
+                cy = world[src, 10] + world[src, 3 + j] * local_j + world[src, 3 + k] * local_k
+                cz = world[src, 11] + world[src, 6 + j] * local_j + world[src, 6 + k] * local_k
+                ux, uy, uz = world[src, axis] * half, world[src, 3 + axis] * half, world[src, 6 + axis] * half
+                p = (cx - ux, cy - uy, cz - uz, cx + ux, cy + uy, cz + uz)
+                box_segment(table, world, box, p, 0.0, edge, scratch)  # (d, on box, on edge, box -> edge)
+                if edge[0] < best:
+                    best = edge[0]
+                    for m in range(10):
+                        out[m] = edge[m]
+                    if which == 0:  # the edge is on a: make it (d, w_a, w_b, a -> b)
+                        _flip(out)
+    return best > 0.0
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def pair_distance(table, world, a, b, out, scratch):
+    """Signed distance of shapes a and b (rows of ``table``, world poses in ``world``) into ``out``;
+    returns False for a pair that has no compiled distance (coal measures it)."""
+    ka, kb = table[a, KIND], table[b, KIND]
+    swapped = ka > kb
+    if swapped:
+        a, b, ka, kb = b, a, kb, ka
+    if kb == COAL or ka == PLANE:
+        return False
+    if ka == BOX and kb == BOX:
+        if not box_box(table, world, a, b, out, scratch):
+            return False
+    elif ka == BOX:  # against a plane
+        box_plane(table, world, a, b, out)
+    else:
+        p = _segment(table, world, a)
+        if kb == BOX:
+            box_segment(table, world, b, p, table[a, RADIUS], out, scratch)
+            _flip(out)
+        elif kb == PLANE:
+            segment_plane(p, table[a, RADIUS], world, b, out)
+        else:
+            segment_segment(p, table[a, RADIUS], _segment(table, world, b), table[b, RADIUS], out)
+    if swapped:
+        _flip(out)
+    return True
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def bound_distance(table, world, a, b):
+    """A lower bound of the distance of shapes a and b from their bounding spheres (a plane: its
+    half-space; a box: the box itself against the other's bounding sphere, much tighter for a
+    flat box such as a mobile platform)."""
+    if table[b, KIND] == PLANE:
+        a, b = b, a
+    if table[a, KIND] == PLANE:
+        height = (world[a, 2] * (world[b, 12] - world[a, 9]) + world[a, 5] * (world[b, 13] - world[a, 10])
+                  + world[a, 8] * (world[b, 14] - world[a, 11]))
+        return height - table[b, BOUND_RADIUS]
+    dx, dy, dz = world[b, 12] - world[a, 12], world[b, 13] - world[a, 13], world[b, 14] - world[a, 14]
+    bound = math.sqrt(dx * dx + dy * dy + dz * dz) - table[a, BOUND_RADIUS] - table[b, BOUND_RADIUS]
+    if table[b, KIND] == BOX:
+        a, b = b, a
+    if table[a, KIND] == BOX:
+        # the other's bounding centre in the box frame: R^T (c - p)
+        cx, cy, cz = world[b, 12] - world[a, 9], world[b, 13] - world[a, 10], world[b, 14] - world[a, 11]
+        h = (table[a, _HX], table[a, _HX + 1], table[a, _HX + 2])
+        inside = _box_sd(world[a, 0] * cx + world[a, 3] * cy + world[a, 6] * cz,
+                         world[a, 1] * cx + world[a, 4] * cy + world[a, 7] * cz,
+                         world[a, 2] * cx + world[a, 5] * cy + world[a, 8] * cz, h) - table[b, BOUND_RADIUS]
+        bound = max(bound, inside)
+    return bound
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def gradient_row(joint_a, joint_b, slot, witness_a, witness_b, normal, support, jacobians_t, rows):
+    """``rows[slot] = normal . (J_b(w_b) - J_a(w_a))`` (see the module docstring)."""
+    nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
+    pax, pay, paz = witness_a[slot, 0], witness_a[slot, 1], witness_a[slot, 2]
+    pbx, pby, pbz = witness_b[slot, 0], witness_b[slot, 1], witness_b[slot, 2]
+    ax, ay, az = pay * nz - paz * ny, paz * nx - pax * nz, pax * ny - pay * nx  # w_a x n
+    bx, by, bz = pby * nz - pbz * ny, pbz * nx - pbx * nz, pbx * ny - pby * nx  # w_b x n
+    for k in range(rows.shape[1]):
+        on_a, on_b = support[joint_a, k], support[joint_b, k]
+        value = 0.0
+        if on_a != 0.0 or on_b != 0.0:
+            linear = nx * jacobians_t[k, 0] + ny * jacobians_t[k, 1] + nz * jacobians_t[k, 2]
+            if on_b != 0.0:
+                value += linear + jacobians_t[k, 3] * bx + jacobians_t[k, 4] * by + jacobians_t[k, 5] * bz
+            if on_a != 0.0:
+                value -= linear + jacobians_t[k, 3] * ax + jacobians_t[k, 4] * ay + jacobians_t[k, 5] * az
+        rows[slot, k] = value
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _claim(value, count, distance):
+    """The entry a pair at ``value`` takes: the next free one, else (full) the farthest entry when
+    the pair is closer than it; -1 when the pair is not kept."""
+    if count < distance.size:
+        return count
+    slot = 0
+    for m in range(1, distance.size):
+        if distance[m] > distance[slot]:
+            slot = m
+    return slot if value < distance[slot] else -1
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b, normal,
+           rows):
+    """Keep pair ``k`` with ``entry = (d, w_a (3), w_b (3), normal (3))`` if it is among the closest;
+    returns the new count."""
+    slot = _claim(entry[0], count, distance)
+    if slot < 0:
+        return count
+    slot_pair[slot] = k
+    distance[slot] = entry[0]
+    for m in range(3):
+        witness_a[slot, m] = entry[1 + m]
+        witness_b[slot, m] = entry[4 + m]
+        normal[slot, m] = entry[7 + m]
+    gradient_row(int(table[pairs[k, PAIR_A], JOINT]), int(table[pairs[k, PAIR_B], JOINT]), slot, witness_a,
+                 witness_b, normal, support, jacobians_t, rows)
+    return count + 1 if slot == count else count
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
+                    slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
+    world_poses(table, placements, world)
+    count = 0
+    n_pending = 0
+    out = scratch[48:58]
+    for k in range(pairs.shape[0]):
+        a, b = pairs[k, PAIR_A], pairs[k, PAIR_B]
+        if not bound_distance(table, world, a, b) < detection:
+            continue
+        if not pair_distance(table, world, a, b, out, scratch):
+            pending[n_pending] = k
+            n_pending += 1
+        elif out[0] < detection:
+            count = _store(k, out, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a,
+                           witness_b, normal, rows)
+    return count + (distance.size + 1) * n_pending
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
+def pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
+                   slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
+    """Every candidate pair within ``detection``: distances, witness points, normals and rows.
+
+    Writes entries 0..count-1 of the output arrays (capacity = their length; when more pairs are
+    within ``detection``, the closest are kept) and returns ``count + (capacity + 1) * n_pending``:
+    ``pending[:n_pending]`` lists the pairs (indices of ``pairs``) that passed the broad phase
+    but have no compiled distance; coal measures them and :func:`insert_pair` adds them.
+    ``pending``: one entry per pair; ``scratch``: >= 64 floats.
+    """
+    return _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, slot_pair, distance,
+                           witness_a, witness_b, normal, rows, pending, scratch)
+
+
+#: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
+INERT = 1.0
+#: slots of the settings vector of :func:`avoidance_rows`
+DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _damper_rows(count, distance, rows, G, h, settings, dt):
+    scale = settings[GAIN] / dt
+    for i in range(G.shape[0]):
+        if i < count:
+            for k in range(G.shape[1]):
+                G[i, k] = -rows[i, k]
+            h[i] = scale * (distance[i] - settings[MIN_DISTANCE])
+        else:
+            for k in range(G.shape[1]):
+                G[i, k] = 0.0
+            h[i] = INERT
+
+
+@njit("void(int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+      cache=CACHE, nogil=True)
+def damper_rows(count, distance, rows, G, h, settings, dt):
+    """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
+    ``G``, ``h`` (``settings = (detection, d_min, gain)``); the other rows inert (``0 <= 1``)."""
+    _damper_rows(count, distance, rows, G, h, settings, dt)
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+      cache=CACHE, nogil=True)
+def avoidance_rows(table, pairs, placements, jacobians_t, support, world, slot_pair, distance, witness_a,
+                   witness_b, normal, rows, pending, scratch, G, h, settings, dt):
+    """:func:`pair_distances` (``detection = settings[0]``) and, when no pair waits for coal,
+    :func:`damper_rows`, in one call; returns what :func:`pair_distances` returns."""
+    packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], slot_pair,
+                             distance, witness_a, witness_b, normal, rows, pending, scratch)
+    if packed <= distance.size:
+        _damper_rows(packed, distance, rows, G, h, settings, dt)
+    return packed
+
+
+@njit("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])",
+      cache=CACHE, nogil=True)
+def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b,
+                normal, rows):
+    """Add pair ``k`` measured by coal (``entry`` as in :func:`segment_segment`) to the first
+    ``count`` entries, keeping the closest; returns the new count."""
+    return _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b,
+                  normal, rows)
+
+
+@njit("float64(float64[:, ::1], float64[:, ::1], int64, int64, float64[::1], float64[::1])", cache=CACHE,
+      nogil=True)
+def distance_of(table, world, a, b, out, scratch):
+    """The signed distance of one pair (world poses already in ``world``) into ``out``; NaN when the
+    pair has no compiled distance. For the tests."""
+    if pair_distance(table, world, a, b, out, scratch):
+        return out[0]
+    return np.nan
+
+
+@njit("float64(float64[:, ::1], float64[:, ::1], int64, int64)", cache=CACHE, nogil=True)
+def bound_of(table, world, a, b):
+    """:func:`bound_distance`, compiled for the tests."""
+    return bound_distance(table, world, a, b)
