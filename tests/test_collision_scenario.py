@@ -8,7 +8,7 @@ import wbc
 from conftest import TASKS
 from test_collision_avoidance import MIN_DISTANCE, TOLERANCE, _excluded
 from test_collision_distances import Oracle
-from wbc import closed_loop
+from wbc.app import closed_loop
 from wbc.app.scenario import load_scenario
 
 SCENARIO = TASKS / "youbot_obstacle.toml"

@@ -58,10 +58,10 @@ from ..control.controller import DEFAULT_LM_DAMPING, Controller
 from ..core.errors import ScenarioError, WbcError
 from ..core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
 from ..model import shipped
-from ..model.robot import Robot, load_robot
+from ..model.robot import Robot, load_robot, rpy_matrix
 from ..tasks import FrameTask, PositionTask, PostureTask, Task
 from ..trajectory.scenario_spec import plan_from_spec
-from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion, rpy_matrix
+from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion
 
 TASK_TYPES: dict[str, type[Task]] = {name: getattr(task_module, name) for name in task_module.__all__ if name != "Task"}
 CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module, name)
