@@ -230,11 +230,13 @@ def test_toml_blocks_are_valid(block, tmp_path):
         return
     assert set(data) <= {"tasks", "constraints", "reference"}, f"{block.label}: a fragment of what?"
     path = tmp_path / "fragment.toml"
-    path.write_text(SCENARIO + block.code)
+    # a fragment of constraints alone gets a posture task (a controller needs one)
+    tasks = "" if "tasks" in data else '[[tasks]]\ntype = "PostureTask"\ncost = 1e-3\n\n'
+    path.write_text(SCENARIO + tasks + block.code)
     from wbc.app.scenario import load_scenario
 
     scenario = load_scenario(path)
-    assert len(scenario.tasks) == len(data.get("tasks", []))
+    assert len(scenario.tasks) == len(data.get("tasks", [1]))
 
 
 # -------------------------------------------------------------------------------- excerpts
