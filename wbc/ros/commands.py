@@ -31,7 +31,7 @@ def limit_ratio(robot: Robot, q: NDArray[np.float64], v: NDArray[np.float64]) ->
     """The largest ``|speed| / limit`` of command ``v`` at ``q`` over the joints (base-frame
     ``v_x, v_y, omega`` for a mobile base) and the wheels of a base with a wheel speed limit;
     ``inf`` if ``v`` is not finite. At most 1 when ``v`` satisfies every speed limit."""
-    if not math.isfinite(float(np.sum(np.abs(v)))):
+    if not np.all(np.isfinite(v)):  # (not a sum: finite huge entries would overflow it, with a warning)
         return math.inf
     speeds = np.abs(v)
     base = robot.base

@@ -221,7 +221,8 @@ class Node:
         if self._joints.source_time:
             status.state_age.add(max(0.0, time.time() - self._joints.source_time * 1e-9))
         if self._reference_data is not None:
-            status.record_error(float(np.linalg.norm(self._reference_data.error[:3])))
+            error = self._reference_data.error
+            status.record_error(math.hypot(error[0], error[1], error[2]))  # (inf, not a warning, on a far target)
         if self._odometry is None and self._base_q.size:
             self.q[self._base_q] = self.robot.integrate(self.q, sent, self.dt)[self._base_q]
 
