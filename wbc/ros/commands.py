@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import math
 import time
+from typing import Any
 
 import numpy as np
+from cyclonedds.pub import DataWriter
 from numpy.typing import NDArray
 
 from ..robot import Robot
-from .config import NodeConfig
+from .config import ControllerWiring, NodeConfig
 from .dds import Participant, acknowledged
 from .messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout, Twist, TwistStamped
 
@@ -55,12 +57,12 @@ class CommandWriter:
         self.scaled = 0  #: commands scaled into the speed limits
         self.replaced = 0  #: non-finite commands replaced by zero
         self._zero = np.zeros(robot.nv)
-        self._controllers = []
+        self._controllers: list[tuple[DataWriter[Float64MultiArray], Float64MultiArray, ControllerWiring]] = []
         for controller in config.controllers:
             message = Float64MultiArray(layout=MultiArrayLayout(
                 dim=[MultiArrayDimension(label="joints", size=len(controller.joints), stride=len(controller.joints))]))
             self._controllers.append((participant.writer(controller.topic, Float64MultiArray), message, controller))
-        self._base = None
+        self._base: tuple[DataWriter[Any], Twist | TwistStamped, Twist] | None = None
         if config.base is not None:
             twist = Twist()
             if config.base.stamped:
@@ -100,10 +102,10 @@ class CommandWriter:
             message.data = (controller.signs * v[controller.v_indices]).tolist()
             writer.write(message)
         if self._base is not None:
-            writer, sample, twist = self._base
+            base_writer, sample, twist = self._base
             v_x, v_y, omega = self.robot.base.twist(q, v).tolist()
             twist.linear.x, twist.linear.y, twist.angular.z = v_x, 0.0 if self._nonholonomic else v_y, omega
             if isinstance(sample, TwistStamped):
                 now = time.time_ns()
                 sample.header.stamp.sec, sample.header.stamp.nanosec = divmod(now, 1_000_000_000)
-            writer.write(sample)
+            base_writer.write(sample)

@@ -289,7 +289,8 @@ def _joints(tables: ConfigFile, robot: Robot) -> list[JointWiring]:
         if name in base:
             raise RosConfigError(f"[joints.{name}]: {name!r} is a base coordinate: it comes from [state] odometry "
                                  "(or the node's own integration), not from the joint states; remove the table")
-    wiring, ros_names = [], {}
+    wiring: list[JointWiring] = []
+    ros_names: dict[str, str] = {}
     for name, (q, v, nq, nv) in models.items():
         if name in base:
             continue
@@ -309,7 +310,7 @@ def _joints(tables: ConfigFile, robot: Robot) -> list[JointWiring]:
 def _controllers(tables: ConfigFile, robot: Robot, joints: list[JointWiring],
                  topic: Callable[[str], str]) -> tuple[ControllerWiring, ...]:
     by_name = {joint.model_name: joint for joint in joints}
-    base, driven, result = _base_joints(robot), {}, []
+    base, driven, result = _base_joints(robot), dict[str, str](), []
     for k, table in enumerate(tables.controllers):
         label = f"[[controllers]] #{k + 1} ({table.topic})"
         for name in table.joints:

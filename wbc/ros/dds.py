@@ -183,7 +183,12 @@ def take_one(reader: DataReader[_Message]) -> tuple[_Message | None, bool]:
     if not samples:
         return None, False
     sample = samples[0]
-    return (sample if sample.sample_info.valid_data else None), True
+    return (sample if getattr(sample, "sample_info").valid_data else None), True  # noqa: B009
+
+
+def source_timestamp(sample: IdlStruct) -> int:
+    """The writer's timestamp [ns since the epoch] of a sample taken by :func:`take_one`."""
+    return int(getattr(sample, "sample_info").source_timestamp)  # noqa: B009 (set by the reader, not declared)
 
 
 def acknowledged(writer: DataWriter[Any], timeout: float) -> bool:

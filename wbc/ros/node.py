@@ -28,24 +28,29 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from types import FrameType
-from typing import Any, TextIO
+from typing import Any, TextIO, TypeVar
 
 import numpy as np
+from cyclonedds.idl import IdlStruct
+from cyclonedds.sub import DataReader
 from numpy.typing import NDArray
 
 from ..controller import Controller
 from ..errors import WbcError
 from ..scenario import Scenario
 from ..tasks import FrameTask
+from ..tasks.frame_task import FrameTaskData
+from ..tasks.position_task import PositionTaskData
 from .commands import CommandWriter
 from .config import NodeConfig
-from .dds import SENSOR_DATA_DEPTH, Participant, take_one
+from .dds import SENSOR_DATA_DEPTH, Participant, source_timestamp, take_one
 from .inputs import BasePose, DropLog, JointStates, PoseTargets, TwistTargets
 from .messages import DiagnosticArray, JointState, Odometry, PoseStamped, Twist
 from .status import NodeStatus, diagnostics_message
 
+_Message = TypeVar("_Message", bound=IdlStruct)
 MAX_SAMPLES_PER_TICK = 64  #: samples taken per reader and tick at most (a flood cannot starve the loop)
 SLEEP_SLICE = 0.005  #: [s] longest single sleep: a stop request waits at most this long
 
@@ -88,7 +93,11 @@ class Node:
         self._next_diagnostics = -math.inf
         self._reference = scenario.reference
         self._reference_task = scenario.reference_task
-        self._reference_data = None if self._reference_task is None else self.controller.data(self._reference_task)
+        self._reference_data: FrameTaskData | PositionTaskData | None = None
+        if self._reference_task is not None:
+            data = self.controller.data(self._reference_task)
+            assert isinstance(data, (FrameTaskData, PositionTaskData))  # what FrameTask / PositionTask.bind return
+            self._reference_data = data
         self._zero_twist = np.zeros(3)
 
     # ------------------------------------------------------------------------------ startup
@@ -122,51 +131,42 @@ class Node:
         return np.array([by_v[index].idx_q for index in self.robot.base.indices], dtype=np.intp)
 
     # -------------------------------------------------------------------------------- inputs
-    def _read_inputs(self, now: float) -> None:
+    def _drain(self, reader: DataReader[_Message], topic: str, now: float) -> Iterator[_Message]:
+        """The samples DDS holds for ``reader`` (at most :data:`MAX_SAMPLES_PER_TICK`); bytes that
+        do not decode are dropped and counted."""
         for _ in range(MAX_SAMPLES_PER_TICK):
-            sample, more = take_one(self._joint_reader)
+            sample, more = take_one(reader)
             if not more:
-                break
+                return
             if sample is None:
-                self.drops.drop(self.config.joint_states, "undecodable", "bytes that are not a JointState", now)
+                self.drops.drop(topic, "undecodable", "bytes that are not the topic's message type", now)
             else:
-                self._joints.accept(sample, now, sample.sample_info.source_timestamp)
+                yield sample
+
+    def _read_inputs(self, now: float) -> None:
+        for state in self._drain(self._joint_reader, self.config.joint_states, now):
+            self._joints.accept(state, now, source_timestamp(state))
         if self._odometry is not None and self._odometry_reader is not None:
-            for _ in range(MAX_SAMPLES_PER_TICK):
-                sample, more = take_one(self._odometry_reader)
-                if not more:
-                    break
-                if sample is None:
-                    self.drops.drop(self._odometry.topic, "undecodable", "bytes that are not an Odometry", now)
-                else:
-                    self._odometry.accept(sample, now)
+            for odometry in self._drain(self._odometry_reader, self._odometry.topic, now):
+                self._odometry.accept(odometry, now)
         for target, check, reader in self._poses:
-            for _ in range(MAX_SAMPLES_PER_TICK):
-                sample, more = take_one(reader)
-                if not more:
-                    break
-                pose = None if sample is None else check.pose(sample, now)
-                if sample is None:
-                    self.drops.drop(target.topic, "undecodable", "bytes that are not a PoseStamped", now)
-                elif pose is not None:
-                    if isinstance(target.task, FrameTask):
-                        target.task.set_target(pose)
-                    else:
-                        target.task.set_target(pose[:3, 3])
-                    if target.task is self._reference_task:
-                        self._reference = None  # a target from the wire replaces the scenario's motion
+            for pose_message in self._drain(reader, target.topic, now):
+                pose = check.pose(pose_message, now)
+                if pose is None:
+                    continue
+                if isinstance(target.task, FrameTask):
+                    target.task.set_target(pose)
+                else:
+                    target.task.set_target(pose[:3, 3])
+                if target.task is self._reference_task:
+                    self._reference = None  # a target from the wire replaces the scenario's motion
         if self._twist is not None:
-            twist_target, check, reader = self._twist
-            for _ in range(MAX_SAMPLES_PER_TICK):
-                sample, more = take_one(reader)
-                if not more:
-                    break
-                twist = None if sample is None else check.twist(sample, now)
-                if sample is None:
-                    self.drops.drop(twist_target.topic, "undecodable", "bytes that are not a Twist", now)
-                elif twist is not None:
+            twist_target, twists, twist_reader = self._twist
+            for twist_message in self._drain(twist_reader, twist_target.topic, now):
+                twist = twists.twist(twist_message, now)
+                if twist is not None:
                     twist_target.task.set_target(twist)
-            if check.expired(now):
+            if twists.expired(now):
                 twist_target.task.set_target(self._zero_twist)
 
     def _stale_reason(self, now: float) -> str | None:

@@ -19,8 +19,10 @@ import math
 import sys
 import threading
 import time
+from typing import Any
 
 import numpy as np
+from cyclonedds.sub import DataReader
 from numpy.typing import NDArray
 
 from ..robot import Robot
@@ -46,9 +48,9 @@ class SimulatedRobot:
         self._odometry_writer = None if config.odometry is None else participant.writer(
             config.odometry, Odometry, reliable=False, depth=SENSOR_DATA_DEPTH)
         self._controllers = [(participant.reader(c.topic, Float64MultiArray), c) for c in config.controllers]
-        self._base = None
+        self._base: DataReader[Any] | None = None
         if config.base is not None:
-            kind = TwistStamped if config.base.stamped else Twist
+            kind: type[Twist | TwistStamped] = TwistStamped if config.base.stamped else Twist
             self._base = participant.reader(config.base.topic, kind)
         self._fresh = [False] * (len(self._controllers) + (self._base is not None))
         self._message = JointState(name=[joint.ros_name for joint in config.joints])
@@ -78,11 +80,11 @@ class SimulatedRobot:
         """Take the commands DDS holds; once each topic has a new one, integrate and publish. Whether it stepped."""
         for k, (reader, controller) in enumerate(self._controllers):
             while True:
-                sample, more = take_one(reader)
+                command, more = take_one(reader)
                 if not more:
                     break
-                if sample is not None and len(sample.data) == len(controller.joints):
-                    self.v[controller.v_indices] = controller.signs * np.array(sample.data)
+                if command is not None and len(command.data) == len(controller.joints):
+                    self.v[controller.v_indices] = controller.signs * np.array(command.data)
                     self._fresh[k] = True
         if self._base is not None:
             while True:
