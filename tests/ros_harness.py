@@ -6,7 +6,8 @@ participant (its own and its children's) at Cyclone's loopback configuration (th
 interface, multicast off, 127.0.0.1 the only peer): no DDS packet can leave the machine.
 It prints one JSON object (the case's observations) on stdout. Every wait has a deadline.
 
-Cases: ``loop`` (closed loop on youbot_circle), ``watchdog`` (robot killed, restarted, then
+Cases: ``loop`` (closed loop on youbot_circle), ``integration`` (the same without odometry),
+``watchdog`` (robot killed, restarted, then
 the node stopped by SIGINT), ``fuzz`` (malformed messages on every input topic).
 """
 
@@ -56,12 +57,12 @@ def spawn(*args: str) -> subprocess.Popen[str]:
     return process
 
 
-def node(*extra: str) -> subprocess.Popen[str]:
-    return spawn("-m", "wbc", "ros", SCENARIO, "--config", CONFIG, "--json", *extra)
+def node(*extra: str, config: str = CONFIG) -> subprocess.Popen[str]:
+    return spawn("-m", "wbc", "ros", SCENARIO, "--config", config, "--json", *extra)
 
 
-def robot() -> subprocess.Popen[str]:
-    return spawn("-m", "wbc.ros.simulated", SCENARIO, "--config", CONFIG)
+def robot(config: str = CONFIG) -> subprocess.Popen[str]:
+    return spawn("-m", "wbc.ros.simulated", SCENARIO, "--config", config)
 
 
 def finish(process: subprocess.Popen[str], sig: int | None = signal.SIGTERM) -> dict[str, object]:
@@ -170,14 +171,42 @@ class Observer:
         return sum(not c.zero for c in self.commands[since:]) >= count
 
 
-def case_loop(duration: float = 6.0) -> dict[str, object]:
+def case_loop(duration: float = 6.0, config: str = CONFIG) -> dict[str, object]:
+    from wbc.ros.messages import DiagnosticArray
+
     observer = Observer()
-    sim = robot()
-    ros = node("--duration", str(duration))
-    ended = observer.wait(lambda: ros.poll() is not None, DEADLINE + duration)
+    diagnostics_reader = observer.participant.reader("/diagnostics", DiagnosticArray)
+    diagnostics = []
+    sim = robot(config)
+    ros = node("--duration", str(duration), config=config)
+
+    def ended() -> bool:
+        for sample in diagnostics_reader.take(16):
+            if sample.sample_info.valid_data:
+                status = sample.status[0]
+                diagnostics.append({"level": status.level, "name": status.name, "message": status.message,
+                                    "values": {value.key: value.value for value in status.values}})
+        return ros.poll() is not None
+
+    done = observer.wait(ended, DEADLINE + duration)
     observer.poll()
-    return {"node": finish(ros, None if ended else signal.SIGTERM), "robot": finish(sim),
-            "commands": len(observer.commands), "unsafe": observer.unsafe[:20]}
+    return {"node": finish(ros, None if done else signal.SIGTERM), "robot": finish(sim),
+            "commands": len(observer.commands), "unsafe": observer.unsafe[:20], "diagnostics": diagnostics}
+
+
+def case_integration() -> dict[str, object]:
+    """The loop with no odometry: the node integrates its own base commands."""
+    import tempfile
+    from pathlib import Path
+
+    from wbc.ros.config import config_file
+
+    text = config_file(CONFIG).read_text()
+    assert 'odometry = "/odom"' in text
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "no_odometry.toml"
+        path.write_text(text.replace('odometry = "/odom"', ""))
+        return case_loop(config=str(path))
 
 
 def case_watchdog() -> dict[str, object]:
@@ -321,7 +350,8 @@ def main() -> None:
     isolate()
     case = sys.argv[1]
     try:
-        result = {"loop": case_loop, "watchdog": case_watchdog, "fuzz": case_fuzz}[case]()
+        result = {"loop": case_loop, "integration": case_integration, "watchdog": case_watchdog,
+                  "fuzz": case_fuzz}[case]()
     finally:
         for process in SPAWNED:  # whatever a failed case left running
             if process.poll() is None:

@@ -62,6 +62,11 @@ def loop() -> dict:
 
 
 @pytest.fixture(scope="module")
+def integration() -> dict:
+    return _harness("integration")
+
+
+@pytest.fixture(scope="module")
 def watchdog() -> dict:
     return _harness("watchdog")
 
@@ -71,31 +76,53 @@ def fuzz() -> dict:
     return _harness("fuzz")
 
 
-def test_closed_loop_over_dds_tracks_like_the_in_process_run(loop):
+@pytest.mark.parametrize("case", ["loop", "integration"])
+def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     """youbot_circle through DDS and a robot in another process, against wbc's own kinematic
     loop over the same number of ticks: the same tracking error (every state reaching the node
-    before its next tick makes the two loops the same computation)."""
+    before its next tick makes the two loops the same computation) -- with the base pose from
+    the robot's odometry, and from the node's own integration of its base commands."""
     from wbc.closed_loop import run
     from wbc.scenario import load_scenario
 
+    loop = request.getfixturevalue(case)
     node = loop["node"]
     assert node["returncode"] == 0, node["stderr"]
     summary = node["output"]
-    assert summary["control_ticks"] >= 500 and summary["watchdog_trips"] == 0
+    assert summary["control_ticks"] >= 200 and summary["watchdog_trips"] == 0  # (the robot starts later)
     assert summary["dropped_messages"] == 0 and summary["commands_replaced_by_zero"] == 0
     assert loop["unsafe"] == [] and loop["commands"] >= summary["control_ticks"]
     in_process = run(load_scenario("youbot_circle"), duration=summary["control_ticks"] * DT).summary()
-    print(f"position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
+    print(f"{case}: position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
           f"in process {in_process['position_error_rms_m']:.6e} m; max DDS {summary['position_error_max_m']:.6e} m, "
           f"in process {in_process['position_error_max_m']:.6e} m")
-    assert summary["position_error_rms_m"] <= 2 * in_process["position_error_rms_m"]
-    assert summary["position_error_max_m"] <= 2 * in_process["position_error_max_m"]
+    if summary["repeated_state_ticks"] == 0:  # every tick saw the state its last command produced: the same loop
+        assert summary["position_error_rms_m"] == pytest.approx(in_process["position_error_rms_m"], rel=1e-6)
+        assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
+    else:  # a late state (a loaded machine) delays that tick's feedback by one tick: still tracking, to ~0.1 mm
+        print(f"{summary['repeated_state_ticks']} ticks computed from the state of the tick before")
+        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 2e-4
+        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 1e-3
     robot = loop["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= summary["control_ticks"]
 
 
-def test_the_startup_line_says_where_the_base_pose_comes_from(loop):
+def test_the_startup_line_says_where_the_base_pose_comes_from(loop, integration):
     assert "base pose from odometry on /odom" in loop["node"]["stderr"]
+    assert "base pose from its own integration of the base commands" in integration["node"]["stderr"]
+
+
+def test_diagnostics_are_published(loop):
+    """diagnostic_msgs/DiagnosticArray on /diagnostics: STALE before the first state (if it came
+    after the first tick), then OK
+    while controlling (WARN naming them if ticks overran on a loaded machine), with the latency
+    and counters as values."""
+    levels = [d["level"] for d in loop["diagnostics"]]
+    assert levels and set(levels) <= {0, 1, 3} and 3 not in levels[levels.index(0):], loop["diagnostics"]
+    last = loop["diagnostics"][-1]
+    overruns = int(last["values"]["overruns"])
+    assert last["name"] == "/wbc" and last["message"] == ("controlling" if not overruns else f"{overruns} overruns")
+    assert float(last["values"]["latency_p50_us"]) > 0 and last["values"]["dropped_messages"] == "0"
 
 
 def test_killed_robot_makes_the_node_send_zero_once_and_hold(watchdog):
@@ -120,8 +147,8 @@ def test_sigint_sends_zero_within_one_tick_and_exits(watchdog):
     assert node["returncode"] == 0 and node["output"]["ticks"] > node["output"]["control_ticks"] > 0
 
 
-def test_every_command_on_the_wire_is_finite_and_within_limits(loop, watchdog, fuzz):
-    assert loop["unsafe"] == watchdog["unsafe"] == fuzz["unsafe"] == []
+def test_every_command_on_the_wire_is_finite_and_within_limits(loop, integration, watchdog, fuzz):
+    assert loop["unsafe"] == integration["unsafe"] == watchdog["unsafe"] == fuzz["unsafe"] == []
 
 
 def test_fuzzed_messages_never_crash_the_node(fuzz):

@@ -104,6 +104,7 @@ class JointStates:
         self.received = np.full(count, -math.inf)  #: [s] monotonic time each joint last arrived
         self.stamps = np.full(count, -math.inf)  #: [s] its last stamp
         self.source_time = 0  #: [ns since the epoch] source timestamp of the last accepted message
+        self.accepted = 0  #: messages taken
         self._zero = np.array([joint.zero for joint in self.joints])
         self._sign = np.array([joint.sign for joint in self.joints])
         self._q_index = np.array([joint.q_index for joint in self.joints if not joint.continuous], dtype=np.intp)
@@ -151,6 +152,7 @@ class JointStates:
         self.received[mine] = now
         self.stamps[mine] = stamp
         self.source_time = source_time
+        self.accepted += 1
         return True
 
     def _problem(self, message: JointState) -> tuple[str, str] | None:

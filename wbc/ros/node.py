@@ -99,6 +99,7 @@ class Node:
             assert isinstance(data, (FrameTaskData, PositionTaskData))  # what FrameTask / PositionTask.bind return
             self._reference_data = data
         self._zero_twist = np.zeros(3)
+        self._accepted = 0  # joint state messages taken up to the last control tick
 
     # ------------------------------------------------------------------------------ startup
     def startup_line(self) -> str:
@@ -197,6 +198,9 @@ class Node:
                 status.state = "stale"
             status.stale_reason = reason
             return
+        if status.state == "control" and self._joints.accepted == self._accepted:
+            status.repeated_state_ticks += 1
+        self._accepted = self._joints.accepted
         status.state = "control"
         status.zero_sent = False
         self._joints.write(self.q)

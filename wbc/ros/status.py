@@ -57,6 +57,9 @@ class NodeStatus:
     overruns: int = 0  #: ticks that ended after the next one was due
     watchdog_trips: int = 0  #: times the state went stale and zero was published
     fallback_ticks: int = 0  #: ticks whose command came from a fallback (``last.success`` False)
+    #: control ticks with no new joint state since the previous one (the robot's state was late: the
+    #: command is computed from the state of a tick before)
+    repeated_state_ticks: int = 0
     zero_sent: bool = False  #: the latest command written is the zero command of the watchdog
     state: str = "waiting"  #: "waiting" (no state yet), "control", "stale"
     stale_reason: str = ""
@@ -81,6 +84,7 @@ class NodeStatus:
         summary: dict[str, Any] = {
             "ticks": self.ticks, "control_ticks": self.control_ticks, "overruns": self.overruns,
             "watchdog_trips": self.watchdog_trips, "fallback_ticks": self.fallback_ticks,
+            "repeated_state_ticks": self.repeated_state_ticks,
             "commands_scaled_into_limits": scaled, "commands_replaced_by_zero": replaced,
             "dropped_messages": sum(drops.values()), "dropped_by_reason": dict(drops),
             "latency_p50_us": self.latency.percentile(50) * us, "latency_p99_us": self.latency.percentile(99) * us,
