@@ -33,20 +33,21 @@ def limit_ratio(robot: Robot, q: NDArray[np.float64], v: NDArray[np.float64]) ->
     """The largest ``|speed| / limit`` of command ``v`` at ``q`` over the joints (base-frame
     ``v_x, v_y, omega`` for a mobile base) and the wheels of a base with a wheel speed limit;
     ``inf`` if ``v`` is not finite. At most 1 when ``v`` satisfies every speed limit."""
-    if not np.all(np.isfinite(v)):  # (not a sum: finite huge entries would overflow it, with a warning)
+    if not np.all(np.isfinite(v)):
         return math.inf
-    speeds = np.abs(v)
     base = robot.base
-    if base.is_mobile:
-        x, y, yaw = base.indices
-        speeds[[x, y, yaw]] = np.abs(base.twist(q, v))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # huge finite v: inf, said by the ratio
+        speeds = np.abs(v)
+        if base.is_mobile:
+            x, y, yaw = base.indices
+            speeds[[x, y, yaw]] = np.abs(base.twist(q, v))
         ratios = np.where(np.isfinite(robot.velocity_limit), speeds / robot.velocity_limit, 0.0)
-    worst = float(np.max(ratios))
-    wheels = base.wheels
-    if wheels is not None and math.isfinite(wheels.max_speed):
-        worst = max(worst, float(np.max(np.abs(wheels.inverse_matrix() @ base.twist(q, v)))) / wheels.max_speed)
-    return worst
+        worst = float(np.max(ratios))
+        wheels = base.wheels
+        if wheels is not None and math.isfinite(wheels.max_speed):
+            wheel = float(np.max(np.abs(wheels.inverse_matrix() @ base.twist(q, v)))) / wheels.max_speed
+            worst = math.nan if math.isnan(wheel) else max(worst, wheel)
+    return math.inf if math.isnan(worst) else worst  # (NaN: inf - inf of an overflow: not within the limits)
 
 
 class CommandWriter:
