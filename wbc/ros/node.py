@@ -278,6 +278,7 @@ class Node:
         return self.summary()
 
     def summary(self) -> dict[str, Any]:
+        """The node's numbers so far (:meth:`wbc.ros.status.NodeStatus.summary`)."""
         return self.status.summary(self.drops.counts, self.commands.scaled, self.commands.replaced)
 
 
