@@ -33,7 +33,7 @@ from .config import JointWiring
 from .messages import JointState, Odometry, PoseStamped, Quaternion, Time, Twist
 
 SAY_EVERY = 2.0  #: [s] at most one stderr line per topic and reason in this time
-UNIT_TOLERANCE = 1e-3  #: largest | |quaternion| - 1 | accepted (the quaternion is then normalised)
+UNIT_TOLERANCE = 1e-3  #: largest distance of a quaternion's norm from 1 accepted (the quaternion is then normalised)
 
 
 class DropLog:
