@@ -12,14 +12,11 @@ the node stopped by SIGINT), ``fuzz`` (malformed messages on every input topic).
 """
 
 
-import fcntl
 import json
 import math
 import os
 import random
 import signal
-import socket
-import struct
 import subprocess
 import sys
 import time
@@ -33,17 +30,11 @@ DEADLINE = 90.0  #: [s] longest wait for anything (first start includes numba's 
 
 
 def isolate() -> None:
-    """Bring ``lo`` up in this (private) network namespace; exit unless it is the only interface."""
-    names = [name for _, name in socket.if_nameindex()]
-    if names != ["lo"]:
-        sys.exit(f"ros_harness: interfaces {names}: run me in a private network namespace (unshare -rn)")
-    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    request = struct.pack("16sh", b"lo", 0)
-    flags = struct.unpack("16sh", fcntl.ioctl(sock, 0x8913, request))[1]  # SIOCGIFFLAGS
-    fcntl.ioctl(sock, 0x8914, struct.pack("16sh", b"lo", flags | 0x1))  # SIOCSIFFLAGS, IFF_UP
-    sock.close()
-    from wbc.ros.dds import LOOPBACK_CONFIG
+    """Bring ``lo`` up in this (private) network namespace, refusing to run if any other interface
+    exists; every participant of this process and its children on Cyclone's loopback configuration."""
+    from wbc.ros.dds import LOOPBACK_CONFIG, loopback_only
 
+    loopback_only()
     os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG
     os.environ.pop("ROS_DOMAIN_ID", None)
 

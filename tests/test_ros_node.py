@@ -99,10 +99,11 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     if summary["repeated_state_ticks"] == 0:  # every tick saw the state its last command produced: the same loop
         assert summary["position_error_rms_m"] == pytest.approx(in_process["position_error_rms_m"], rel=1e-6)
         assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
-    else:  # a late state (a loaded machine) delays that tick's feedback by one tick: still tracking, to ~0.1 mm
+    else:  # a late state (a loaded machine): that tick sees the robot one tick behind the moving target
         print(f"{summary['repeated_state_ticks']} ticks computed from the state of the tick before")
+        step = 2 * math.pi * 0.2 / 8.0 * DT  # [m] the circle's (radius 0.2 m, period 8 s) advance in one tick
         assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 2e-4
-        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 1e-3
+        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 3 * step
     robot = loop["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= summary["control_ticks"]
 

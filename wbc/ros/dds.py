@@ -17,7 +17,10 @@ discovery settings, the two QoS profiles, and the readers and writers of ROS 2 t
 
 from __future__ import annotations
 
+import fcntl
 import os
+import socket
+import struct
 from collections.abc import Mapping
 from typing import Any, TypeVar
 
@@ -50,6 +53,25 @@ LOOPBACK_CONFIG = (
     f"<MaxAutoParticipantIndex>{MAX_AUTO_PARTICIPANT_INDEX}</MaxAutoParticipantIndex>"
     "<Peers><Peer address=\"127.0.0.1\"/></Peers></Discovery></Domain></CycloneDDS>"
 )
+
+
+SIOCGIFFLAGS, SIOCSIFFLAGS, IFF_UP = 0x8913, 0x8914, 0x1  # Linux: get and set an interface's flags; "up"
+
+
+def loopback_only() -> None:
+    """Bring ``lo`` up in this process's network namespace and check it is the only interface
+    (for tests and benchmarks run under ``unshare -rn``: then no DDS packet can leave the machine).
+
+    Raises:
+        RosError: another interface exists (not a private network namespace).
+    """
+    names = [name for _, name in socket.if_nameindex()]
+    if names != ["lo"]:
+        raise RosError(f"interfaces {names}: not a private network namespace with lo only (unshare -rn)")
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        request = struct.pack("16sh", b"lo", 0)
+        flags = struct.unpack("16sh", fcntl.ioctl(sock, SIOCGIFFLAGS, request))[1]
+        fcntl.ioctl(sock, SIOCSIFFLAGS, struct.pack("16sh", b"lo", flags | IFF_UP))
 
 
 def domain_id(environment: Mapping[str, str]) -> int:
