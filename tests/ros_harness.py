@@ -110,7 +110,7 @@ class Observer:
         self.base_limit = robot.velocity_limit[:3]
         wheels = robot.base.wheels
         self.wheel_matrix, self.wheel_limit = wheels.inverse_matrix(), wheels.max_speed
-        self._arm: list[float] | None = None
+        self._arms: list[list[float]] = []  # arm commands not yet paired with their tick's base twist
         self._np = np
 
     def poll(self) -> None:
@@ -121,16 +121,16 @@ class Observer:
             if not more:
                 break
             if sample is not None:
-                self._arm = list(sample.data)
-        while True:
+                self._arms.append(list(sample.data))
+        while self._arms:  # (each tick writes the arm's command, then the base's)
             sample, more = take_one(self.base_reader)
             if not more:
                 break
-            if sample is not None and self._arm is not None:
+            if sample is not None:
                 base = (sample.linear.x, sample.linear.y, sample.angular.z)
-                self._check(self._arm, base)
-                self.commands.append(Command(time.monotonic(), self._arm, base))
-                self._arm = None
+                arm = self._arms.pop(0)
+                self._check(arm, base)
+                self.commands.append(Command(time.monotonic(), arm, base))
 
     def _check(self, arm: list[float], base: tuple[float, float, float]) -> None:
         np = self._np
@@ -326,7 +326,7 @@ def case_fuzz(seconds: float = 3.0, seed: int = 27) -> dict[str, object]:
     resumed_from = len(observer.commands)
     result["commands_after_fuzz"] = observer.wait(lambda: len(observer.commands) - resumed_from >= 20, 30.0)
     before = len(observer.commands)
-    ros.send_signal(signal.SIGINT)
+    ros.send_signal(signal.SIGTERM)  # (the watchdog case stops the node with SIGINT)
     observer.wait(lambda: ros.poll() is not None, 10.0)
     observer.wait(lambda: False, 0.2)
     result["last_is_zero"] = bool(observer.commands[before:]) and observer.commands[-1].zero

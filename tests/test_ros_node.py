@@ -91,7 +91,8 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     summary = node["output"]
     assert summary["control_ticks"] >= 200 and summary["watchdog_trips"] == 0  # (the robot starts later)
     assert summary["dropped_messages"] == 0 and summary["commands_replaced_by_zero"] == 0
-    assert loop["unsafe"] == [] and loop["commands"] >= summary["control_ticks"]
+    # (the observer may miss the first commands, written before discovery matched it with the node)
+    assert loop["unsafe"] == [] and loop["commands"] >= 0.9 * summary["control_ticks"]
     in_process = run(load_scenario("youbot_circle"), duration=summary["control_ticks"] * DT).summary()
     print(f"{case}: position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
           f"in process {in_process['position_error_rms_m']:.6e} m; max DDS {summary['position_error_max_m']:.6e} m, "
@@ -102,7 +103,8 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     else:  # a late state (a loaded machine): that tick sees the robot one tick behind the moving target
         print(f"{summary['repeated_state_ticks']} ticks computed from the state of the tick before")
         step = 2 * math.pi * 0.2 / 8.0 * DT  # [m] the circle's (radius 0.2 m, period 8 s) advance in one tick
-        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 2e-4
+        late = summary["repeated_state_ticks"] / summary["control_ticks"]  # up to 3 steps off on those ticks
+        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
         assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 3 * step
     robot = loop["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= summary["control_ticks"]
@@ -152,9 +154,13 @@ def test_every_command_on_the_wire_is_finite_and_within_limits(loop, integration
     assert loop["unsafe"] == integration["unsafe"] == watchdog["unsafe"] == fuzz["unsafe"] == []
 
 
+def test_sigterm_sends_zero_and_exits(fuzz):
+    assert fuzz["last_is_zero"] and fuzz["node"]["returncode"] == 0
+
+
 def test_fuzzed_messages_never_crash_the_node(fuzz):
     assert fuzz["controlled"] and fuzz["sent"] > 1000
-    assert fuzz["alive_after_fuzz"] and fuzz["commands_after_fuzz"] and fuzz["last_is_zero"]
+    assert fuzz["alive_after_fuzz"] and fuzz["commands_after_fuzz"]
     node = fuzz["node"]
     assert node["returncode"] == 0, node["stderr"]
     assert "Traceback" not in node["stderr"] and "Warning" not in node["stderr"], node["stderr"]

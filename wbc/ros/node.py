@@ -204,8 +204,10 @@ class Node:
         status.state = "control"
         status.zero_sent = False
         self._joints.write(self.q)
-        if self._odometry is not None:
-            self.q[self._base_q] = self._odometry.pose
+        if self._odometry is not None:  # yaw unwrapped: q's heading stays continuous past +-pi
+            x, y, yaw = self._odometry.pose
+            heading = self._base_q[2]
+            self.q[self._base_q] = x, y, self.q[heading] + math.remainder(yaw - self.q[heading], math.tau)
         if self._reference is not None and self._reference_task is not None:
             self._reference_task.set_target(*self._reference(status.control_ticks * self.dt))
         try:
