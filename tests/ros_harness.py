@@ -170,6 +170,7 @@ def case_loop(duration: float = 6.0, config: str = CONFIG) -> dict[str, object]:
     diagnostics = []
     sim = robot(config)
     ros = node("--duration", str(duration), config=config)
+    graph = _graph(observer)
 
     def ended() -> bool:
         for sample in diagnostics_reader.take(16):
@@ -182,7 +183,48 @@ def case_loop(duration: float = 6.0, config: str = CONFIG) -> dict[str, object]:
     done = observer.wait(ended, DEADLINE + duration)
     observer.poll()
     return {"node": finish(ros, None if done else signal.SIGTERM), "robot": finish(sim),
-            "commands": len(observer.commands), "unsafe": observer.unsafe[:20], "diagnostics": diagnostics}
+            "commands": len(observer.commands), "unsafe": observer.unsafe[:20], "diagnostics": diagnostics,
+            "graph": graph}
+
+
+def _graph(observer: Observer) -> dict[str, object]:
+    """What the node announces on ros_discovery_info, and the GUIDs DDS discovery reports for the
+    endpoints of its topics: {"nodes": [...], "participant", "writers": {topic: [guid hex]}, "readers"}."""
+    from cyclonedds.builtin import BuiltinDataReader, BuiltinTopicDcpsPublication, BuiltinTopicDcpsSubscription
+    from cyclonedds.core import Qos
+    from cyclonedds.qos import Policy
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+
+    from wbc.ros.dds import DISCOVERY_TOPIC
+    from wbc.ros.messages import ParticipantEntitiesInfo
+
+    domain = observer.participant.participant
+    reader = DataReader(domain, Topic(domain, DISCOVERY_TOPIC, ParticipantEntitiesInfo),
+                        Qos(Policy.Reliability.Reliable(0), Policy.Durability.TransientLocal,
+                            Policy.History.KeepLast(1), Policy.DataRepresentation(use_cdrv0_representation=True)))
+    publications, subscriptions = (BuiltinDataReader(domain, BuiltinTopicDcpsPublication),
+                                   BuiltinDataReader(domain, BuiltinTopicDcpsSubscription))
+    infos: list = []
+    endpoints: dict[str, dict[str, list[str]]] = {"writers": {}, "readers": {}}
+    participants: dict[str, str] = {}
+
+    def announced() -> bool:
+        infos.extend(sample for sample in reader.take(8) if sample.sample_info.valid_data)
+        for kind, builtin in (("writers", publications), ("readers", subscriptions)):
+            for endpoint in builtin.take(64):
+                if endpoint.sample_info.valid_data and endpoint.topic_name.startswith("rt/"):
+                    endpoints[kind].setdefault(endpoint.topic_name, []).append(endpoint.key.hex)
+                    participants[endpoint.key.hex] = endpoint.participant_key.hex
+        return any(info.node_entities_info_seq for info in infos) and "rt/diagnostics" in endpoints["writers"]
+
+    observer.wait(announced, DEADLINE)
+    observer.wait(lambda: announced() and False, 0.5)  # the rest of discovery
+    nodes = [{"participant": bytes(info.gid.data).hex(), "namespace": node.node_namespace, "name": node.node_name,
+              "readers": [bytes(g.data).hex() for g in node.reader_gid_seq],
+              "writers": [bytes(g.data).hex() for g in node.writer_gid_seq]}
+             for info in infos for node in info.node_entities_info_seq]
+    return {"nodes": nodes, "endpoints": endpoints, "participants": participants}
 
 
 def case_integration() -> dict[str, object]:

@@ -115,6 +115,22 @@ def test_the_startup_line_says_where_the_base_pose_comes_from(loop, integration)
     assert "base pose from its own integration of the base commands" in integration["node"]["stderr"]
 
 
+def test_the_node_is_announced_with_its_endpoints_as_ros2_does(loop):
+    """ros_discovery_info (what `ros2 node list` reads): node /wbc, its participant's GID, and the
+    GIDs of its readers and writers -- each the GUID that DDS discovery reports for the node's
+    endpoint on that topic."""
+    graph = loop["graph"]
+    (node,) = [n for n in graph["nodes"] if n["name"] == "wbc"]
+    assert node["namespace"] == "/"
+    endpoints, owner = graph["endpoints"], graph["participants"]
+    mine = {kind: {topic: [g for g in guids if owner[g] == node["participant"]]
+                   for topic, guids in endpoints[kind].items()} for kind in ("writers", "readers")}
+    expected_writers = ["rt/arm_velocity_controller/commands", "rt/cmd_vel", "rt/diagnostics"]
+    expected_readers = ["rt/joint_states", "rt/wbc/ee_target", "rt/odom"]
+    assert sorted(node["writers"]) == sorted(mine["writers"][topic][0] for topic in expected_writers)
+    assert sorted(node["readers"]) == sorted(mine["readers"][topic][0] for topic in expected_readers)
+
+
 def test_diagnostics_are_published(loop):
     """diagnostic_msgs/DiagnosticArray on /diagnostics: STALE before the first state (if it came
     after the first tick), then OK
@@ -135,7 +151,7 @@ def test_killed_robot_makes_the_node_send_zero_once_and_hold(watchdog):
     assert watchdog["node"]["output"]["watchdog_trip_state_ages_s"][0] >= WATCHDOG_TIMEOUT  # not before
     assert watchdog["nonzero_after_zero"] == 0 and watchdog["commands_while_stale"] == 0
     assert watchdog["node"]["output"]["watchdog_trips"] == 1
-    assert "watchdog: no fresh joint state" in watchdog["node"]["stderr"]
+    assert "watchdog: no fresh " in watchdog["node"]["stderr"]  # (joint state or odometry: both stop)
 
 
 def test_fresh_states_resume_control(watchdog):

@@ -61,7 +61,7 @@ nitpick_ignore_regex = [
                r"|json|io|os|annotated_types|cyclonedds)(\..*)?"),
     (r"py:.*", r"(NDArray|ArrayLike|Path|Enum|Generator|Iterator|Iterable|Sequence|Mapping|Callable|Buffer|Figure"
                r"|Number|NoneType|FieldInfo|MinLen|MaxLen|Gt|Ge"
-               r"|sequence|array|float64)"),  # (cyclonedds' IDL types in the ROS 2 messages' annotations)
+               r"|sequence|array|float64|uint8|bounded_str)"),  # (cyclonedds' IDL types of wbc.ros.messages)
     # private names (type variables, helpers) in signatures and text: not part of the reference
     (r"py:.*", r"(.*\.)?_[A-Za-z]\w*"),
 ]

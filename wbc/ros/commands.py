@@ -91,12 +91,16 @@ class CommandWriter:
         """Write the zero command (every controller and the base)."""
         self._write(q, self._zero)
 
+    @property
+    def writers(self) -> list[DataWriter[Any]]:
+        """The DDS writers: one per controller, then the base's."""
+        return [writer for writer, _, _ in self._controllers] + ([] if self._base is None else [self._base[0]])
+
     def flush(self, timeout: float) -> bool:
         """Wait at most ``timeout`` [s] in all for every reader to acknowledge the commands written
         (before the node leaves the domain: the last zero must arrive); whether all did."""
         end = time.monotonic() + timeout
-        writers = [writer for writer, _, _ in self._controllers] + ([] if self._base is None else [self._base[0]])
-        return all([acknowledged(writer, max(0.0, end - time.monotonic())) for writer in writers])
+        return all([acknowledged(writer, max(0.0, end - time.monotonic())) for writer in self.writers])
 
     def _write(self, q: NDArray[np.float64], v: NDArray[np.float64]) -> None:
         for writer, message, controller in self._controllers:

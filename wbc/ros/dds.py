@@ -21,10 +21,10 @@ import fcntl
 import os
 import socket
 import struct
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
-from cyclonedds.core import DDSException, Qos
+from cyclonedds.core import DDSException, Entity, Qos
 from cyclonedds.domain import Domain, DomainParticipant
 from cyclonedds.idl import IdlStruct
 from cyclonedds.pub import DataWriter
@@ -33,6 +33,7 @@ from cyclonedds.sub import DataReader
 from cyclonedds.topic import Topic
 
 from .errors import RosError
+from .messages import Gid, NodeEntitiesInfo, ParticipantEntitiesInfo
 from .names import dds_topic
 from .type_hash import user_data
 
@@ -40,6 +41,8 @@ _Message = TypeVar("_Message", bound=IdlStruct)
 
 DEFAULT_DEPTH = 10  #: history depth of ROS 2's default QoS profile
 SENSOR_DATA_DEPTH = 5  #: history depth of ROS 2's sensor-data QoS profile
+#: the DDS topic (no "rt/" prefix: not a ROS topic) on which each ROS 2 process lists its nodes' endpoints
+DISCOVERY_TOPIC = "ros_discovery_info"
 MAX_DOMAIN_ID = 232  #: the largest DDS domain id whose ports fit (ROS 2 recommends 0-101 on Linux)
 DISCOVERY_RANGES = ("SUBNET", "LOCALHOST", "OFF", "SYSTEM_DEFAULT")
 #: participants discovered on one machine by unicast (rmw_cyclonedds' value)
@@ -192,6 +195,29 @@ class Participant:
         domain stays, for the next participant of this process)."""
         self._topics.clear()
         del self.participant
+
+
+def gid(entity: Entity) -> Gid:
+    """The ROS 2 GID of a DDS entity: the 16 bytes of its GUID."""
+    return Gid(data=list(entity.guid.bytes))
+
+
+def announce_node(participant: Participant, namespace: str, name: str, readers: Sequence[Entity],
+                  writers: Sequence[Entity]) -> DataWriter[ParticipantEntitiesInfo]:
+    """Publish, as a ROS 2 process does on :data:`DISCOVERY_TOPIC` (reliable, transient local, keep
+    last 1: late joiners get it), that node ``namespace``/``name`` of ``participant`` owns
+    ``readers`` and ``writers``: then ``ros2 node list`` lists the node and ``ros2 topic info -v``
+    names it for each endpoint. Returns the writer (keep it: the announcement lives with it)."""
+    info = ParticipantEntitiesInfo(gid=gid(participant.participant), node_entities_info_seq=[NodeEntitiesInfo(
+        node_namespace=namespace, node_name=name, reader_gid_seq=[gid(reader) for reader in readers],
+        writer_gid_seq=[gid(writer) for writer in writers])])
+    qos = Qos(Policy.Reliability.Reliable(max_blocking_time=0), Policy.Durability.TransientLocal,
+              Policy.History.KeepLast(depth=1), Policy.Userdata(data=user_data(ParticipantEntitiesInfo)),
+              Policy.DataRepresentation(use_cdrv0_representation=True))
+    writer = DataWriter(participant.participant, Topic(participant.participant, DISCOVERY_TOPIC,
+                                                       ParticipantEntitiesInfo), qos)
+    writer.write(info)
+    return writer
 
 
 def take_one(reader: DataReader[_Message]) -> tuple[_Message | None, bool]:

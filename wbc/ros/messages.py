@@ -200,10 +200,50 @@ class DiagnosticArray(IdlStruct, typename="diagnostic_msgs::msg::dds_::Diagnosti
     status: Annotated[list[DiagnosticStatus], idl.sequence(DiagnosticStatus)] = field(default_factory=list)
 
 
+# ----------------------------------------------------------------------------- rmw_dds_common
+Bytes16 = Annotated[list[int], idl.array(idl.uint8, 16)]
+
+
+def _gid() -> list[int]:
+    return [0] * 16
+
+
+@dataclass
+class Gid(IdlStruct, typename="rmw_dds_common::msg::dds_::Gid_"):
+    """``rmw_dds_common/msg/Gid``: the 16 bytes of a DDS entity's GUID (written from a list of
+    ints; cyclonedds reads them back as ``bytes``)."""
+
+    data: Bytes16 = field(default_factory=_gid)  # char[16]: see CHAR_FIELDS
+
+
+@dataclass
+class NodeEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::NodeEntitiesInfo_"):
+    """``rmw_dds_common/msg/NodeEntitiesInfo``: a node and the GIDs of its readers and writers."""
+
+    node_namespace: Annotated[str, idl.bounded_str(256)] = ""
+    node_name: Annotated[str, idl.bounded_str(256)] = ""
+    reader_gid_seq: Annotated[list[Gid], idl.sequence(Gid)] = field(default_factory=list)
+    writer_gid_seq: Annotated[list[Gid], idl.sequence(Gid)] = field(default_factory=list)
+
+
+@dataclass
+class ParticipantEntitiesInfo(IdlStruct, typename="rmw_dds_common::msg::dds_::ParticipantEntitiesInfo_"):
+    """``rmw_dds_common/msg/ParticipantEntitiesInfo``: what a ROS 2 process publishes on the DDS
+    topic ``ros_discovery_info`` so that ``ros2 node list`` knows its nodes and their endpoints."""
+
+    gid: Gid = field(default_factory=Gid)
+    node_entities_info_seq: Annotated[list[NodeEntitiesInfo], idl.sequence(NodeEntitiesInfo)] = field(
+        default_factory=list)
+
+
 #: ROS 2 message name (``pkg/msg/T``) of each type
 ROS_NAMES: dict[type[IdlStruct], str] = {
     cls: "/".join(cls.__idl_typename__.replace("::dds_::", "::").removesuffix("_").split("::"))
     for cls in (Time, Header, MultiArrayDimension, MultiArrayLayout, Float64MultiArray, JointState, Vector3, Point,
                 Quaternion, Pose, PoseStamped, Twist, TwistStamped, PoseWithCovariance, TwistWithCovariance,
-                Odometry, KeyValue, DiagnosticStatus, DiagnosticArray)
+                Odometry, KeyValue, DiagnosticStatus, DiagnosticArray, Gid, NodeEntitiesInfo,
+                ParticipantEntitiesInfo)
 }
+
+#: fields declared ``char`` in their ``.msg``: a uint8 on the wire, but its own type id in the type hash
+CHAR_FIELDS: set[tuple[type[IdlStruct], str]] = {(Gid, "data")}

@@ -45,7 +45,7 @@ from ..tasks.frame_task import FrameTaskData
 from ..tasks.position_task import PositionTaskData
 from .commands import CommandWriter
 from .config import NodeConfig
-from .dds import SENSOR_DATA_DEPTH, Participant, source_timestamp, take_one
+from .dds import SENSOR_DATA_DEPTH, Participant, announce_node, source_timestamp, take_one
 from .inputs import BasePose, DropLog, JointStates, PoseTargets, TwistTargets
 from .messages import DiagnosticArray, JointState, Odometry, PoseStamped, Twist
 from .status import NodeStatus, diagnostics_message
@@ -90,6 +90,11 @@ class Node:
                                                   participant.reader(twist.topic, Twist))
         self.commands = CommandWriter(participant, config, self.robot)
         self._diagnostics = participant.writer(config.diagnostics, DiagnosticArray)
+        readers: list[Any] = [self._joint_reader, *(reader for _, _, reader in self._poses)]
+        readers += [reader for reader in (self._odometry_reader, None if self._twist is None else self._twist[2])
+                    if reader is not None]
+        self._announcement = announce_node(participant, config.namespace, config.node, readers,
+                                           [*self.commands.writers, self._diagnostics])
         self._next_diagnostics = -math.inf
         self._reference = scenario.reference
         self._reference_task = scenario.reference_task
@@ -190,7 +195,10 @@ class Node:
             if status.state == "control":
                 self.commands.publish_zero(self.q)
                 status.watchdog_trips += 1
-                status.trip_ages.append(now - float(np.max(self._joints.received)))
+                oldest = float(np.min(self._joints.received))
+                if self._odometry is not None:
+                    oldest = min(oldest, self._odometry.received)
+                status.trip_ages.append(now - oldest)  # what went stale: >= the timeout
                 status.zero_sent = True
                 status.stale_reason = reason
                 self.drops.note("watchdog", f"watchdog: {reason}; zero command sent, held until fresh states", now)

@@ -65,7 +65,8 @@ class NodeStatus:
     stale_reason: str = ""
     last_status: str = ""  #: ``controller.last.status`` of the latest control tick
     last_solve_time: float = math.nan
-    trip_ages: list[float] = field(default_factory=list)  #: [s] age of the state at each watchdog trip
+    #: [s] at each watchdog trip, the age of the oldest input the state needs (a joint or the odometry)
+    trip_ages: list[float] = field(default_factory=list)
     latency: Window = field(default_factory=Window)
     step: Window = field(default_factory=Window)
     state_age: Window = field(default_factory=Window)

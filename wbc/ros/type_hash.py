@@ -20,7 +20,7 @@ from typing import Any
 import cyclonedds.idl.types as idl
 from cyclonedds.idl import IdlStruct
 
-from .messages import ROS_NAMES
+from .messages import CHAR_FIELDS, ROS_NAMES
 
 RIHS01_PREFIX = "RIHS01_"
 #: FieldType ids of the element types (type_description_interfaces/msg/FieldType.msg)
@@ -69,6 +69,8 @@ def _individual(message: type[IdlStruct]) -> dict[str, Any]:
         kind = _field_type(hint)
         nested = kind.pop("nested")
         kind["nested_type_name"] = "" if nested is None else ROS_NAMES[nested]
+        if (message, name) in CHAR_FIELDS:  # declared char, serialized as uint8
+            kind["type_id"] += ELEMENT_IDS["char"] - ELEMENT_IDS["uint8"]
         fields.append({"name": name, "type": kind})
     return {"type_name": ROS_NAMES[message], "fields": fields}
 
