@@ -222,6 +222,11 @@ SCENARIO = textwrap.dedent("""
 @pytest.mark.parametrize("block", [b for b in ALL_BLOCKS if b.language == "toml"], ids=lambda b: b.label)
 def test_toml_blocks_are_valid(block, tmp_path):
     data = tomllib.loads(block.code)
+    if set(data) & {"node", "state", "joints", "controllers", "targets", "diagnostics"}:
+        from wbc.ros.config import parse_config  # a configuration of `wbc ros` (docs/ros.md): its schema
+
+        parse_config(data, block.label)
+        return
     if "base" in data:
         sidecars = [tomllib.loads((ROOT / "models" / name / f"{name}.toml").read_text())
                     for name in wbc.shipped_models()]
