@@ -21,10 +21,11 @@ controller is built, by named pieces:
 
 from __future__ import annotations
 
+import copy
 import math
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any, overload
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -49,6 +50,9 @@ from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
 from .lm_damping import LMDamping
 from .tick_buffers import TickBuffers
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..solvers.daqp.native import NativeWorkspace
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -129,6 +133,16 @@ class Controller:
                  constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
                  solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False,
                  lm_damping: float = DEFAULT_LM_DAMPING) -> None:
+        if solver_options is not None and not isinstance(solver_options, Mapping):
+            raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
+        self._setup(robot, tasks, constraints, lambda: make_solver(solver, solver_options), dt, damping, reduced,
+                    strict, lm_damping)
+
+    def _setup(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
+               constraints: Sequence[Constraint], solver: Callable[[], QPSolver], dt: float, damping: float,
+               reduced: bool, strict: bool, lm_damping: float) -> None:
+        """Build the controller from its specification (``solver`` makes its backend, once
+        every other argument is checked); :meth:`__init__` and the copies (:meth:`__reduce__`)."""
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
@@ -140,8 +154,6 @@ class Controller:
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
             raise InvalidInputError("a controller needs at least one task")
-        if solver_options is not None and not isinstance(solver_options, Mapping):
-            raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
         # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
         self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
         self.strict = as_flag(strict, "strict")
@@ -151,12 +163,49 @@ class Controller:
                                                     for c in self.constraints):
             raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
                                     "NonholonomicBase() to the constraints or use reduced=True")
-        self._solver: QPSolver = make_solver(solver, solver_options)
+        self._solver: QPSolver = solver()
         self.kinematics = Kinematics(robot)
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
         self._allocate()
+
+    # ----------------------------------------------------------------- copies
+    def _specification(self) -> dict[str, Any]:
+        """What a copy is built from: the arguments of :meth:`_setup` with today's settings."""
+        return {"robot": self.robot, "tasks": self.tasks if self._level_sizes is None else self.levels,
+                "constraints": self.constraints, "solver": self._solver, "dt": self.dt, "damping": self.damping,
+                "reduced": self.reduced, "strict": self.strict, "lm_damping": self.lm_damping}
+
+    def _warm_state(self) -> WarmState:
+        """What the next tick starts from besides the specification: the tick counter and the
+        working sets of the DAQP workspaces that the program solves in (a qpsolvers backend
+        carries its own warm start when copied)."""
+        return WarmState(self._buffers.tick, [workspace.working_set for workspace in self._daqp_workspaces()])
+
+    def _daqp_workspaces(self) -> list[NativeWorkspace]:
+        """The native DAQP workspaces the tick program solves in (the levels' or the one QP's)."""
+        if self._hierarchy is not None:
+            return self._hierarchy.workspaces
+        bound = self._solver.bound if isinstance(self._solver, DaqpBackend) and self._solve_in_program else None
+        return [bound] if bound is not None else []
+
+    def __reduce__(self) -> tuple[Callable[..., Controller], tuple[type[Controller], dict[str, Any], WarmState]]:
+        """Pickles (and, through :meth:`__copy__` / :meth:`__deepcopy__`, copies) are new
+        controllers built from the specification and the warm state -- never this one's
+        buffers, program or solver workspaces."""
+        return _rebuilt, (type(self), self._specification(), self._warm_state())
+
+    def __copy__(self) -> Controller:
+        """A controller of the same robot and the same task and constraint objects (their
+        settings act in both), with buffers, program and backend of its own."""
+        specification = self._specification()
+        specification["solver"] = copy.deepcopy(self._solver)
+        return _rebuilt(type(self), specification, self._warm_state())
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Controller:
+        """A controller of copies of the robot, tasks and constraints (independent settings)."""
+        return _rebuilt(type(self), copy.deepcopy(self._specification(), memo), self._warm_state())
 
     # --------------------------------------------------------------- settings
     dt = Setting(as_positive)  #: control period [s] (> 0); may be changed between ticks
@@ -517,3 +566,24 @@ def _velocity_names(robot: Robot) -> list[str]:
     for joint, name in zip(robot.model.joints[1:], robot.joint_names, strict=True):
         names += [name] if joint.nv == 1 else [f"{name}[{i}]" for i in range(joint.nv)]
     return names
+
+
+class WarmState(NamedTuple):
+    """A controller's state beyond its specification (:meth:`Controller._warm_state`)."""
+
+    tick: int  #: the tick counter
+    working_sets: list[NDArray[np.intc]]  #: DAQP's constraint states, one per workspace of the program
+
+
+def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmState) -> Controller:
+    """A controller of class ``cls`` built from ``specification`` (:meth:`Controller._specification`;
+    its solver an object) and ``warm``: what copies and pickles of one are."""
+    solver = specification.pop("solver")
+    controller = cls.__new__(cls)
+    controller._setup(solver=lambda: solver, **specification)
+    controller._buffers.tick = warm.tick
+    workspaces = controller._daqp_workspaces()
+    if len(workspaces) == len(warm.working_sets):  # (the same modes: always, unless DAQP's C API went missing)
+        for workspace, states in zip(workspaces, warm.working_sets, strict=True):
+            workspace.working_set = states
+    return controller
