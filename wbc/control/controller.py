@@ -33,10 +33,10 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
-from ..core.settings import Setting
 from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
+from ..model.tick_context import TickContext
 from ..qp.layout import ConstraintLayout, TaskStack
 from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
 from ..qp.problem import QP
@@ -158,6 +158,8 @@ class Controller:
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
+        self.kinematics = Kinematics(robot)
+        self._context = TickContext(self.kinematics, 0.0)  # (read through the property context)
         self.dt = dt
         # (damping, floor): operand of the cost normalisation, and where the damping setting lives
         self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
@@ -171,7 +173,6 @@ class Controller:
         self.strict = as_flag(strict, "strict")
         self.constraints = _base_constraints(robot, self.constraints, self.reduced)
         self._solver: QPSolver = solver()
-        self.kinematics = Kinematics(robot)
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
@@ -185,10 +186,12 @@ class Controller:
                 "reduced": self.reduced, "strict": self.strict, "lm_damping": self.lm_damping}
 
     def _warm_state(self) -> WarmState:
-        """What the next tick starts from besides the specification: the tick counter and the
-        working sets of the DAQP workspaces that the program solves in (a qpsolvers backend
-        carries its own warm start when copied)."""
-        return WarmState(self._buffers.tick, [workspace.working_set for workspace in self._daqp_workspaces()])
+        """What the next tick starts from besides the specification: the tick counter, the
+        previous command (the context's) and the working sets of the DAQP workspaces that the
+        program solves in (a qpsolvers backend carries its own warm start when copied)."""
+        previous = self._context.previous
+        return WarmState(self._buffers.tick, [workspace.working_set for workspace in self._daqp_workspaces()],
+                         None if previous is None else previous.copy())
 
     def _daqp_workspaces(self) -> list[NativeWorkspace]:
         """The native DAQP workspaces the tick program solves in (the levels' or the one QP's)."""
@@ -215,7 +218,6 @@ class Controller:
         return _rebuilt(type(self), copy.deepcopy(self._specification(), memo), self._warm_state())
 
     # --------------------------------------------------------------- settings
-    dt = Setting(as_positive)  #: control period [s] (> 0); may be changed between ticks
     _dt: float  # where dt lives
     _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
 
@@ -230,6 +232,21 @@ class Controller:
         if self._last is None:
             raise NoTickYetError("controller.last: no tick yet; call controller.step(q) first")
         return self._last
+
+    @property
+    def dt(self) -> float:
+        """Control period [s] (> 0); may be changed between ticks."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        self._dt = self._context.dt = as_positive(value, "dt")
+
+    @property
+    def context(self) -> TickContext:
+        """The tick's context (:class:`~wbc.model.tick_context.TickContext`): kinematics, ``dt``,
+        the previous command, the measured velocity given to :meth:`step`."""
+        return self._context
 
     @property
     def damping(self) -> float:
@@ -303,7 +320,7 @@ class Controller:
         self._inputs = inputs_of(robot, self._S, self._reduction, qp)
         # what the hierarchy, the fallback and the diagnostics read (never the controller)
         self._buffers = buffers = TickBuffers(self.kinematics, self._task_data, stack, qp, layout, self._cost_scaling,
-                                              self._lm_damping, self._S, self._reduction)
+                                              self._lm_damping, self._S, self._reduction, self._context)
         self._preview = buffers.preview  # holonomic relaxation -H^-1 c of the plain tasks
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
@@ -325,6 +342,9 @@ class Controller:
         data = item.bind(self.robot)
         if data is not item:
             _refuse_ignored_overrides(item, data)
+        use_context = getattr(data, "use_context", None)
+        if callable(use_context):  # data that reads the tick's context (wbc.model.tick_context)
+            use_context(self._context)
         item._in_use = True
         return data
 
@@ -440,10 +460,8 @@ class Controller:
         self._solve, self.qp = solve, solve.qp  #: qp: what the solver sees (the last level's with priorities)
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
-        # ... and, with no Python reader, the kinematics are left to the program's first op
-        self._deferred_kinematics = self._q_screened and self.kinematics.native
         split = self._program_after_preview is not None
-        self._assembly = Assembly(self.kinematics, self.robot, self._buffers, self._task_data, self._python_tasks,
+        self._assembly = Assembly(self._context, self.robot, self._buffers, self._task_data, self._python_tasks,
                                   self._python_constraints, program, self._q_screened, self._q_weights,
                                   None if split else self._inputs)
         if split:
@@ -452,12 +470,15 @@ class Controller:
         self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
 
     # --------------------------------------------------------------- hot path
-    def step(self, q: ArrayLike) -> NDArray[np.float64]:
+    def step(self, q: ArrayLike, v_measured: ArrayLike | None = None) -> NDArray[np.float64]:
         """Compute the joint velocity command for configuration ``q``.
 
         Args:
             q: the configuration, size ``robot.nq`` (Pinocchio's; for the youBot
                 ``(X_C, Y_C, theta, theta1..theta5)``).
+            v_measured: the measured joint velocity [unit/s], size ``robot.nv``, if the robot
+                reports one: this tick's :attr:`context` holds it for the items that read it
+                (no shipped item does yet); the command does not depend on it otherwise.
 
         Returns:
             The command ``v``, size ``robot.nv``, never NaN and within every hard limit;
@@ -465,7 +486,8 @@ class Controller:
             fallback chain of the class docstring (``last.status`` says which link answered).
 
         Raises:
-            InvalidInputError: ``q`` is malformed (wrong shape, not numbers, NaN or inf). A
+            InvalidInputError: ``q`` or ``v_measured`` is malformed (wrong shape, not numbers,
+                NaN or inf). A
                 non-finite ``q`` is caught by the program's screen, so the previous tick's lazy
                 diagnostics are stale afterwards.
             SolverError: with ``strict=True``, when the QP cannot be solved.
@@ -474,9 +496,8 @@ class Controller:
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
                 and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
             q = self.robot.check_configuration(q)
-        self.kinematics.update(q, self._deferred_kinematics)
         # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
-        has_nan = self._assemble(q, self._dt)
+        has_nan = self._assemble(q, self._dt, v_measured)
         answer = None if has_nan else self._fast(ANSWER_TOLERANCE)  # solved and checked in the program already
         buffers = self._buffers
         buffers.tick += 1
@@ -486,6 +507,7 @@ class Controller:
             x, solve_time, outcome, status = self._answer(has_nan)
         command = self._command  # None: v = u = x (a holonomic or fixed base, the QP over v)
         v, u = (x, x) if command is None else command(x)
+        self._context.previous = v
         self._last = TickDiagnostics(buffers, buffers.tick, self._solver.name, outcome, status, solve_time,
                                      time.perf_counter() - start, v, u)
         return v
@@ -561,6 +583,7 @@ class WarmState(NamedTuple):
 
     tick: int  #: the tick counter
     working_sets: list[NDArray[np.intc]]  #: DAQP's constraint states, one per workspace of the program
+    previous: NDArray[np.float64] | None  #: the previous command (:attr:`TickContext.previous`)
 
 
 def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmState) -> Controller:
@@ -569,7 +592,7 @@ def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmSta
     solver = specification.pop("solver")
     controller = cls.__new__(cls)
     controller._setup(solver=lambda: solver, **specification)
-    controller._buffers.tick = warm.tick
+    controller._buffers.tick, controller._context.previous = warm.tick, warm.previous
     workspaces = controller._daqp_workspaces()
     if len(workspaces) == len(warm.working_sets):  # (the same modes: always, unless DAQP's C API went missing)
         for workspace, states in zip(workspaces, warm.working_sets, strict=True):

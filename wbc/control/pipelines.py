@@ -24,11 +24,11 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from ..constraints.constraint import ConstraintData, ConstraintRows
-from ..model.kinematics import Kinematics
 from ..model.robot import Robot
+from ..model.tick_context import TickContext
 from ..qp.lifting import LiftedQP
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
@@ -130,23 +130,29 @@ class Assembly:
     then screens q itself; a NaN it found in q is reported here as the bad q it is.
     """
 
-    def __init__(self, kinematics: Kinematics, robot: Robot, buffers: TickBuffers, unready: Sequence[TaskData],
+    def __init__(self, context: TickContext, robot: Robot, buffers: TickBuffers, unready: Sequence[TaskData],
                  tasks: PythonTasks, constraints: PythonConstraints, program: TickProgram, q_screened: bool,
                  q_weights: NDArray[np.float64], inputs: Holonomic | None) -> None:
-        self._kinematics, self._robot, self._buffers = kinematics, robot, buffers
+        self._context, self._kinematics, self._robot, self._buffers = context, context.kinematics, robot, buffers
+        # with no Python reader before the program, the kinematics are left to its first op
+        self._deferred_kinematics = q_screened and context.kinematics.native
         self._unready = list(unready)  # checked every tick until each one is ready
         self._tasks, self._constraints, self._run = tasks, constraints, program.runner()
         self._qp = buffers.qp
         self._q_screened, self._q_weights = q_screened, q_weights  # q is finite iff q . weights is
         self._prepare = inputs.prepare if inputs is not None and inputs.prepares else None
 
-    def run(self, q: NDArray[np.float64], dt: float) -> bool:
-        """Fill this tick's QP for configuration ``q`` (kinematics already updated); True when
-        it cannot be solved (a NaN in its data; the inputs' :attr:`~Holonomic.failure` says).
-        Raises InvalidInputError for a non-finite ``q`` found by the program."""
+    def run(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
+        """Fill this tick's QP for configuration ``q`` (checked up front unless the program
+        screens it) and the tick's context (``v_measured``: the measured joint velocity, or
+        None); True when it cannot be solved (a NaN in its data; the inputs'
+        :attr:`~Holonomic.failure` says why). Raises InvalidInputError for a bad
+        ``v_measured``, or a non-finite ``q`` found by the program."""
+        context, kin = self._context, self._kinematics
+        context.measured = None if v_measured is None else context.measure(v_measured)
+        kin.update(q, self._deferred_kinematics)
         if self._unready:
             self._check_ready()
-        kin = self._kinematics
         for task, jacobian, target in self._tasks:
             task.compute(kin, dt, jacobian, target)
         for constraint, block in self._constraints:
@@ -179,11 +185,12 @@ class SplitAssembly(Assembly):
     def __init__(self, first: Assembly, buffers: TickBuffers, preview_tasks: PythonTasks, after: TickProgram,
                  inputs: Holonomic) -> None:
         self._first, self._kinematics, self._preview = first, first._kinematics, buffers.preview
+        self._deferred_kinematics = first._deferred_kinematics
         self._preview_tasks, self._after = preview_tasks, after.runner()
         self._prepare = inputs.prepare if inputs.prepares else None
 
-    def run(self, q: NDArray[np.float64], dt: float) -> bool:
-        self._first.run(q, dt)
+    def run(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
+        self._first.run(q, dt, v_measured)
         kin, preview = self._kinematics, self._preview
         for task, jacobian, target in self._preview_tasks:
             task.compute_preview(kin, dt, jacobian, target, preview)
