@@ -583,7 +583,7 @@ class WarmState(NamedTuple):
 
     tick: int  #: the tick counter
     working_sets: list[NDArray[np.intc]]  #: DAQP's constraint states, one per workspace of the program
-    previous: NDArray[np.float64] | None  #: the previous command (:attr:`TickContext.previous`)
+    previous: NDArray[np.float64] | None  #: the previous command (``TickContext.previous``)
 
 
 def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmState) -> Controller:

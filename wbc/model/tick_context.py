@@ -38,7 +38,7 @@ class TickContext:
 
     def measure(self, v_measured: ArrayLike) -> NDArray[np.float64]:
         """``v_measured`` checked and copied into the context's own array (returned; the caller
-        sets :attr:`measured` to it).
+        sets ``measured`` to it).
 
         Raises:
             InvalidInputError: ``v_measured`` is not a finite vector of size ``nv``.
