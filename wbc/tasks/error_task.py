@@ -36,7 +36,7 @@ class ErrorTask(Task):
     Args:
         dim: number of rows.
         gain: fraction of the error removed per tick, in (0, 1].
-        name: the task's name (default: :meth:`default_name`).
+        name: the task's name (default: the class name, ``default_name()``).
     """
 
     gain = Setting(as_gain)
