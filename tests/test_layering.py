@@ -22,7 +22,7 @@ LAYERS: list[tuple[str, ...]] = [
     ("wbc.control",),
     ("wbc.analysis",),
     ("wbc.trajectory",),
-    ("wbc.app",),
+    ("wbc.app", "wbc.ros"),
     ("wbc", "wbc.__main__"),  # the public namespace and ``python -m wbc``: above everything
 ]
 

@@ -58,9 +58,10 @@ nitpicky = True
 nitpick_ignore_regex = [
     (r"py:.*", r"(numpy|np|pinocchio|pin|coal|pydantic|pydantic_core|qpsolvers|numba|ctypes|_ctypes|collections|abc"
                r"|numbers|threading|pathlib|concurrent|multiprocessing|matplotlib|mujoco|viser|argparse|enum|types"
-               r"|json|io|os|annotated_types)(\..*)?"),
+               r"|json|io|os|annotated_types|cyclonedds)(\..*)?"),
     (r"py:.*", r"(NDArray|ArrayLike|Path|Enum|Generator|Iterator|Iterable|Sequence|Mapping|Callable|Buffer|Figure"
-               r"|Number|NoneType|FieldInfo|MinLen|MaxLen|Gt|Ge)"),
+               r"|Number|NoneType|FieldInfo|MinLen|MaxLen|Gt|Ge"
+               r"|sequence|array|float64|uint8|bounded_str)"),  # (cyclonedds' IDL types of wbc.ros.messages)
     # private names (type variables, helpers) in signatures and text: not part of the reference
     (r"py:.*", r"(.*\.)?_[A-Za-z]\w*"),
 ]

@@ -1,5 +1,5 @@
 """Command line: ``wbc run SCENARIO [SCENARIO ...] [--plot FILE.png] [--html FILE.html] [--view [PORT]]
-[--sim mujoco]``, ``wbc scenarios``, ``wbc solvers``,
+[--sim mujoco]``, ``wbc ros SCENARIO --config FILE``, ``wbc scenarios``, ``wbc solvers``,
 ``wbc singularities MODEL``, ``wbc bench SUITE``, ``wbc warmup``."""
 
 from __future__ import annotations
@@ -67,6 +67,13 @@ def _run(args: argparse.Namespace) -> int:
         print("wbc: interrupted", file=sys.stderr)
         return 130
     return 0
+
+
+def _ros(args: argparse.Namespace) -> int:
+    _require("cyclonedds", "wbc ros", "ros")
+    from ..ros.launch import main as ros_main
+
+    return ros_main(args.scenario, args.config, args.duration, args.solver, args.json)
 
 
 def _loop(result: RunResult) -> dict[str, str]:
@@ -369,6 +376,14 @@ def build_parser() -> argparse.ArgumentParser:
     run_parser.add_argument("--delay", type=int, choices=[0, 1],
                             help="with --sim mujoco: ticks between command and actuation (default 0)")
     run_parser.set_defaults(handler=_run)
+    ros_parser = sub.add_parser("ros", help="run a scenario's controller as a ROS 2 node over DDS (extra [ros])")
+    ros_parser.add_argument("scenario", help="a scenario TOML file or the name of a shipped scenario")
+    ros_parser.add_argument("--config", required=True, metavar="FILE",
+                            help="the node's topics and joints (TOML), or a shipped configuration's name (youbot)")
+    ros_parser.add_argument("--duration", type=float, help="stop after this many seconds (default: SIGINT/SIGTERM)")
+    ros_parser.add_argument("--solver", help="override the scenario's QP solver")
+    ros_parser.add_argument("--json", action="store_true", help="print the summary at exit as JSON on stdout")
+    ros_parser.set_defaults(handler=_ros)
     scenarios_parser = sub.add_parser("scenarios", help="list the shipped scenarios (wbc run NAME runs one)")
     scenarios_parser.set_defaults(handler=_scenarios)
     solvers_parser = sub.add_parser("solvers", help="list the installed QP solvers")
