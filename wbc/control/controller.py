@@ -21,10 +21,11 @@ controller is built, by named pieces:
 
 from __future__ import annotations
 
+import copy
 import math
 import time
-from collections.abc import Mapping, Sequence
-from typing import Any, overload
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,10 +33,10 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
-from ..core.settings import Setting
 from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
+from ..model.tick_context import TickContext
 from ..qp.layout import ConstraintLayout, TaskStack
 from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
 from ..qp.problem import QP
@@ -48,7 +49,22 @@ from .diagnostics import NoTickYetError, TickDiagnostics
 from .fallback import ANSWER_TOLERANCE, Fallback
 from .hierarchy import Hierarchy, task_levels
 from .lm_damping import LMDamping
+from .pipelines import (
+    Assembly,
+    BackendSolve,
+    CascadeInProgram,
+    CascadeSolve,
+    LiftedSolve,
+    ProgramSolve,
+    PythonConstraint,
+    PythonTask,
+    SplitAssembly,
+    inputs_of,
+)
 from .tick_buffers import TickBuffers
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..solvers.daqp.native import NativeWorkspace
 
 #: smallest damping relative to the largest curvature of the cost (:func:`wbc.runtime.kernels.normalise_cost`):
 #: below it H is numerically singular (a cost 1e15 times the damping); the solvers would fail
@@ -129,9 +145,21 @@ class Controller:
                  constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
                  solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False,
                  lm_damping: float = DEFAULT_LM_DAMPING) -> None:
+        if solver_options is not None and not isinstance(solver_options, Mapping):
+            raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
+        self._setup(robot, tasks, constraints, lambda: make_solver(solver, solver_options), dt, damping, reduced,
+                    strict, lm_damping)
+
+    def _setup(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
+               constraints: Sequence[Constraint], solver: Callable[[], QPSolver], dt: float, damping: float,
+               reduced: bool, strict: bool, lm_damping: float) -> None:
+        """Build the controller from its specification (``solver`` makes its backend, once
+        every other argument is checked); :meth:`__init__` and the copies (:meth:`__reduce__`)."""
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
         self.robot = robot
+        self.kinematics = Kinematics(robot)
+        self._context = TickContext(self.kinematics, 0.0)  # (read through the property context)
         self.dt = dt
         # (damping, floor): operand of the cost normalisation, and where the damping setting lives
         self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
@@ -140,28 +168,58 @@ class Controller:
         self.constraints = as_items(constraints, Constraint, "constraints")
         if not self.tasks:
             raise InvalidInputError("a controller needs at least one task")
-        if solver_options is not None and not isinstance(solver_options, Mapping):
-            raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
         # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
         self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
         self.strict = as_flag(strict, "strict")
-        if self.reduced:
-            self.constraints = [c for c in self.constraints if not c.satisfied_by_input_map]
-        elif robot.base.is_nonholonomic and not any(c.satisfied_by_input_map
-                                                    for c in self.constraints):
-            raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
-                                    "NonholonomicBase() to the constraints or use reduced=True")
-        self._solver: QPSolver = make_solver(solver, solver_options)
-        self.kinematics = Kinematics(robot)
+        self.constraints = _base_constraints(robot, self.constraints, self.reduced)
+        self._solver: QPSolver = solver()
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
         self._allocate()
 
+    # ----------------------------------------------------------------- copies
+    def _specification(self) -> dict[str, Any]:
+        """What a copy is built from: the arguments of :meth:`_setup` with today's settings."""
+        return {"robot": self.robot, "tasks": self.tasks if self._level_sizes is None else self.levels,
+                "constraints": self.constraints, "solver": self._solver, "dt": self.dt, "damping": self.damping,
+                "reduced": self.reduced, "strict": self.strict, "lm_damping": self.lm_damping}
+
+    def _warm_state(self) -> WarmState:
+        """What the next tick starts from besides the specification: the tick counter, the
+        previous command (the context's) and the working sets of the DAQP workspaces that the
+        program solves in (a qpsolvers backend carries its own warm start when copied)."""
+        previous = self._context.previous
+        return WarmState(self._buffers.tick, [workspace.working_set for workspace in self._daqp_workspaces()],
+                         None if previous is None else previous.copy())
+
+    def _daqp_workspaces(self) -> list[NativeWorkspace]:
+        """The native DAQP workspaces the tick program solves in (the levels' or the one QP's)."""
+        if self._hierarchy is not None:
+            return self._hierarchy.workspaces
+        bound = self._solver.bound if isinstance(self._solver, DaqpBackend) and self._solve_in_program else None
+        return [bound] if bound is not None else []
+
+    def __reduce__(self) -> tuple[Callable[..., Controller], tuple[type[Controller], dict[str, Any], WarmState]]:
+        """Pickles (and, through :meth:`__copy__` / :meth:`__deepcopy__`, copies) are new
+        controllers built from the specification and the warm state -- never this one's
+        buffers, program or solver workspaces."""
+        return _rebuilt, (type(self), self._specification(), self._warm_state())
+
+    def __copy__(self) -> Controller:
+        """A controller of the same robot and the same task and constraint objects (their
+        settings act in both), with buffers, program and backend of its own."""
+        specification = self._specification()
+        specification["solver"] = copy.deepcopy(self._solver)
+        return _rebuilt(type(self), specification, self._warm_state())
+
+    def __deepcopy__(self, memo: dict[int, Any]) -> Controller:
+        """A controller of copies of the robot, tasks and constraints (independent settings)."""
+        return _rebuilt(type(self), copy.deepcopy(self._specification(), memo), self._warm_state())
+
     # --------------------------------------------------------------- settings
-    dt = Setting(as_positive)  #: control period [s] (> 0); may be changed between ticks
     _dt: float  # where dt lives
-    _collector: Hierarchy | QPSolver  # what reads the outcome of a solve run in the program
+    _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
 
     @property
     def last(self) -> TickDiagnostics:
@@ -174,6 +232,21 @@ class Controller:
         if self._last is None:
             raise NoTickYetError("controller.last: no tick yet; call controller.step(q) first")
         return self._last
+
+    @property
+    def dt(self) -> float:
+        """Control period [s] (> 0); may be changed between ticks."""
+        return self._dt
+
+    @dt.setter
+    def dt(self, value: float) -> None:
+        self._dt = self._context.dt = as_positive(value, "dt")
+
+    @property
+    def context(self) -> TickContext:
+        """The tick's context (:class:`~wbc.model.tick_context.TickContext`): kinematics, ``dt``,
+        the previous command, the measured velocity given to :meth:`step`."""
+        return self._context
 
     @property
     def damping(self) -> float:
@@ -241,12 +314,13 @@ class Controller:
         self._fallback = Fallback(layout.soft_rows, self.solver.fallback_budget, self.strict)
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
 
-        self._nonholonomic = robot.base.is_nonholonomic
         self._S = robot.input_map(robot.neutral())
         self._reduction = InputReduction(self._S, n_ineq, n_eq) if self.reduced else None
+        #: the inputs stage of the tick's pipeline (wbc.control.pipelines): the base's input map
+        self._inputs = inputs_of(robot, self._S, self._reduction, qp)
         # what the hierarchy, the fallback and the diagnostics read (never the controller)
         self._buffers = buffers = TickBuffers(self.kinematics, self._task_data, stack, qp, layout, self._cost_scaling,
-                                              self._lm_damping, self._S, self._reduction)
+                                              self._lm_damping, self._S, self._reduction, self._context)
         self._preview = buffers.preview  # holonomic relaxation -H^-1 c of the plain tasks
         if self._reduction is not None:
             kernels.merge_bounds(bounds.bounds.reshape(-1, nv), bounds.n_hard, qp.ub, qp.lb)  # static bounds,
@@ -268,6 +342,9 @@ class Controller:
         data = item.bind(self.robot)
         if data is not item:
             _refuse_ignored_overrides(item, data)
+        use_context = getattr(data, "use_context", None)
+        if callable(use_context):  # data that reads the tick's context (wbc.model.tick_context)
+            use_context(self._context)
         item._in_use = True
         return data
 
@@ -293,81 +370,115 @@ class Controller:
     def _build_program(self) -> None:
         """The compiled part of the tick (wbc.runtime.program): the ops of every task and constraint
         that has them, the normal equations, the holonomic preview, the bound merge, the cost
-        normalisation and the NaN screen -- one native call. Items without ops compute in
-        Python before it; preview tasks without ops (custom ones) compute between two parts
-        of it, after the preview they need."""
-        kin, qp, nv = self.kinematics, self._qp_v, self.robot.nv
-        stack, rows = self._stack_t, self._stack_t.shape[1]
+        normalisation and the NaN screen -- one native call -- and the tick's pipeline
+        (:mod:`wbc.control.pipelines`) for this mode. Items without ops compute in Python
+        before it; preview tasks without ops (custom ones) compute between two parts of it,
+        after the preview they need."""
+        kin = self.kinematics
         program = TickProgram()
         program.add(kernels.HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
         kin.add_op(program)  # the compiled forward kinematics (native chains), before every item
-        # items whose subclass overrides compute keep their own rows: no inherited ops for them
-        self._python_tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
-                              if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
-        self._python_constraints = [(constraint, block) for constraint, block in self._constraint_blocks
-                                    if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
-        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.control.hierarchy)
-            self._lifted = None
-            self._python_preview, rest, self.qp, self._solve_in_program = self._hierarchy.add_ops(program, self.solver)
-            self._collector = self._hierarchy  # reads the cascade's outcome (collect_optimal)
-            self._finish_program(program, rest)
-            return
-        # high DOF with native DAQP: the dense task rows as variables (wbc.qp.lifting), H never formed
+        self._python_tasks, self._python_constraints = self._item_ops(program)
         self._lifted = None
-        if not self.reduced and not self._preview_blocks and getattr(self.solver, "native", False):
-            diagonal = dense_rows(self._task_stack, nv)
-            if worth_lifting(nv, diagonal):
-                self._lifted = LiftedQP(qp, diagonal)
+        solve: BackendSolve
+        if self._hierarchy is not None:  # strict priorities: the levels' QPs and their cascade (wbc.control.hierarchy)
+            self._python_preview, rest, qp, self._solve_in_program = self._hierarchy.add_ops(program, self.solver)
+            solve = (CascadeInProgram if self._solve_in_program else CascadeSolve)(self._hierarchy, qp)
+        else:
+            self._python_preview, rest, solve = self._flat_ops(program)
+        self._finish_program(program, rest, solve)
+
+    def _item_ops(self, program: TickProgram) -> tuple[list[PythonTask], list[PythonConstraint]]:
+        """Append the ops of the compiled items to ``program``; the items left to Python. Items
+        whose subclass overrides compute keep their own rows: no inherited ops for them."""
+        kin, stack = self.kinematics, self._stack_t
+        tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
+                 if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
+        constraints = [(constraint, block) for constraint, block in self._constraint_blocks
+                       if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
+        return tasks, constraints
+
+    def _flat_ops(self, program: TickProgram) -> tuple[list[PythonTask], TickProgram, BackendSolve]:
+        """One level's assembly (dense, or lifted at high DOF with native DAQP) and its solve:
+        (Python preview tasks, the program part after them, the solve stage)."""
+        qp, nv, stack = self._qp_v, self.robot.nv, self._stack_t
+        self._lifted = self._lifting()
         self._lm = LMDamping(self._lm_damping, 1)
         if self._lm.add_task_ops(program, stack, self._task_blocks, 0):  # sqrt(max(damping, mu)) I: the damping rows
             self._lm.add_rows_op(program, stack, self._n_plain - nv, self._cost_scaling)
-        if self._lifted is None:
-            program.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=0, last=self._n_plain,
-                        reset=1, Hc=qp.Hc)
-        self._python_preview = []
-        rest = program
-        if self._preview_blocks:  # tasks needing the holonomic relaxation -H^-1 c of the others
-            program.add(kernels.PREVIEW, Hc=qp.Hc, factor=self._factor, preview=self._preview, nv=nv)
-            self._python_preview = [(task, jacobian, target) for task, jacobian, target, start in self._preview_blocks
-                                    if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
-                                            and task.add_preview_ops(program, kin, stack, start, self._preview))]
-            if self._python_preview:
-                rest = TickProgram()  # runs after the Python preview tasks
-            rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=rows, first=self._n_plain, last=rows,
-                     reset=0, Hc=qp.Hc)
+        if self._lifted is not None:
+            return [], program, self._lifted_ops(program)
+        program.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=0, last=self._n_plain,
+                    reset=1, Hc=qp.Hc)
+        python_preview, rest = self._preview_ops(program)
         self._bound_policy.add_op(rest, qp)
-        if self._lifted is None:
-            rest.add(kernels.NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
-            rest.add(kernels.HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
-            self.qp = self._reduction.qp if self._reduction is not None else qp  #: what the solver sees
-        else:
-            self._lifted.add_op(rest, stack, self._cost_scaling)
-            self.qp = self._lifted.qp
+        rest.add(kernels.NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
+        rest.add(kernels.HAS_NAN, data=qp.data, size=qp.data.size, infinite=0)
+        target = self._reduction.qp if self._reduction is not None else qp  # what the solver sees
         # the solve itself, when the backend can run in the program (native DAQP) and no
         # Python step (the input reduction) stands between the QP and the solver
-        self._solve_in_program = not self.reduced and self.solver.bind_program(rest, self.qp)
-        if self._lifted is not None:  # lifting needs native DAQP, so the solve is in the program
-            assert isinstance(self._solver, DaqpBackend) and self._solver.bound is not None
-            self._lifted.add_check_op(rest, self._solver.bound)
-        self._collector = self._solver  # reads the outcome of the solve in the program (collect_optimal)
-        self._finish_program(program, rest)
+        self._solve_in_program = not self.reduced and self.solver.bind_program(rest, target)
+        return python_preview, rest, (ProgramSolve if self._solve_in_program else BackendSolve)(self.solver, target)
 
-    def _finish_program(self, program: TickProgram, rest: TickProgram) -> None:
-        """Keep the program (and its part after the Python preview tasks, if any)."""
+    def _lifting(self) -> LiftedQP | None:
+        """The lifted QP (the dense task rows as variables, :mod:`wbc.qp.lifting`) when it pays:
+        high DOF, native DAQP, plain form, no preview; None otherwise."""
+        if self.reduced or self._preview_blocks or not getattr(self.solver, "native", False):
+            return None
+        diagonal = dense_rows(self._task_stack, self.robot.nv)
+        return LiftedQP(self._qp_v, diagonal) if worth_lifting(self.robot.nv, diagonal) else None
+
+    def _lifted_ops(self, program: TickProgram) -> LiftedSolve:
+        """The lifted QP's assembly, its solve and certificate, all in the program (native DAQP)."""
+        assert self._lifted is not None and isinstance(self._solver, DaqpBackend)
+        self._bound_policy.add_op(program, self._qp_v)
+        self._lifted.add_op(program, self._stack_t, self._cost_scaling)
+        self._solve_in_program = self._solver.bind_program(program, self._lifted.qp)
+        assert self._solver.bound is not None  # lifting needs native DAQP, so the solve is in the program
+        self._lifted.add_check_op(program, self._solver.bound)
+        return LiftedSolve(self._solver, self._lifted, self._buffers)
+
+    def _preview_ops(self, program: TickProgram) -> tuple[list[PythonTask], TickProgram]:
+        """The holonomic preview -H^-1 c of the plain tasks and the rows of the tasks that need
+        it (SteeringTask): (the preview tasks left to Python, the program part after them)."""
+        if not self._preview_blocks:
+            return [], program
+        kin, stack, nv = self.kinematics, self._stack_t, self.robot.nv
+        program.add(kernels.PREVIEW, Hc=self._qp_v.Hc, factor=self._factor, preview=self._preview, nv=nv)
+        python_preview = [(task, jacobian, target) for task, jacobian, target, start in self._preview_blocks
+                          if not (ops_follow_compute(task, "compute_preview", "add_preview_ops")
+                                  and task.add_preview_ops(program, kin, stack, start, self._preview))]
+        rest = TickProgram() if python_preview else program  # runs after the Python preview tasks
+        rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=self._n_plain,
+                 last=stack.shape[1], reset=0, Hc=self._qp_v.Hc)
+        return python_preview, rest
+
+    def _finish_program(self, program: TickProgram, rest: TickProgram, solve: BackendSolve) -> None:
+        """Keep the program (and its part after the Python preview tasks, if any) and the
+        pipeline's assembly and solve stages."""
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
-        self._unready = list(self._task_data)  # checked every tick until each one is ready
+        self._solve, self.qp = solve, solve.qp  #: qp: what the solver sees (the last level's with priorities)
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
-        # ... and, with no Python reader, the kinematics are left to the program's first op
-        self._deferred_kinematics = self._q_screened and self.kinematics.native
+        split = self._program_after_preview is not None
+        self._assembly = Assembly(self._context, self.robot, self._buffers, self._task_data, self._python_tasks,
+                                  self._python_constraints, program, self._q_screened, self._q_weights,
+                                  None if split else self._inputs)
+        if split:
+            self._assembly = SplitAssembly(self._assembly, self._buffers, self._python_preview, rest, self._inputs)
+        # the hot path's callables (bound once: wbc.control.pipelines)
+        self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
 
     # --------------------------------------------------------------- hot path
-    def step(self, q: ArrayLike) -> NDArray[np.float64]:
+    def step(self, q: ArrayLike, v_measured: ArrayLike | None = None) -> NDArray[np.float64]:
         """Compute the joint velocity command for configuration ``q``.
 
         Args:
             q: the configuration, size ``robot.nq`` (Pinocchio's; for the youBot
                 ``(X_C, Y_C, theta, theta1..theta5)``).
+            v_measured: the measured joint velocity [unit/s], size ``robot.nv``, if the robot
+                reports one: this tick's :attr:`context` holds it for the items that read it
+                (no shipped item does yet); the command does not depend on it otherwise.
 
         Returns:
             The command ``v``, size ``robot.nv``, never NaN and within every hard limit;
@@ -375,7 +486,8 @@ class Controller:
             fallback chain of the class docstring (``last.status`` says which link answered).
 
         Raises:
-            InvalidInputError: ``q`` is malformed (wrong shape, not numbers, NaN or inf). A
+            InvalidInputError: ``q`` or ``v_measured`` is malformed (wrong shape, not numbers,
+                NaN or inf). A
                 non-finite ``q`` is caught by the program's screen, so the previous tick's lazy
                 diagnostics are stale afterwards.
             SolverError: with ``strict=True``, when the QP cannot be solved.
@@ -384,97 +496,33 @@ class Controller:
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
                 and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
             q = self.robot.check_configuration(q)
-        kin, dt, qp = self.kinematics, self._dt, self._qp_v
-        kin.update(q, self._deferred_kinematics)
-        if self._unready:
-            self._check_ready()
-
-        for task, jacobian, target in self._python_tasks:
-            task.compute(kin, dt, jacobian, target)
-        for constraint, block in self._python_constraints:
-            constraint.compute(kin, dt, block)
-        if qp.n_eq:
-            qp.sync_equalities()
-        has_nan = self._program.run(dt)  # q screen, compiled items, normal equations, bounds, NaN screen
-        if has_nan and self._q_screened and not math.isfinite(q.dot(self._q_weights)):
-            self._buffers.tick += 1  # this call overwrote the buffers the previous record reads lazily
-            self.robot.check_configuration(q)  # raises, naming what is wrong with q
-        if self._program_after_preview is not None:
-            for task, jacobian, target in self._python_preview:
-                task.compute_preview(kin, dt, jacobian, target, self._preview)
-            has_nan = self._program_after_preview.run(dt)
-        qp_failure = "QP data holds NaN (from a task or constraint)"
-
-        if self._nonholonomic:
-            S = self.robot.input_map(q, out=self._S)
-            if self._reduction is not None and not has_nan and not self._reduction.reduce(qp, S):
-                has_nan, qp_failure = True, "reduced form: a constraint bounded the coupled base rates x, y"
-        # solved in the program already (native DAQP: answer checked there too), or now
-        answer = (self._collector.collect_optimal(ANSWER_TOLERANCE) if self._solve_in_program and not has_nan
-                  else None)
+        # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
+        has_nan = self._assemble(q, self._dt, v_measured)
+        answer = None if has_nan else self._fast(ANSWER_TOLERANCE)  # solved and checked in the program already
         buffers = self._buffers
         buffers.tick += 1
         if answer is not None:  # the control loop's path
             (x, solve_time), outcome, status = answer, _OPTIMAL, "optimal"
         else:
-            x, solve_time, outcome, status = self._answer(has_nan, qp_failure)
-        if self._lifted is not None:
-            x = x[:self.robot.nv]  # lifted: x = (v, w)
-        if self._reduction is not None:
-            u = x
-            v = S @ u
-        elif self._nonholonomic:
-            v = x
-            u = S.T @ v
-        else:
-            v = u = x
+            x, solve_time, outcome, status = self._answer(has_nan)
+        command = self._command  # None: v = u = x (a holonomic or fixed base, the QP over v)
+        v, u = (x, x) if command is None else command(x)
+        self._context.previous = v
         self._last = TickDiagnostics(buffers, buffers.tick, self._solver.name, outcome, status, solve_time,
                                      time.perf_counter() - start, v, u)
         return v
 
-    def _answer(self, has_nan: bool, qp_failure: str) -> tuple[NDArray[np.float64], float, Outcome, str]:
-        """(x, solve time [s], outcome, status) of this tick off the fast path: the backend's
+    def _answer(self, has_nan: bool) -> tuple[NDArray[np.float64], float, Outcome, str]:
+        """(x, solve time [s], outcome, status) of this tick off the fast path: the solve stage's
         answer checked against the QP's bounds and rows, or the fallback chain's."""
-        qp = self.qp
-        if has_nan:
-            solution = QPSolution(None, False, qp_failure, 0.0)
-        elif self._hierarchy is not None:  # strict priorities: the cascade, every level's answer checked
-            solution = self._hierarchy.solve()
-        else:
-            solution = self._solver.collect() if self._solve_in_program else self._solver.solve(qp)
-            solution = self._checked(solution, qp)
-            if not solution.success and self._lifted is not None:  # not certified: the dense QP (wbc.qp.lifting)
-                spent = solution.solve_time
-                qp = self._lifted.fill_dense(self._stack_t, self._n_plain, self._cost_scaling)
-                solution = self._checked(self._solver.solve(qp), qp)
-                solution = solution._replace(solve_time=spent + solution.solve_time)
+        solution, qp = ((QPSolution(None, False, self._inputs.failure, 0.0), self.qp) if has_nan
+                        else self._solve.checked())
         if solution.success:
             assert solution.x is not None  # a successful solve has an answer
             return solution.x, solution.solve_time, _OPTIMAL, "optimal"
         solution, outcome, status = self._fallback.answer(qp, solution, self._solver.name, self._buffers.tick, has_nan)
         assert solution.x is not None  # the fallback chain always answers (v = 0 at worst)
         return solution.x, solution.solve_time, outcome, status
-
-    def _checked(self, solution: QPSolution, qp: QP) -> QPSolution:
-        """``solution`` of ``qp``, or a failure when its answer's defect exceeds :data:`ANSWER_TOLERANCE`."""
-        if solution.success:
-            defect = solution.defect if solution.defect is not None else kernels.qp_defect(qp.data, solution.x)
-            if defect > ANSWER_TOLERANCE:
-                return self._rejected(solution, defect)
-        return solution
-
-    def _rejected(self, solution: QPSolution, defect: float) -> QPSolution:
-        """A backend's answer that violates a bound or row of the QP it solved by ``defect`` >
-        :data:`ANSWER_TOLERANCE` (relative, :func:`wbc.runtime.kernels.qp_defect`): a failure, so the
-        fallback chain answers, and the backend's warm start is dropped."""
-        self.solver.reset()
-        return QPSolution(None, False, f"answer violates the QP's constraints by {defect:.1e} (relative)",
-                          solution.solve_time)
-
-    def _check_ready(self) -> None:
-        for task in self._unready:
-            task.check_ready()
-        self._unready = []
 
     # ------------------------------------------------------------ diagnostics
     def constraint_violation(self, v: NDArray[np.float64]) -> float:
@@ -512,8 +560,41 @@ def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | Constrai
                 f"subclass {type(data).__name__} and return it from bind() (docs/extending.md)")
 
 
+def _base_constraints(robot: Robot, constraints: list[Constraint], reduced: bool) -> list[Constraint]:
+    """``constraints`` for ``robot``'s base: without the rows the input map satisfies in the
+    reduced form; with them (checked) for a nonholonomic base in plain form."""
+    if reduced:
+        return [c for c in constraints if not c.satisfied_by_input_map]
+    if robot.base.is_nonholonomic and not any(c.satisfied_by_input_map for c in constraints):
+        raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
+                                "NonholonomicBase() to the constraints or use reduced=True")
+    return constraints
+
+
 def _velocity_names(robot: Robot) -> list[str]:
     names = []
     for joint, name in zip(robot.model.joints[1:], robot.joint_names, strict=True):
         names += [name] if joint.nv == 1 else [f"{name}[{i}]" for i in range(joint.nv)]
     return names
+
+
+class WarmState(NamedTuple):
+    """A controller's state beyond its specification (:meth:`Controller._warm_state`)."""
+
+    tick: int  #: the tick counter
+    working_sets: list[NDArray[np.intc]]  #: DAQP's constraint states, one per workspace of the program
+    previous: NDArray[np.float64] | None  #: the previous command (``TickContext.previous``)
+
+
+def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmState) -> Controller:
+    """A controller of class ``cls`` built from ``specification`` (:meth:`Controller._specification`;
+    its solver an object) and ``warm``: what copies and pickles of one are."""
+    solver = specification.pop("solver")
+    controller = cls.__new__(cls)
+    controller._setup(solver=lambda: solver, **specification)
+    controller._buffers.tick, controller._context.previous = warm.tick, warm.previous
+    workspaces = controller._daqp_workspaces()
+    if len(workspaces) == len(warm.working_sets):  # (the same modes: always, unless DAQP's C API went missing)
+        for workspace, states in zip(workspaces, warm.working_sets, strict=True):
+            workspace.working_set = states
+    return controller

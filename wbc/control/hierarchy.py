@@ -194,6 +194,12 @@ class Hierarchy:
         """The regularisation floor of the levels above the last (0: a semidefinite backend's)."""
         return float(self._upper_scaling[1])
 
+    @property
+    def workspaces(self) -> list[NativeWorkspace]:
+        """The levels' native DAQP workspaces (empty for other backends): their working sets are
+        the cascade's warm start."""
+        return list(self._workspaces or ())
+
     def add_ops(self, program: TickProgram, backend: QPSolver
                 ) -> tuple[list[tuple[TaskData, NDArray[np.float64], NDArray[np.float64]]], TickProgram, QP, bool]:
         """Append every level's assembly -- and with native DAQP the cascade itself -- to the

@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..model.kinematics import Kinematics
+from ..model.tick_context import TickContext
 from ..qp.layout import ConstraintLayout, LevelRows, TaskStack
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
@@ -41,7 +42,9 @@ class TickBuffers:
       ``lm_damping`` -- the scale of the error-scaled damping (operands of the program's ops);
     * ``input_map`` -- S(q) of a nonholonomic base (written each tick), ``reduction`` -- the
       reduced form's buffers (None without ``reduced``);
-    * ``cascade`` -- the strict hierarchy's levels (None for one level); ``tick`` -- the counter.
+    * ``cascade`` -- the strict hierarchy's levels (None for one level); ``tick`` -- the counter;
+    * ``context`` -- the tick's context (:class:`~wbc.model.tick_context.TickContext`: kinematics,
+      dt, the previous command, the measured velocity).
     """
 
     cascade: LevelAnswers | None  #: the strict hierarchy's levels (None for one level)
@@ -49,8 +52,9 @@ class TickBuffers:
 
     def __init__(self, kinematics: Kinematics, task_data: list[TaskData], task_stack: TaskStack, qp: QP,
                  constraints: ConstraintLayout, cost_scaling: NDArray[np.float64], lm_damping: NDArray[np.float64],
-                 input_map: NDArray[np.float64], reduction: InputReduction | None) -> None:
-        self.kinematics, self.nv = kinematics, qp.n
+                 input_map: NDArray[np.float64], reduction: InputReduction | None,
+                 context: TickContext | None = None) -> None:
+        self.kinematics, self.nv, self.context = kinematics, qp.n, context
         self.task_data, self.task_stack, self.qp, self.constraints = task_data, task_stack, qp, constraints
         self.bounds = constraints.bounds
         self.cost_scaling, self.lm_damping = cost_scaling, lm_damping

@@ -18,6 +18,7 @@ an op whose arrays point into memory owned by another object -- the DAQP workspa
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from types import CodeType
 from typing import TYPE_CHECKING, Any
 
@@ -124,6 +125,11 @@ class TickProgram:
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
         return kernels.run_program(self._packed, dt)
+
+    def runner(self) -> Callable[[float], bool]:
+        """:meth:`run` as a callable without a Python frame of its own (for the hot path of
+        :meth:`wbc.Controller.step`); it runs the rows added so far."""
+        return functools.partial(kernels.run_program, self._packed)
 
 
 @functools.cache

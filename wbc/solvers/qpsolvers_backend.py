@@ -55,6 +55,15 @@ class QpsolversBackend(QPSolver):
         _FIRST_USE_DONE.add(self.name)
         self._previous = None
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """A copy or an unpickled backend keeps the warm start; in a new process its first use
+        (:meth:`_first_use`) runs now, as when built."""
+        self.__dict__.update(state)
+        if self.name not in _FIRST_USE_DONE:
+            previous = self._previous
+            self._first_use()
+            self._previous = previous
+
     def reset(self) -> None:
         self._previous = None
 

@@ -60,6 +60,11 @@ class DaqpBackend(QPSolver):
         self._shape: tuple[int, int, int] | None = None
         self._sense = np.zeros(0, dtype=np.int32)
 
+    def __reduce__(self) -> tuple[type[DaqpBackend], tuple[dict[str, Any]]]:
+        """Copies and pickles are new backends with these options, starting cold: DAQP's
+        workspaces (C memory, pointers into one controller's QP) stay with their controller."""
+        return type(self), (self.options,)
+
     @property
     def native(self) -> bool:
         """Whether DAQP is called through its C API (else through its Python binding;

@@ -24,6 +24,7 @@ import weakref
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ...qp.problem import QP
 from ...runtime import kernels
@@ -127,6 +128,25 @@ class NativeWorkspace:
         """(exit flag, answer defect, solve time [s]) of the latest compiled solve."""
         exitflag, defect, elapsed = self.control[DAQP_CONTROL_OUTCOME].tolist()
         return int(exitflag), defect, elapsed
+
+    @property
+    def working_set(self) -> NDArray[np.intc]:
+        """DAQP's constraint states (active, at the lower side, immutable): the warm start of the
+        next solve, as a copy. Assigning the states of another workspace on a QP of the same
+        shape makes this one's next solve start where that one's would (a warm-started
+        workspace only: a cold one starts from the initial states every solve)."""
+        return self._sense().copy()
+
+    @working_set.setter
+    def working_set(self, states: NDArray[np.intc]) -> None:
+        if self.warm_start:
+            self._sense()[:] = states
+
+    def _sense(self) -> NDArray[np.intc]:
+        """The workspace's own constraint states (DAQP's memory)."""
+        address = self.work.sense
+        assert address, "DAQP workspace not set up"
+        return np.ctypeslib.as_array((ctypes.c_int * self.problem.m).from_address(address))
 
     @property
     def iterations(self) -> int:
