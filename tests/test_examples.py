@@ -24,6 +24,20 @@ def test_custom_python_task_holds_the_height():
     assert error < 1e-3  # [m]; the posture task pulls the rest
 
 
+def test_relative_frame_task_script_runs():
+    result = subprocess.run([sys.executable, str(EXAMPLES / "relative_frame_task.py")], capture_output=True,
+                            text=True, timeout=300, check=False)
+    assert result.returncode == 0, result.stderr
+    assert "status optimal" in result.stdout
+
+
+def test_relative_frame_task_holds_the_gripper_on_the_moving_platform(youbot):
+    q, target = runpy.run_path(str(EXAMPLES / "relative_frame_task.py"))["main"]()
+    pose = np.linalg.solve(youbot.frame_pose(q, "base_link"), youbot.frame_pose(q, "ee"))
+    np.testing.assert_allclose(pose, target, rtol=0, atol=1e-6)  # [m] and rotation entries
+    assert np.hypot(q[0], q[1]) > 0.3  # [m]: the platform drove meanwhile
+
+
 def test_custom_compiled_task_script_runs():
     result = subprocess.run([sys.executable, str(EXAMPLES / "custom_compiled_task.py")], capture_output=True,
                             text=True, timeout=300, check=False)

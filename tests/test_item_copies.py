@@ -22,6 +22,7 @@ import pytest
 
 import wbc
 from wbc.item import Item
+from wbc.tasks.error_task import ErrorTask
 
 
 def _package_items() -> set[type]:
@@ -39,7 +40,7 @@ def _package_items() -> set[type]:
 
 
 #: base classes that are not items of a stack by themselves
-BASES = {wbc.Task, wbc.Constraint}
+BASES = {wbc.Task, wbc.Constraint, ErrorTask}
 
 YOUBOT = wbc.load_robot("youbot")
 DELUCA = wbc.load_robot("deluca_mm")
@@ -57,6 +58,13 @@ def _shifted_pose(robot: wbc.Robot, q: np.ndarray, shift, rotation) -> np.ndarra
 def _frame_task() -> wbc.FrameTask:
     task = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.5, gain=0.01)
     task.set_target(_shifted_pose(YOUBOT, Q_YOUBOT, [0.1, -0.05, 0.05], [0.1, -0.2, 0.2]))
+    return task
+
+
+def _relative_frame_task() -> wbc.RelativeFrameTask:
+    task = wbc.RelativeFrameTask("ee", "base_link", position_cost=1.0, orientation_cost=0.5, gain=0.01)
+    task.set_target(np.linalg.solve(YOUBOT.frame_pose(Q_YOUBOT, "base_link"),
+                                    _shifted_pose(YOUBOT, Q_YOUBOT, [0.1, -0.05, 0.05], [0.1, -0.2, 0.2])))
     return task
 
 
@@ -119,6 +127,13 @@ EXAMPLES: dict[type, Example] = {
         "orientation_cost": lambda t: setattr(t, "orientation_cost", 0.05),
         "set_target": lambda t: t.set_target(_shifted_pose(YOUBOT, Q_YOUBOT, [-0.1, 0.1, 0.0], [0.3, 0.0, 0.0]),
                                              twist=[0.01, 0, 0, 0, 0.02, 0]),
+    }, stack=lambda: [wbc.PostureTask(1e-2)]),
+    wbc.RelativeFrameTask: Example(YOUBOT, Q_YOUBOT, _relative_frame_task, {
+        "gain": lambda t: setattr(t, "gain", 0.03),
+        "position_cost": lambda t: setattr(t, "position_cost", [3.0, 1.0, 0.2]),
+        "orientation_cost": lambda t: setattr(t, "orientation_cost", 0.05),
+        "set_target": lambda t: t.set_target(np.linalg.solve(YOUBOT.frame_pose(Q_YOUBOT, "base_link"), _shifted_pose(
+            YOUBOT, Q_YOUBOT, [-0.1, 0.1, 0.0], [0.3, 0.0, 0.0])), twist=[0.01, 0, 0, 0, 0.02, 0]),
     }, stack=lambda: [wbc.PostureTask(1e-2)]),
     wbc.PositionTask: Example(YOUBOT, Q_YOUBOT, _position_task, {
         "gain": lambda t: setattr(t, "gain", 0.03),

@@ -188,7 +188,8 @@ def test_misnamed_misshapen_or_out_of_range_operands_are_refused():
     with pytest.raises(TypeError, match="start \\+ 6 <= rows"):  # a block past the end of the stack
         program.add(kernels.FRAME_TASK, joint_jacobians_t=np.zeros((4, 6)), rotation_t=np.zeros((3, 3)),
                     translation=np.zeros(3), support=np.zeros(4), settings=np.zeros(kernels.FRAME_SETTINGS),
-                    frame=np.zeros(kernels.FRAME_DATA), error=np.zeros(6), stack=stack, start=5, nv=4, rows=10)
+                    frame=np.zeros(kernels.FRAME_DATA), error=np.zeros(6), stack=stack, start=5, nv=4, rows=10,
+                    feedforward=np.zeros(6))
     with pytest.raises(TypeError, match="unknown operands \\['flags'\\]"):  # the flags are the program's own
         program.add(kernels.HAS_NAN, data=np.zeros(3), size=3, infinite=0, flags=np.zeros(2, dtype=np.int64))
     assert len(program) == 1  # nothing half-added

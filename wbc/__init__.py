@@ -38,7 +38,16 @@ from .model.mobile_base import BaseKind, DifferentialWheels, MecanumWheels, Mobi
 from .model.robot import Robot, load_robot, model_path, shipped_models
 from .qp.problem import QP
 from .solvers import available_solvers
-from .tasks import BaseVelocityTask, FrameTask, ManipulabilityTask, PositionTask, PostureTask, SteeringTask, Task
+from .tasks import (
+    BaseVelocityTask,
+    FrameTask,
+    ManipulabilityTask,
+    PositionTask,
+    PostureTask,
+    RelativeFrameTask,
+    SteeringTask,
+    Task,
+)
 
 __version__ = "0.3.0"
 
@@ -53,4 +62,5 @@ __all__ = [
     "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
+    "RelativeFrameTask",
 ]

@@ -131,7 +131,7 @@ class FrameTaskData(TaskData):
         self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
         self._frame[kernels.FRAME_LOCAL] = local
         self.error = np.zeros(6)  #: last error e = (position; orientation), world-aligned
-        self.feedforward = task._settings[kernels.FRAME_WEIGHTED_FEEDFORWARD]  #: W xi* (TaskData.feedforward)
+        self.feedforward = np.zeros(6)  #: W xi* of the last tick (TaskData.feedforward)
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
@@ -140,14 +140,15 @@ class FrameTaskData(TaskData):
         # J (6 x nv) and R are F-contiguous in Pinocchio: their transposes are C-contiguous views
         program.add(kernels.FRAME_TASK, joint_jacobians_t=joint_jacobians.T, rotation_t=rotation.T,
                     translation=translation, support=self._support, settings=self.task._settings, frame=self._frame,
-                    error=self.error, stack=stack_t, start=start, nv=nv, rows=stack_t.shape[1])
+                    error=self.error, stack=stack_t, start=start, nv=nv, rows=stack_t.shape[1],
+                    feedforward=self.feedforward)
         return True
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
         self.check_ready()
         joint_jacobians, joint_rotation, joint_translation = kin.joint_views(self._joint_id)
         kernels.frame_task_rows(joint_jacobians, joint_rotation, joint_translation, self._support,
-                                self.task._settings, self._frame, dt, self.error, jacobian, target)
+                                self.task._settings, self._frame, dt, self.error, jacobian, target, self.feedforward)
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         errors[self._keys[0]] = _norm(self._position_error)

@@ -65,7 +65,7 @@ POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION = range(4)
 FRAME_TARGET_ROTATION = slice(0, 9)  # target orientation R* (row-major)
 FRAME_TARGET_POSITION = slice(9, 12)  # target position p* [m]
 FRAME_WEIGHTS = slice(12, 18)  # W = sqrt(cost), (linear; angular)
-FRAME_WEIGHTED_FEEDFORWARD = slice(18, 24)  # W xi* (zero without feed-forward)
+FRAME_FEEDFORWARD = slice(18, 24)  # xi* [m/s, rad/s] (zero without feed-forward; weighted at tick time)
 FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 24, 25, 26  # gain in (0, 1], [m/s], [rad/s]
 FRAME_SETTINGS = 27
 #: layout of a frame's placement data (one vector per controller and frame, see frame_in_joint)

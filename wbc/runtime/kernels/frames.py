@@ -127,8 +127,8 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
 
 @njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, nogil=True)
 def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
-    """FrameTask target: R* and p* from ``pose``, ``W twist`` (``twist`` of length 6, or
-    empty for none) into the settings vector (layout ``FRAME_*``) -- when ``pose`` passes
+    """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
+    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose`` passes
     :func:`pose_defect` with ``tolerance``; returns its verdict (nothing written unless
     POSE_OK): the control loop's ``set_target`` is one call."""
     defect = pose_defect(pose, tolerance)
@@ -139,22 +139,23 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
             settings[3 * a + b] = pose[a, b]
         settings[9 + a] = pose[a, 3]
     for a in range(6):
-        settings[18 + a] = settings[12 + a] * twist[a] if len(twist) == 6 else 0.0
+        settings[18 + a] = twist[a] if len(twist) == 6 else 0.0
     return defect
 
 
 @njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:])", cache=CACHE, nogil=True)
+      "float64[:, :], float64[:], float64[:])", cache=CACHE, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                     support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
-                    jacobian: np.ndarray, target: np.ndarray) -> None:
+                    jacobian: np.ndarray, target: np.ndarray, weighted_feedforward: np.ndarray) -> None:
     """Rows of :class:`~wbc.FrameTask` from Pinocchio's joint placement and joint Jacobians.
 
     Frame placement ``R = R_i R_f``, ``p = R_i p_f + p_i`` (``R_i, p_i``: parent joint;
     ``R_f, p_f``: frame in the joint); the Jacobian is :func:`frame_jacobian`'s. Writes
     ``error = (p* - p, log3(R* R^T))``,
-    ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*`` (layouts: the
-    ``FRAME_*`` settings and the frame data of this module).
+    ``jacobian = W J`` and ``target = W sat(gain/dt * error) + W xi*``, its feed-forward part
+    ``W xi*`` (with this tick's W) into ``weighted_feedforward`` (layouts: the ``FRAME_*``
+    settings and the frame data of this module).
     """
     Rt, pt = settings[0:9], settings[9:12]
     weights, feedforward = settings[12:18], settings[18:24]
@@ -180,7 +181,8 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
         norm = math.sqrt(error[part] ** 2 + error[part + 1] ** 2 + error[part + 2] ** 2) * gain
         scale = gain if norm <= limit else limit / norm * gain
         for a in range(part, part + 3):
-            target[a] = weights[a] * (scale * error[a]) + feedforward[a]
+            weighted_feedforward[a] = weights[a] * feedforward[a]
+            target[a] = weights[a] * (scale * error[a]) + weighted_feedforward[a]
 
 
 
@@ -217,17 +219,17 @@ def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, 
 @njit(inline="always")
 def _frame_task(joint_jacobians_t: np.ndarray, rotation_t: np.ndarray, translation: np.ndarray, support: np.ndarray,
                 settings: np.ndarray, frame: np.ndarray, error: np.ndarray, stack: np.ndarray, start: int, nv: int,
-                rows: int, dt: float) -> None:
+                rows: int, feedforward: np.ndarray, dt: float) -> None:
     frame_task_rows(joint_jacobians_t.T, rotation_t.T, translation, support, settings, frame, dt, error,
-                    stack[:nv, start:start + 6].T, stack[nv, start:start + 6])
+                    stack[:nv, start:start + 6].T, stack[nv, start:start + 6], feedforward)
 
 
 #: FrameTask's rows into columns start:start + 6 of the stack (joint Jacobians and joint rotation
-#: transposed: Pinocchio's column-major buffers)
+#: transposed: Pinocchio's column-major buffers); its weighted feed-forward out
 FRAME_TASK = Op("FRAME_TASK", _frame_task, (
     ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("support", ("nv",)),
     ("settings", (FRAME_SETTINGS,)), ("frame", (FRAME_DATA,)), ("error", (6,)), STACK,
-    ("start", None), ("nv", None), ("rows", None)), checks=("0 <= start", "start + 6 <= rows"))
+    ("start", None), ("nv", None), ("rows", None), ("feedforward", (6,))), checks=("0 <= start", "start + 6 <= rows"))
 
 
 @njit(inline="always")

@@ -1,0 +1,93 @@
+"""Every built-in task and constraint, one ready instance each on a shipped robot (tests/test_items.py).
+
+A new item is covered by the generic checks by adding one :class:`Case` here;
+``test_every_exported_item_is_registered`` fails until it is.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+import wbc
+from wbc.constraints.constraint import Constraint
+from wbc.tasks.task import Task
+
+#: per robot: the start configuration q0 and the goal q1 the targets are taken at
+CONFIGURATIONS = {
+    "youbot": (np.array([0.1, -0.2, 0.3, 0.2, 0.9, -0.8, 1.0, 0.4]),
+               np.array([0.3, 0.1, 0.5, 0.5, 0.7, -0.5, 1.2, 0.1])),
+    "deluca_mm": (np.array([0.0, 0.0, 0.0, 0.3, 0.4, 0.2]), np.array([0.4, 0.3, 0.6, 0.5, 0.2, 0.4])),
+}
+
+
+@dataclass(frozen=True)
+class Case:
+    """One item: ``make(robot, q1)`` builds it with its targets taken at ``q1``.
+
+    ``feedback_gain``: the rows feed back an error with this gain, so by the chain rule, at
+    ``q1`` (error zero, no saturation) the target column satisfies ``d(W r)/dq v = -gain/dt (W J) v``
+    (a constraint's ``h`` and bounds: ``dh/dq v = -gain/dt G v``, ``d ub/dq v = -gain/dt v``);
+    None when the rows feed back no error (``note`` says what covers them instead)."""
+
+    name: str
+    robot: str
+    make: Callable[[wbc.Robot, np.ndarray], Task | Constraint]
+    feedback_gain: float | None
+    note: str = ""
+
+
+def _frame_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    task = wbc.FrameTask("ee", position_cost=[1.0, 2.0, 0.5], orientation_cost=0.3, gain=0.4)
+    task.set_target(robot.frame_pose(q, "ee"))
+    return task
+
+
+def _position_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    task = wbc.PositionTask("ee", cost=[1.0, 2.0, 0.5], gain=0.4)
+    task.set_target(robot.frame_pose(q, "ee")[:3, 3])
+    return task
+
+
+def _relative_frame_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    task = wbc.RelativeFrameTask("ee", "arm_link_1", position_cost=2.0, orientation_cost=0.5, gain=0.4)
+    task.set_target_from_configuration(robot, q)
+    return task
+
+
+def _base_velocity_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    task = wbc.BaseVelocityTask(1.0)
+    task.set_target([0.1, -0.05, 0.2])
+    return task
+
+
+def _manipulability_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    return wbc.ManipulabilityTask("ee", 1.0, gain=0.4, target=wbc.manipulability(robot, q, "ee"))
+
+
+def _sphere_near_the_gripper(robot: wbc.Robot, q: np.ndarray) -> Constraint:
+    centre = robot.frame_pose(q, "ee")[:3, 3] + [0.0, 0.0, 0.2]
+    return wbc.CollisionAvoidance([wbc.Sphere(centre, 0.05)], self_collision=False, gain=0.4,
+                                  detection_distance=0.4)
+
+
+CASES = [
+    Case("FrameTask", "youbot", _frame_task, 0.4),
+    Case("PositionTask", "youbot", _position_task, 0.4),
+    Case("RelativeFrameTask", "youbot", _relative_frame_task, 0.4),
+    Case("PostureTask", "youbot", lambda robot, q: wbc.PostureTask(0.5, target=q, gain=0.4), 0.4),
+    Case("ManipulabilityTask", "youbot", _manipulability_task, 0.4),
+    Case("BaseVelocityTask", "youbot", _base_velocity_task, None, "a velocity reference: J v = r in closed loop"),
+    Case("SteeringTask", "deluca_mm", lambda robot, q: wbc.SteeringTask(1e-2, gain=1.0, speed_scale=0.5), None,
+         "steers toward the holonomic preview: tests/test_mobile_bases.py (parking)"),
+    Case("JointPositionLimits", "youbot", lambda robot, q: wbc.JointPositionLimits(gain=0.4), 0.4),
+    Case("JointVelocityLimits", "youbot", lambda robot, q: wbc.JointVelocityLimits(), None, "constant limits"),
+    Case("MecanumWheelLimits", "youbot", lambda robot, q: wbc.MecanumWheelLimits(), None, "wheel-speed rows"),
+    Case("WheelSpeedLimits", "youbot", lambda robot, q: wbc.WheelSpeedLimits(), None, "wheel-speed rows"),
+    Case("NonholonomicBase", "deluca_mm", lambda robot, q: wbc.NonholonomicBase(), None, "the no-slip row"),
+    Case("ManipulabilityBarrier", "youbot",
+         lambda robot, q: wbc.ManipulabilityBarrier("ee", 0.5 * wbc.manipulability(robot, q, "ee"), gain=0.4), 0.4),
+    Case("CollisionAvoidance", "youbot", _sphere_near_the_gripper, 0.4),
+]
