@@ -97,15 +97,19 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     print(f"{case}: position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
           f"in process {in_process['position_error_rms_m']:.6e} m; max DDS {summary['position_error_max_m']:.6e} m, "
           f"in process {in_process['position_error_max_m']:.6e} m")
-    if summary["repeated_state_ticks"] == 0:  # every tick saw the state its last command produced: the same loop
-        assert summary["position_error_rms_m"] == pytest.approx(in_process["position_error_rms_m"], rel=1e-6)
-        assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
-    else:  # a late state (a loaded machine): that tick sees the robot one tick behind the moving target
-        print(f"{summary['repeated_state_ticks']} ticks computed from the state of the tick before")
+    # every tick that saw the state its last command produced computes what the in-process loop does; on a
+    # loaded machine a state can come late, and that tick sees the robot one tick behind the moving target.
+    # The node counts the late ticks it can see (a repeated joint state); one it cannot see (a state late
+    # with respect to the odometry, or the base pose integrated from a command the robot applied late) was
+    # measured once under load at 1e-3 relative with none counted: the bound allows one such tick.
+    print(f"{summary['repeated_state_ticks']} ticks computed from the state of the tick before")
+    if summary["position_error_rms_m"] != pytest.approx(in_process["position_error_rms_m"], rel=1e-6):
         step = 2 * math.pi * 0.2 / 8.0 * DT  # [m] the circle's (radius 0.2 m, period 8 s) advance in one tick
-        late = summary["repeated_state_ticks"] / summary["control_ticks"]  # up to 3 steps off on those ticks
+        late = max(summary["repeated_state_ticks"], 1) / summary["control_ticks"]  # up to 3 steps off then
         assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
         assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 3 * step
+    else:  # the same loop
+        assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
     robot = loop["robot"]
     # the robot applied the node's commands: under load a few are merged (two arm commands before one base
     # twist) or still in flight when the run stops (CI saw 592 steps for 601 ticks, the tracking above exact)
