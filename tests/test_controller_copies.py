@@ -15,6 +15,7 @@ import sys
 from collections.abc import Callable
 
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import wbc
@@ -250,3 +251,24 @@ def test_a_controller_shipped_to_a_dask_worker_steps_like_the_original():
         got = client.gather([client.submit(original.step, q_k, pure=False) for q_k in configurations])
     expected = [copy.deepcopy(original).step(q_k) for q_k in configurations]
     np.testing.assert_allclose(np.array(got), np.array(expected), rtol=0.0, atol=0.0)
+
+
+def test_a_robot_pickles_without_its_workspace_and_with_infinite_limits():
+    """Pinocchio 3.3 cannot read back inf from its archives (`RuntimeError: input stream error` in
+    the oldest-versions job, pickling the De Luca controllers): the pickled robot carries no
+    per-use Data (rebuilt) and a model with finite limit vectors only, the inf entries beside it."""
+    model = pin.Model(DELUCA.model)
+    velocity = np.array(model.velocityLimit)
+    velocity[3] = np.inf  # an unbounded joint (a URDF continuous joint without <limit>)
+    model.velocityLimit = velocity
+    robot = wbc.Robot("unbounded", model, base=DELUCA.base)
+    state = robot.__getstate__()
+    assert "_data" not in state
+    for name in ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit"):
+        assert np.all(np.isfinite(getattr(state["model"], name))), name
+    twin = pickle.loads(pickle.dumps(robot))
+    assert twin.model.velocityLimit[3] == np.inf and twin.velocity_limit[3] == np.inf
+    for name in ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit"):
+        np.testing.assert_array_equal(getattr(twin.model, name), getattr(model, name))
+    q, frame = robot.neutral() + 0.1, robot.frame_names[-1]
+    np.testing.assert_array_equal(twin.frame_pose(q, frame), robot.frame_pose(q, frame))

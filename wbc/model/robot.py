@@ -62,6 +62,10 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> NDArray[np.float64]:
     ])
 
 
+#: the model's vectors that may hold inf (see Robot.__getstate__)
+_LIMIT_VECTORS = ("lowerPositionLimit", "upperPositionLimit", "velocityLimit", "effortLimit")
+
+
 @dataclass
 class Robot:
     """A kinematic robot model.
@@ -314,6 +318,32 @@ class Robot:
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, base={self.base.kind.value})"
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickling: Pinocchio 3.3's model serialisation (a boost text archive) cannot read back
+        inf, which the limits of a mobile base or a continuous joint hold: the non-finite
+        entries of the model's limit vectors travel beside it; the per-use Data is rebuilt."""
+        state = self.__dict__.copy()
+        model, non_finite = pin.Model(self.model), {}
+        for name in _LIMIT_VECTORS:
+            values = np.array(getattr(model, name), dtype=np.float64)
+            mask = ~np.isfinite(values)
+            if mask.any():
+                non_finite[name] = (mask, values[mask])
+                values[mask] = 0.0
+                setattr(model, name, values)
+        state.update(model=model, _non_finite=non_finite)
+        del state["_data"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        model = state["model"]
+        for name, (mask, values) in state.pop("_non_finite").items():
+            restored = np.array(getattr(model, name), dtype=np.float64)
+            restored[mask] = values
+            setattr(model, name, restored)
+        self.__dict__.update(state)
+        self._data = model.createData()
 
 
 # ---------------------------------------------------------------------------- loading
