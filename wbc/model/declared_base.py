@@ -109,13 +109,13 @@ def declare_base(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
             radius that can be read from nowhere.
     """
     kind = declaration.kind
-    replace = [_joint_id(model, name, "replace", where) for name in declaration.replace]
+    replace = [joint_index(model, name, "replace", where) for name in declaration.replace]
     chain = [] if replace else root_chain(model)  # the model's own (x, y, heading) joints, kept
     if not replace and not chain:
         replace = planar_root_joints(model)
     _check_replaceable(model, replace, where)
-    wheel_ids = [_joint_id(model, name, "wheels", where) for name in declaration.wheels]
-    lock_ids = [_joint_id(model, name, "lock", where) for name in declaration.lock]
+    wheel_ids = [joint_index(model, name, "wheels", where) for name in declaration.wheels]
+    lock_ids = [joint_index(model, name, "lock", where) for name in declaration.lock]
     _check_distinct(model, chain + replace + wheel_ids + lock_ids, where)
     base_joint = (chain or replace or [0])[-1]  # the joint whose body is the base body
     if kind in WHEEL_COUNT and wheel_ids and len(wheel_ids) != WHEEL_COUNT[kind]:
@@ -286,7 +286,8 @@ def _check_replaceable(model: pin.Model, joints: list[int], where: str) -> None:
                              "rotation) -- move the offset into the child link's joint in the URDF")
 
 
-def _joint_id(model: pin.Model, name: str, key: str, where: str) -> int:
+def joint_index(model: pin.Model, name: str, key: str, where: str) -> int:
+    """Pinocchio's index of joint ``name``; ModelError naming ``where``, ``key`` and close names otherwise."""
     if not isinstance(name, str) or not model.existJointName(name):
         close = difflib.get_close_matches(str(name), list(model.names[1:]), n=3)
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
@@ -318,5 +319,5 @@ def mimic_joints(urdf: Path | None) -> list[str]:
     return [str(joint.get("name")) for joint in root.iterfind("joint") if joint.find("mimic") is not None]
 
 
-__all__ = ["BaseDeclaration", "declare_base", "base_kind", "planar_root_joints", "root_chain", "wheel_like_joints",
+__all__ = ["BaseDeclaration", "declare_base", "base_kind", "planar_root_joints", "root_chain", "wheel_like_joints", "joint_index",
            "mimic_joints", "BASE_JOINT_NAMES", "KIND_NAMES"]

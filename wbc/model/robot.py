@@ -36,6 +36,7 @@ from .declared_base import (
     BaseDeclaration,
     base_kind,
     declare_base,
+    joint_index,
     mimic_joints,
     planar_root_joints,
     wheel_like_joints,
@@ -443,16 +444,10 @@ def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where:
         return declare_base(model, urdf, declaration, where)
     if declaration.wheels or declaration.replace:
         raise ModelError(f"{where}: a fixed base has no wheels and replaces nothing; list joints to hold in lock=[...]")
-    held = sorted(model.getJointId(name) for name in declaration.lock if _is_joint(model, name, "lock", where))
+    held = sorted(joint_index(model, name, "lock", where) for name in declaration.lock)
     planar = planar_root_joints(model)  # a planar root joint held: the robot stands at the origin
     locked = sorted(set(held + planar))
     return (pin.buildReducedModel(model, locked, pin.neutral(model)) if locked else model), FIXED_BASE
-
-
-def _is_joint(model: pin.Model, name: str, key: str, where: str) -> bool:
-    if not isinstance(name, str) or not model.existJointName(name):
-        raise ModelError(f"{where}: {key}: {name!r} is not a joint of the model{suggest(str(name), model.names[1:])}")
-    return True
 
 
 def _no_declaration(declared: bool, where: str | Path) -> None:
