@@ -21,6 +21,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from wbc.constraints.constraint import ConstraintData
 from wbc.item import Item
 from wbc.tasks.error_task import ErrorTask
 
@@ -258,7 +259,7 @@ def test_a_copy_acts_with_its_settings_and_leaves_the_original_alone(cls, how):
             np.testing.assert_array_equal(np.asarray(item.target), np.asarray(fresh.target))
 
 
-class StopJoint(wbc.Constraint):
+class StopJoint(wbc.Constraint, ConstraintData):
     """A constraint that is its own data: ``v[index] = 0``."""
 
     n_equalities = 1
