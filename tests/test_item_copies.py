@@ -21,6 +21,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from wbc.constraints.barrier import Barrier
 from wbc.constraints.constraint import ConstraintData
 from wbc.item import Item
 from wbc.tasks.error_task import ErrorTask
@@ -41,7 +42,7 @@ def _package_items() -> set[type]:
 
 
 #: base classes that are not items of a stack by themselves
-BASES = {wbc.Task, wbc.Constraint, ErrorTask}
+BASES = {wbc.Task, wbc.Constraint, ErrorTask, Barrier}
 
 YOUBOT = wbc.load_robot("youbot")
 DELUCA = wbc.load_robot("deluca_mm")
