@@ -51,8 +51,8 @@ class ManipulabilityBarrier(Barrier):
     """
 
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
-    gain = Operand("_settings", 0, as_gain)
-    min_value = Operand("_settings", 1, as_positive)
+    gain = Operand("_settings", kernels.BARRIER_GAIN, as_gain)
+    min_value = Operand("_settings", kernels.BARRIER_MIN_VALUE, as_positive)
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: Rows = "all",
                  name: str | None = None) -> None:
@@ -62,7 +62,7 @@ class ManipulabilityBarrier(Barrier):
         row_selection(rows)
         self.rows = rows
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self._settings = np.zeros(2)  # (gain, m_min): compiled operand, shared by the controllers using it
+        self._settings = np.zeros(kernels.BARRIER_SETTINGS)  # compiled operand (layout: kernels.BARRIER_*), shared
         self.gain, self.min_value = gain, min_value
 
     def bind(self, robot: Robot) -> ManipulabilityBarrierData:
