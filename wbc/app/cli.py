@@ -52,9 +52,10 @@ def _run(args: argparse.Namespace) -> int:
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
             trace = manipulability_traces(runs)
-            summaries: list[dict[str, float | str]] = [
+            summaries: list[dict[str, Any]] = [
                 {"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
-                | ({} if trace is None else trace.summary(k)) for k, (scenario, result) in enumerate(runs)]
+                | ({} if trace is None else trace.summary(k)) | _conflicts(result)
+                for k, (scenario, result) in enumerate(runs)]
             if args.json:
                 print(json.dumps(summaries, indent=2))
             else:
@@ -197,6 +198,12 @@ def _simulation(args: argparse.Namespace, scenario: Scenario) -> MujocoSimulatio
     return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise or 0.0, delay=args.delay or 0)
 
 
+def _conflicts(result: RunResult) -> dict[str, list[dict[str, Any]]]:
+    """The run's episodes of fallback ticks and the constraints in conflict at each (summary entry)."""
+    return {"conflicts": [{"tick": episode.tick, "constraints": list(episode.constraints)}
+                          for episode in result.conflicts]}
+
+
 def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
     """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``:
     numbers, and strings for the loop and the manipulability's frame and rows)."""
@@ -217,6 +224,9 @@ def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
         f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
         f"  (solve median {s['solve_time_median_us']:.1f} µs)",
     ]
+    for episode in s.get("conflicts", []):
+        named = ", ".join(episode["constraints"]) or "none found (the backend failed on a feasible QP)"
+        lines.append(f"  fallback from tick {episode['tick']:<8d} constraints in conflict: {named}")
     if "worst_wheel_speed_ratio" in s:
         lines.append(f"  worst wheel speed          {s['worst_wheel_speed_ratio'] * 100:.1f} % of its limit")
     if "max_lateral_slip_m_s" in s:

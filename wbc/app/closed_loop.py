@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
@@ -26,6 +26,14 @@ if TYPE_CHECKING:
 
 MAX_ROWS = 100_000  #: rows a run keeps by default: a longer run keeps every k-th tick (RunResult.stride)
 CHUNK_TICKS = 4096  #: ticks buffered at full resolution before they are reduced to rows
+
+
+class ConflictEpisode(NamedTuple):
+    """A run of consecutive ticks answered by a fallback, with the constraints found in conflict
+    at its first tick (``Controller.last.conflicts``)."""
+
+    tick: int  #: the episode's first tick (1 = the first step)
+    constraints: tuple[str, ...]  #: labels of the conflicting constraints (empty: none found)
 
 
 @dataclass
@@ -84,6 +92,8 @@ class RunResult:
     stride: int = 1  #: ticks per row
     loop: str = "kinematic"  #: how the loop was closed: "kinematic", or "mujoco" (:attr:`loop_details`)
     loop_details: str = ""  #: e.g. "velocity servos, noise 0.0001, delay 1 tick" of a MuJoCo loop
+    #: each episode of ticks answered by a fallback, with the constraints in conflict at its first tick
+    conflicts: list[ConflictEpisode] = field(default_factory=list)
 
     @property
     def ticks(self) -> int:
@@ -237,6 +247,9 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
             simulation.advance()
             q = simulation.q
         record.tick(v, q, position_error, orientation_error, last.solve_time, last.tick_time, not last.success)
+        if not last.success and record.succeeded:  # the first tick of an episode
+            record.conflicts.append(ConflictEpisode(k + 1, tuple(last.conflicts)))
+        record.succeeded = last.success
         if on_tick is not None:
             on_tick(k + 1, q)
     return record.result(scenario.name, controller.solver.name, dt, orientation_tracked(task), simulation)
@@ -282,6 +295,8 @@ class _Recorder:
         if self.tool_path is not None and frame is not None:
             self.tool_path[0] = robot.frame_pose(q0, frame)[:3, 3]
         self.done = self.buffered = self.fallbacks = 0  # ticks reduced to rows, ticks in the buffer
+        self.conflicts: list[ConflictEpisode] = []  # episodes of fallback ticks
+        self.succeeded = True  # whether the last tick was answered by the full QP
         self.squares = np.zeros(2)  # sums of the squared position and orientation errors
         self.final_errors = np.zeros(2)
 
@@ -366,7 +381,7 @@ class _Recorder:
             velocity_violation=self.velocity_violation, velocity_ratio=self.velocity_ratio, statistics=statistics,
             fallback_ticks=self.fallbacks, base_path=self.q[:, list(robot.base.indices[:2])] if robot.base.is_mobile
             else None, tool_path=self.tool_path, wheel_ratio=self.wheel_ratio, lateral_slip=self.lateral_slip,
-            orientation_tracked=tracked, stride=self.stride, loop=loop, loop_details=details)
+            orientation_tracked=tracked, stride=self.stride, loop=loop, loop_details=details, conflicts=self.conflicts)
 
 
 def orientation_tracked(task: Task | None) -> bool:
