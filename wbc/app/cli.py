@@ -36,7 +36,7 @@ class CommandLineError(WbcError, ValueError):
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .closed_loop import manipulability_traces, run
+    from .closed_loop import collision_traces, manipulability_traces, run
     from .scenario import load_scenario
 
     _check_run_options(args)
@@ -51,11 +51,11 @@ def _run(args: argparse.Namespace) -> int:
                                    simulation=_simulation(args, scenario),
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
-            trace = manipulability_traces(runs)
+            trace, distances = manipulability_traces(runs), collision_traces(runs)
             summaries: list[dict[str, Any]] = [
                 {"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
-                | ({} if trace is None else trace.summary(k)) | _conflicts(result)
-                for k, (scenario, result) in enumerate(runs)]
+                | ({} if trace is None else trace.summary(k)) | ({} if distances is None else distances.summary(k))
+                | _conflicts(result) for k, (scenario, result) in enumerate(runs)]
             if args.json:
                 print(json.dumps(summaries, indent=2))
             else:
@@ -93,9 +93,10 @@ def _write_outputs(args: argparse.Namespace, runs: Sequence[tuple[Scenario, RunR
 
         writers.append(("--plot", "plot", lambda: plot_runs(runs, args.plot)))
     if args.html is not None:
-        from .view import write_html
+        from .view import scenario_obstacles, write_html
 
-        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html)))
+        obstacles = scenario_obstacles([scenario for scenario, _ in runs])
+        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html, obstacles)))
     for option, what, write in writers:
         try:
             path = write()
@@ -112,10 +113,10 @@ def _live_view(args: argparse.Namespace, scenarios: Sequence[Scenario], out: Tex
         yield None
         return
     from .closed_loop import tick_count
-    from .view import LiveView
+    from .view import LiveView, scenario_obstacles
 
     with LiveView([(scenario, tick_count(scenario, args.duration)) for scenario in scenarios],
-                  port=args.view) as live:
+                  port=args.view, obstacles=scenario_obstacles(scenarios)) as live:
         print(f"3-D view at {live.url}: the run(s) stream live, then replay (Ctrl-C to stop)", file=out, flush=True)
         yield live
 
@@ -224,6 +225,11 @@ def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
         f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
         f"  (solve median {s['solve_time_median_us']:.1f} µs)",
     ]
+    if "collision_distance_min_m" in s:
+        sampled = (f"  (sampled: one tick in {s['collision_sampled_every_ticks']})"
+                   if "collision_sampled_every_ticks" in s else "")
+        lines.append(f"  collision distance min     {s['collision_distance_min_m'] * 1e3:.2f} mm  "
+                     f"(min_distance {s['collision_margin_m'] * 1e3:g} mm){sampled}")
     for episode in s.get("conflicts", []):
         named = ", ".join(episode["constraints"]) or "none found (the backend failed on a feasible QP)"
         lines.append(f"  fallback from tick {episode['tick']:<8d} constraints in conflict: {named}")

@@ -10,6 +10,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from ..collision import CollisionAvoidance, Distances
 from ..constraints import ManipulabilityBarrier
 from ..control.controller import Controller
 from ..core.errors import InvalidInputError
@@ -439,6 +440,55 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
                for scenario, _ in runs]
     return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded, [result.stride for _, result in runs])
 
+
+@dataclass
+class CollisionTrace:
+    """The smallest signed distance between the collision pairs of the first
+    :class:`~wbc.CollisionAvoidance` found in the scenarios, in every run of the same robot (with
+    or without that constraint), and its margin ``min_distance``."""
+
+    margin: float  #: [m] the constraint's min_distance
+    detection_distance: float  #: [m] pairs farther apart are not measured
+    #: one (R+1,) array per run [m], at each recorded configuration (inf: no pair within the
+    #: detection distance); None for a run of another robot
+    series: list[NDArray[np.float64] | None]
+    strides: list[int]  #: per run, the ticks per recorded row (RunResult.stride)
+
+    def summary(self, run: int) -> dict[str, float]:
+        """The smallest distance of run ``run`` and the margin (empty for a run of another robot)."""
+        series = self.series[run]
+        if series is None:
+            return {}
+        summary = {"collision_distance_min_m": float(series.min()), "collision_margin_m": self.margin}
+        if self.strides[run] > 1:
+            summary["collision_sampled_every_ticks"] = self.strides[run]
+        return summary
+
+
+def collision_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> CollisionTrace | None:
+    """The distances of :class:`CollisionTrace` (None when no scenario has collision avoidance):
+    the same pairs and obstacles measured at every recorded configuration of each run of that
+    robot, as a with/without comparison needs."""
+    found = next(((scenario.robot.name, item) for scenario, _ in runs for item in scenario.constraints
+                  if isinstance(item, CollisionAvoidance)), None)
+    if found is None:
+        return None
+    robot_name, avoidance = found
+    series: list[NDArray[np.float64] | None] = []
+    for scenario, result in runs:
+        if scenario.robot.name != robot_name:
+            series.append(None)
+            continue
+        distances = Distances(scenario.robot, avoidance.obstacles, avoidance.self_collision,
+                              avoidance.detection_distance)
+        pairs = distances.buffers()
+        smallest = []
+        for q in result.q:
+            count = distances.compute(q, pairs)
+            smallest.append(float(pairs.distance[:count].min()) if count else np.inf)
+        series.append(np.array(smallest))
+    return CollisionTrace(avoidance.min_distance, avoidance.detection_distance, series,
+                          [result.stride for _, result in runs])
 
 def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[NDArray[np.float64] | None] | None:
     """When some scenario has priority levels: the error ``|q* (-) q|`` of the first PostureTask
