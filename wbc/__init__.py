@@ -17,6 +17,7 @@ from .constraints import (
     ManipulabilityBarrier,
     MecanumWheelLimits,
     NonholonomicBase,
+    SupportPolygon,
     WheelSpeedLimits,
 )
 from .control.controller import Controller
@@ -40,6 +41,7 @@ from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import (
     BaseVelocityTask,
+    CoMTask,
     FrameTask,
     ManipulabilityTask,
     PositionTask,
@@ -54,7 +56,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
@@ -62,5 +64,5 @@ __all__ = [
     "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
-    "RelativeFrameTask",
+    "RelativeFrameTask", "CoMTask",
 ]
