@@ -105,4 +105,6 @@ CASES = [
     Case("CollisionAvoidance", "youbot", _sphere_near_the_gripper, 0.4),
     Case("CoMTask", "youbot", _com_task, 0.4),
     Case("SupportPolygon", "youbot", _support_polygon, 0.4),
+    Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,
+         "constant bounds v_j = 0"),
 ]

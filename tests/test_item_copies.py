@@ -216,6 +216,8 @@ EXAMPLES: dict[type, Example] = {
         "gain": lambda c: setattr(c, "gain", 0.1),
         "margin": lambda c: setattr(c, "margin", 0.003),
     }, stack=lambda: [_reach_forward(), _still_base(), wbc.PostureTask(1e-3)]),
+    wbc.DofFreezing: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DofFreezing(["arm_joint_2"]), {},
+                             stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
     wbc.NonholonomicBase: Example(DELUCA, Q_DELUCA, wbc.NonholonomicBase, {},
                                   stack=lambda: [_position_task(DELUCA, Q_DELUCA), wbc.PostureTask(1e-3)]),
 }

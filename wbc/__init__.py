@@ -12,6 +12,7 @@ Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wb
 from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     Constraint,
+    DofFreezing,
     JointPositionLimits,
     JointVelocityLimits,
     ManipulabilityBarrier,
@@ -56,7 +57,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",

@@ -1,6 +1,7 @@
 """Constraints: hard limits of the control QP."""
 
 from .constraint import Constraint, ConstraintRows
+from .dof_freezing import DofFreezing
 from .joint_position_limits import JointPositionLimits
 from .joint_velocity_limits import JointVelocityLimits
 from .manipulability_barrier import ManipulabilityBarrier
@@ -9,4 +10,5 @@ from .support_polygon import SupportPolygon
 from .wheel_speed_limits import MecanumWheelLimits, WheelSpeedLimits
 
 __all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
-           "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon"]
+           "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon",
+           "DofFreezing"]
