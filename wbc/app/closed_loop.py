@@ -431,11 +431,12 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
         return None
     robot_name, first = next((pair for pair in watched if isinstance(pair[1], ManipulabilityBarrier)), watched[0])
     floor = first.min_value if isinstance(first, ManipulabilityBarrier) else None
-    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows) for q in result.q])
+    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows, first.joints) for q in result.q])
               if scenario.robot.name == robot_name else None
               for scenario, result in runs]
+    watched_measure = (first.frame, first.rows, first.joints)
     guarded = [floor is not None and any(isinstance(item, ManipulabilityBarrier) and item.min_value == floor
-                                         and (item.frame, item.rows) == (first.frame, first.rows)
+                                         and (item.frame, item.rows, item.joints) == watched_measure
                                          for item in scenario.constraints)
                for scenario, _ in runs]
     return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded, [result.stride for _, result in runs])

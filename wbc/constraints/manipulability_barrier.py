@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
 from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
-from ..model.manipulability import Manipulability, Rows, row_selection
+from ..model.manipulability import Manipulability, Rows, check_joint_names, row_selection
 from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
@@ -48,6 +50,8 @@ class ManipulabilityBarrier(Barrier):
         min_value: ``m_min`` > 0, in the units of ``m`` for ``rows``.
         gain: fraction of the margin ``m - m_min`` that may be consumed per tick, (0, 1].
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
+        joints: the measure of these joints' columns only (e.g. the arm of a mobile manipulator);
+            None: every joint. A chain's measure is computed in Python (not in the native tick).
     """
 
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
@@ -55,12 +59,13 @@ class ManipulabilityBarrier(Barrier):
     min_value = Operand("_settings", kernels.BARRIER_MIN_VALUE, as_positive)
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: Rows = "all",
-                 name: str | None = None) -> None:
+                 joints: Sequence[str] | None = None, name: str | None = None) -> None:
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
         row_selection(rows)
         self.rows = rows
+        self.joints = None if joints is None else tuple(check_joint_names(joints))
         super().__init__(name or f"ManipulabilityBarrier({frame})")
         self._settings = np.zeros(kernels.BARRIER_SETTINGS)  # compiled operand (layout: kernels.BARRIER_*), shared
         self.gain, self.min_value = gain, min_value
@@ -69,8 +74,9 @@ class ManipulabilityBarrier(Barrier):
         return ManipulabilityBarrierData(self, robot)
 
     def __repr__(self) -> str:
+        chain = "" if self.joints is None else f", joints={list(self.joints)!r}"
         return (f"ManipulabilityBarrier(frame={self.frame!r}, min_value={self.min_value}, "
-                f"gain={self.gain}, rows={self.rows!r})")
+                f"gain={self.gain}, rows={self.rows!r}{chain})")
 
 
 class ManipulabilityBarrierData(BarrierData):
@@ -81,7 +87,7 @@ class ManipulabilityBarrierData(BarrierData):
 
     def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:
         super().__init__(barrier, robot, 1)
-        self._manipulability = Manipulability(robot, barrier.frame, barrier.rows)
+        self._manipulability = Manipulability(robot, barrier.frame, barrier.rows, barrier.joints)
         self._value = np.array([np.nan])  # compiled operand: m at the last tick
 
     @property
