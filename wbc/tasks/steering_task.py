@@ -74,7 +74,7 @@ class SteeringTask(Task):
 
     def bind(self, robot: Robot) -> SteeringTaskData:
         if not robot.base.is_nonholonomic:
-            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base; "
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.name} base; "
                                     "steering is only needed by nonholonomic bases")
         return SteeringTaskData(self, robot)
 
