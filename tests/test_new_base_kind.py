@@ -134,6 +134,12 @@ def test_the_new_kind_drives_in_closed_loop_with_the_shipped_constraints(crab):
     assert np.linalg.norm(crab.frame_pose(q, crab.end_effector)[:3, 3] - target) < 1e-3
 
 
+def test_steering_refuses_a_base_that_does_not_drive_along_its_x_axis(crab):
+    """SteeringTask aligns the base's x axis with the way to go: wrong for the crab."""
+    with pytest.raises(wbc.InvalidInputError, match="drives along its x axis"):
+        wbc.Controller(crab, [wbc.SteeringTask()], [wbc.NonholonomicBase()])
+
+
 def test_controllers_of_the_new_kind_copy_and_pickle(crab):
     reach = wbc.PositionTask(crab.end_effector, cost=1.0, gain=0.1)
     q = np.array([0.1, -0.2, 0.3, 0.0, 0.5, 1.0, 1.2, 0.0])
