@@ -78,6 +78,20 @@ class TwistRows:
 
 NO_ROWS = TwistRows(np.zeros((0, 3)), 0.0, ())
 
+#: [m] how far a wheel may sit from where its wheel model puts it (symmetry, axle on the origin)
+LAYOUT_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class WheelMount:
+    """A driven wheel as the model places it (read by :func:`wbc.model.declared_base.declare_base`)."""
+
+    name: str  #: its joint
+    position: NDArray[np.float64]  #: centre in the base frame [m]
+    axis: NDArray[np.float64]  #: unit rotation axis in the base frame
+    radius: float  #: [m]
+    max_speed: float  #: [rad/s] (inf: none in the URDF)
+
 
 @dataclass(frozen=True)
 class MobileBase(abc.ABC):
@@ -99,6 +113,8 @@ class MobileBase(abc.ABC):
     wheels: Wheels | None = None
 
     is_mobile: ClassVar[bool] = True  #: False only for a base bolted to the world
+    #: driven wheels the kind's wheel model describes (:meth:`wheels_from_mounts`; 0: none)
+    wheel_count: ClassVar[int] = 0
     _shipped: ClassVar[dict[BaseKind, type[MobileBase]]] = {}  #: the class of each shipped kind
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -112,12 +128,21 @@ class MobileBase(abc.ABC):
             kind = kwargs.get("kind", args[0] if args else None)
             if kind not in MobileBase._shipped:
                 raise TypeError(f"MobileBase(kind, ...): kind must be a shipped BaseKind, got {kind!r}")
-            cls = MobileBase._shipped[kind]
+            cls = kind_class(kind)
         return super().__new__(cls)
 
     def __post_init__(self) -> None:
         if self.kind is not type(self).kind:
             raise TypeError(f"{type(self).__name__} is a {type(self).kind} base, not {self.kind}")
+
+    @classmethod
+    def wheels_from_mounts(cls, mounts: list[WheelMount], radius: float, max_speed: float, where: str) -> Wheels:
+        """The kind's wheel model from its :attr:`wheel_count` driven wheels as mounted (any order).
+
+        Raises:
+            ModelError: a layout the wheel model does not describe (naming ``where``).
+        """
+        raise NotImplementedError(f"a {cls.__name__} has no wheel model")
 
     @property
     def name(self) -> str:
@@ -167,4 +192,9 @@ class MobileBase(abc.ABC):
         return pin.integrate(model, q, v * dt)
 
 
-__all__ = ["BaseKind", "MobileBase", "TwistRows", "Wheels", "NO_ROWS"]
+def kind_class(kind: BaseKind) -> type[MobileBase]:
+    """The class of a shipped kind (what ``MobileBase(kind, ...)`` builds)."""
+    return MobileBase._shipped[kind]
+
+
+__all__ = ["BaseKind", "MobileBase", "TwistRows", "Wheels", "WheelMount", "NO_ROWS", "LAYOUT_TOLERANCE", "kind_class"]

@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .interface import BaseKind
+from ...core.errors import ModelError
+from .interface import LAYOUT_TOLERANCE, BaseKind, WheelMount
 from .planar import PlanarBase
 
 
@@ -47,6 +49,22 @@ class MecanumBase(PlanarBase):
 
     kind: BaseKind = BaseKind.MECANUM
     wheels: MecanumWheels | None = None
+
+    wheel_count: ClassVar[int] = 4
+
+    @classmethod
+    def wheels_from_mounts(cls, mounts: list[WheelMount], radius: float, max_speed: float,
+                           where: str) -> MecanumWheels:
+        """Four wheels at (+-l, +-w), rollers at 45 degrees (the X layout of the youBot)."""
+        half_length, half_width = (float(np.mean([abs(w.position[k]) for w in mounts])) for k in (0, 1))
+        corners = sorted((np.sign(w.position[0]), np.sign(w.position[1])) for w in mounts)
+        if corners != [(-1, -1), (-1, 1), (1, -1), (1, 1)] or any(
+                abs(abs(w.position[0]) - half_length) > LAYOUT_TOLERANCE
+                or abs(abs(w.position[1]) - half_width) > LAYOUT_TOLERANCE for w in mounts):
+            layout = ", ".join(f"{w.name} at {np.round(w.position[:2], 6).tolist()}" for w in mounts)
+            raise ModelError(f"{where}: mecanum wheels {layout} (x, y in the base frame [m]); wbc's mecanum model "
+                             "needs one wheel at each corner (+-l, +-w) of a rectangle centred on the base frame")
+        return MecanumWheels(radius=radius, half_length=half_length, half_width=half_width, max_speed=max_speed)
 
 
 __all__ = ["MecanumBase", "MecanumWheels"]

@@ -7,6 +7,7 @@ obeys the unicycle's no-slip row and input map (De Luca's mobile manipulator, mo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from .interface import BaseKind
 from .unicycle import UnicycleBase
@@ -17,6 +18,8 @@ class SynchroBase(UnicycleBase):
     """The unicycle's rows and inputs, with the heading as the steering angle; no wheel model."""
 
     kind: BaseKind = BaseKind.SYNCHRO
+
+    wheel_count: ClassVar[int] = 0  # its wheels are only locked
 
 
 __all__ = ["SynchroBase"]

@@ -8,7 +8,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .interface import BaseKind
+from ...core.errors import ModelError
+from .interface import LAYOUT_TOLERANCE, BaseKind, WheelMount
 from .planar import PlanarBase, Twist
 
 
@@ -41,6 +42,20 @@ class UnicycleBase(PlanarBase):
     no_slip: ClassVar[tuple[Twist, ...]] = ((0.0, 1.0, 0.0),)
     no_slip_labels: ClassVar[tuple[str, ...]] = ("no lateral slip",)
     input_twists: ClassVar[tuple[Twist, ...]] = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    wheel_count: ClassVar[int] = 2
+
+    @classmethod
+    def wheels_from_mounts(cls, mounts: list[WheelMount], radius: float, max_speed: float,
+                           where: str) -> DifferentialWheels:
+        """Left (+y) and right wheels on an axle through the base origin, symmetric."""
+        left, right = sorted(mounts, key=lambda wheel: -wheel.position[1])
+        layout = ", ".join(f"{w.name} at {np.round(w.position[:2], 6).tolist()}" for w in (left, right))
+        if max(abs(left.position[0]), abs(right.position[0])) > LAYOUT_TOLERANCE \
+                or abs(left.position[1] + right.position[1]) > LAYOUT_TOLERANCE or left.position[1] <= 0.0:
+            raise ModelError(f"{where}: differential wheels {layout} (x, y in the base frame [m]); wbc's "
+                             "differential drive needs the axle on the base frame's y axis, the wheels at +-b: put "
+                             "the base frame (the model's root link) on the axle midpoint")
+        return DifferentialWheels(radius=radius, half_track=float(left.position[1]), max_speed=max_speed)
 
 
 __all__ = ["UnicycleBase", "DifferentialWheels"]
