@@ -113,7 +113,7 @@ class MobileBase(abc.ABC):
     wheels: Wheels | None = None
 
     is_mobile: ClassVar[bool] = True  #: False only for a base bolted to the world
-    #: driven wheels the kind's wheel model describes (:meth:`wheels_from_mounts`; 0: none)
+    #: driven wheels the kind's wheel model describes (:meth:`MobileBase.wheels_from_mounts`; 0: none)
     wheel_count: ClassVar[int] = 0
     _shipped: ClassVar[dict[BaseKind, type[MobileBase]]] = {}  #: the class of each shipped kind
 
