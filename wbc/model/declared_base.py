@@ -127,8 +127,8 @@ def declare_base(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
     names = [model.names[j] for j in chain] if chain else list(BASE_JOINT_NAMES)
     with_base = reduced if chain else _prepend_base_joints(reduced, where)
     indices = tuple(with_base.joints[with_base.getJointId(name)].idx_v for name in names)
-    return with_base, MobileBase(kind, indices=(indices[0], indices[1], indices[2]), max_linear_speed=linear,
-                                 max_yaw_rate=yaw, wheels=wheels)
+    return with_base, kind_class(kind)(kind, indices=(indices[0], indices[1], indices[2]), max_linear_speed=linear,
+                                       max_yaw_rate=yaw, wheels=wheels)
 
 
 # ------------------------------------------------------------------ model surgery

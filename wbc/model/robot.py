@@ -32,6 +32,7 @@ from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFr
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
 from . import shipped
+from .bases.interface import kind_class
 from .declared_base import (
     BaseDeclaration,
     base_kind,
@@ -41,7 +42,7 @@ from .declared_base import (
     planar_root_joints,
     wheel_like_joints,
 )
-from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -597,9 +598,10 @@ def _base_of_joints(model: pin.Model, spec: PlanarBaseTable | MecanumBaseTable |
                              f"replace = [...]: wbc then puts its own base joints in their place")
         indices.append(joint.idx_v)
     _check_base_joints(model, names)
-    return MobileBase(
-        kind=base_kind(spec.kind),
-        indices=tuple(indices),
+    kind = base_kind(spec.kind)
+    return kind_class(kind)(
+        kind,
+        indices=(indices[0], indices[1], indices[2]),
         max_linear_speed=_or_inf(spec.max_linear_speed),
         max_yaw_rate=_or_inf(spec.max_yaw_rate),
         wheels=_wheels(getattr(spec, "wheels", None)),
@@ -678,9 +680,8 @@ def _detect_planar_base(model: pin.Model) -> MobileBase:
     chained = all(model.parents[i] == i - 1 for i in (1, 2, 3))
     if chained and tuple(j.shortname() for j in joints) == expected:
         limits = model.velocityLimit
-        return MobileBase(
-            BaseKind.PLANAR,
-            indices=tuple(j.idx_v for j in joints),
+        return PlanarBase(
+            indices=(joints[0].idx_v, joints[1].idx_v, joints[2].idx_v),
             max_linear_speed=float(min(limits[joints[0].idx_v], limits[joints[1].idx_v])),
             max_yaw_rate=float(limits[joints[2].idx_v]),
         )

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import abc
 import enum
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, ClassVar, Protocol
 
@@ -52,7 +53,10 @@ class BaseKind(enum.Enum):
 class Wheels(Protocol):
     """A wheel model: its wheel speeds ``u = H0 (v_x, v_y, omega)`` [rad/s] and their limit."""
 
-    max_speed: float  #: ``|u_i|`` limit [rad/s] (inf: none declared)
+    @property
+    def max_speed(self) -> float:
+        """``|u_i|`` limit [rad/s] (inf: none declared)."""
+        ...
 
     def inverse_matrix(self) -> NDArray[np.float64]:
         """``H0`` (wheels x 3): base-frame twist -> wheel speeds."""
@@ -132,8 +136,9 @@ class MobileBase(abc.ABC):
         return super().__new__(cls)
 
     def __post_init__(self) -> None:
-        if self.kind is not type(self).kind:
-            raise TypeError(f"{type(self).__name__} is a {type(self).kind} base, not {self.kind}")
+        kind = getattr(type(self), "kind", None)  # the field's default: the kind the class is
+        if self.kind is not kind:
+            raise TypeError(f"{type(self).__name__} is a {kind} base, not {self.kind}")
 
     @classmethod
     def wheels_from_mounts(cls, mounts: list[WheelMount], radius: float, max_speed: float, where: str) -> Wheels:
@@ -181,7 +186,7 @@ class MobileBase(abc.ABC):
         inputs are ``v`` itself."""
         return np.eye(nv)
 
-    def write_input_map(self, q: NDArray[np.float64], S: NDArray[np.float64]) -> None:
+    def write_input_map(self, q: NDArray[np.float64] | Sequence[float], S: NDArray[np.float64]) -> None:
         """Write the entries of ``S(q)`` that depend on ``q`` (called every tick)."""
         return None  # S = I: nothing depends on q
 

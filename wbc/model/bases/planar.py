@@ -15,6 +15,7 @@ A holonomic base's inputs are ``v`` itself (``S = I``).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -84,7 +85,7 @@ class PlanarBase(MobileBase):
         self.write_input_map(np.zeros(heading + 1), S)
         return S
 
-    def write_input_map(self, q: NDArray[np.float64], S: NDArray[np.float64]) -> None:
+    def write_input_map(self, q: NDArray[np.float64] | Sequence[float], S: NDArray[np.float64]) -> None:
         """The base block's ``(x, y)`` rows: ``R(heading) (t_x, t_y)`` for each input twist ``t``."""
         if not self.no_slip:
             return
