@@ -9,11 +9,13 @@ import copy
 import math
 import pickle
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import wbc
+from conftest import require
 from wbc.constraints.heading_rows import HeadingRows
 from wbc.model.bases import BaseKind, PlanarBase, TwistRows
 
@@ -160,3 +162,29 @@ def test_mobile_base_by_kind_builds_the_kinds_class():
         wbc.MobileBase(BaseKind.CUSTOM)
     with pytest.raises(TypeError, match="not BaseKind.FIXED"):
         CrabDrive(BaseKind.FIXED)
+
+
+class _Writer:
+    """A DDS writer stand-in: keeps (linear.x, linear.y, angular.z) of every Twist written."""
+
+    def __init__(self) -> None:
+        self.written: list[tuple[float, float, float]] = []
+
+    def write(self, message) -> None:
+        self.written.append((message.linear.x, message.linear.y, message.angular.z))
+
+
+def test_the_ros_node_sends_the_twist_the_new_kind_drives(crab, rng):
+    """The base command keeps the crab's sideways speed (a unicycle's v_y residual is what the
+    no-slip projection removes) and its speed guard reads the crab's own rows."""
+    commands = require("wbc.ros.commands")
+    writer = _Writer()
+    participant = SimpleNamespace(writer=lambda topic, message: writer)
+    config = SimpleNamespace(controllers=[], base=SimpleNamespace(stamped=False, topic="/cmd_vel", frame_id="base"))
+    command_writer = commands.CommandWriter(participant, config, crab)
+    q = crab.random_configuration(rng)
+    u = np.array([0.2, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0])  # 0.2 m/s sideways, 0.5 rad/s
+    command_writer.publish(q, crab.input_map(q) @ u)
+    np.testing.assert_allclose(writer.written[-1], (0.0, 0.2, 0.5), atol=1e-12)
+    too_fast = crab.input_map(q) @ np.r_[2 * SPEED, np.zeros(6)]
+    assert commands.limit_ratio(crab, q, too_fast) == pytest.approx(2.0)  # |v_y| rows: twice the bound

@@ -77,7 +77,10 @@ class CommandWriter:
                 self._base = (participant.writer(config.base.topic, TwistStamped), stamped, twist)
             else:
                 self._base = (participant.writer(config.base.topic, Twist), twist, twist)
-        self._nonholonomic = robot.base.is_nonholonomic
+        # the projector onto the twists the base's no-slip rows N allow (I - N+ N): a unicycle's
+        # twist without its v_y residual, a holonomic base's as it is
+        no_slip = robot.base.no_slip_rows().matrix
+        self._slip_free = np.eye(3) - np.linalg.pinv(no_slip) @ no_slip
 
     def publish(self, q: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
         """Write command ``v`` at ``q`` (after the check of the module docstring); the command written."""
@@ -113,8 +116,8 @@ class CommandWriter:
             writer.write(message)
         if self._base is not None:
             base_writer, sample, twist = self._base
-            v_x, v_y, omega = self.robot.base.twist(q, v).tolist()
-            twist.linear.x, twist.linear.y, twist.angular.z = v_x, 0.0 if self._nonholonomic else v_y, omega
+            v_x, v_y, omega = (self._slip_free @ self.robot.base.twist(q, v) + 0.0).tolist()  # (+0.0: no -0.0)
+            twist.linear.x, twist.linear.y, twist.angular.z = v_x, v_y, omega
             if isinstance(sample, TwistStamped):
                 now = time.time_ns()
                 sample.header.stamp.sec, sample.header.stamp.nanosec = divmod(now, 1_000_000_000)
