@@ -35,7 +35,7 @@ import pinocchio as pin
 
 import wbc
 from wbc.app.scenario import Scenario
-from wbc.constraints.constraint import Constraint, ConstraintRows
+from wbc.constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from wbc.model.kinematics import Kinematics
 from wbc.model.robot import Robot
 from wbc.tasks import FrameTask, PostureTask
@@ -94,7 +94,7 @@ def spec_from_scenario(scenario: Scenario) -> StackSpec:
 
 
 # ------------------------------------------------------------------ wbc pieces
-class WorldVelocityLimits(Constraint):
+class WorldVelocityLimits(Constraint, ConstraintData):
     """``|v_i| <= velocity_limit_i`` as plain bounds, base linear rates in **world** axes.
 
     The box Pink's and mink's ``VelocityLimit`` express; wbc's own

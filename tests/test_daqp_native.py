@@ -20,6 +20,7 @@ from wbc.solvers import DaqpBackend
 from wbc.solvers.daqp import abi as daqp_abi
 from wbc.solvers.daqp import probe as daqp_probe
 from wbc.solvers.daqp.native import NativeWorkspace
+from wbc.tasks.task import TaskData
 
 
 def random_qp(rng: np.random.Generator, n: int, n_ineq: int, n_eq: int) -> QP:
@@ -176,7 +177,7 @@ def test_controller_commands_match_the_binding_path(scenario_file, monkeypatch):
     assert np.max(np.abs(native - binding)) < 1e-9
 
 
-class SometimesNan(wbc.Task):
+class SometimesNan(wbc.Task, TaskData):
     """A task whose target is NaN while ``broken``."""
 
     dim = 1

@@ -56,7 +56,8 @@ def test_custom_compiled_task_centres_the_joints():
     v = controller.step(q)
     # an isolated centering task: per joint min w^2 (v - gain/dt e)^2 + damping v^2, so
     # v = w^2 / (w^2 + damping) gain/dt e with w = 1 / (1 - s^2), e = middle - q
-    middle, half = 0.5 * (robot.lower + robot.upper)[3:], 0.5 * (robot.upper - robot.lower)[3:]
+    lower, upper = robot.lower[3:], robot.upper[3:]  # the arm's (finite) limits, not the base's inf
+    middle, half = 0.5 * (lower + upper), 0.5 * (upper - lower)
     e = middle - q[3:]
     w2 = 1.0 / (1.0 - np.minimum(np.abs(e) / half, 0.99) ** 2) ** 2
     np.testing.assert_allclose(v[3:], w2 / (w2 + controller.damping) * 0.5 / controller.dt * e, rtol=1e-9)

@@ -15,6 +15,7 @@ import wbc
 from conftest import TASKS
 from wbc.app.closed_loop import run
 from wbc.app.scenario import load_scenario
+from wbc.tasks.task import TaskData
 
 DT = 0.01
 ARM = slice(3, 8)  # the youBot's arm coordinates (the base is x, y, theta)
@@ -342,7 +343,7 @@ def test_a_failed_lower_level_is_re_solved_elastically_from_there(youbot, monkey
 
 
 def test_nan_in_a_level_gives_the_zero_command(youbot):
-    class SometimesNan(wbc.Task):
+    class SometimesNan(wbc.Task, TaskData):
         dim, broken = 1, False
 
         def compute(self, kin, dt, jacobian, target):

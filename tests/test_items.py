@@ -29,6 +29,76 @@ def test_every_exported_item_is_registered():
     assert exported == {case.name for case in CASES}
 
 
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.name)
+def test_a_specification_is_not_its_data(case: Case):
+    """Issue 23 §2: an item is its settings; what one controller computes is a separate data
+    object (``Task`` no longer inherits from ``TaskData``)."""
+    robot = robot_of(case)
+    item = case.make(robot, CONFIGURATIONS[case.robot][1])
+    data = item.bind(robot)
+    assert data is not item and not isinstance(item, (TaskData, ConstraintData))
+    assert isinstance(data, TaskData if isinstance(item, Task) else ConstraintData)
+    assert data.name == item.name
+
+
+class _Silent(Task):
+    """A task that says nothing about its rows."""
+
+
+class _OldStyle(Task):
+    """A task written for wbc <= 0.3 (every Task was its own data)."""
+
+    dim = 1
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian.fill(1.0)
+
+
+class _OldStyleLimit(Constraint):
+    n_equalities = 1
+
+    def compute(self, kin, dt, rows):
+        rows.A[0, 3] = 1.0
+
+
+class _OwnData(Task, TaskData):
+    """Declared as its own data: allowed (``v[3] = 0`` softly)."""
+
+    dim = 1
+
+    def compute(self, kin, dt, jacobian, target):
+        jacobian[0, 3], target[0] = 1.0, 0.0
+
+
+@pytest.mark.parametrize("item, message", [
+    (_Silent(), "_Silent computes no rows: return a TaskData subclass from its bind(), or subclass "
+                "wbc.tasks.error_task.ErrorTask"),
+    (_OldStyle(), "_OldStyle defines compute() but is not a TaskData: declare it `class _OldStyle(Task, TaskData)`"),
+    (Constraint(), "Constraint computes no rows: return a ConstraintData subclass"),
+    (_OldStyleLimit(), "_OldStyleLimit defines compute() but is not a ConstraintData"),
+])
+def test_an_item_that_does_not_say_how_its_rows_are_computed_is_refused_naming_the_fix(item, message):
+    youbot = wbc.load_robot("youbot")
+    tasks, constraints = ([item], []) if isinstance(item, Task) else ([wbc.PostureTask(1.0)], [item])
+    with pytest.raises(wbc.InvalidInputError) as raised:
+        wbc.Controller(youbot, tasks, constraints)
+    assert message in str(raised.value)
+
+
+def test_an_item_declared_as_its_own_data_serves_as_it():
+    youbot = wbc.load_robot("youbot")
+    own = _OwnData()
+    controller = wbc.Controller(youbot, [own, wbc.PostureTask(1e-3, gain=0.01)], [wbc.JointVelocityLimits()],
+                                damping=1e-12)
+    assert controller.data(own) is own
+    q = youbot.neutral()
+    q[3:] += 0.4  # the posture asks every arm joint for -gain/dt * 0.4 = -0.4 rad/s
+    v = controller.step(q)
+    # joint 3 also pays cost 1 for any speed: min 1e-3 (v3 + 0.4)^2 + v3^2 -> v3 = -0.4 * 1e-3 / (1 + 1e-3)
+    np.testing.assert_allclose(v[4:], -0.4, rtol=1e-6)
+    np.testing.assert_allclose(v[3], -0.4e-3 / 1.001, rtol=1e-6)
+
+
 def task_rows(data: TaskData, robot: wbc.Robot, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(W J, W r) of a task's data at q, computed in Python."""
     kin = Kinematics(robot)
@@ -123,6 +193,10 @@ def _pushing_tasks(case: Case, robot: wbc.Robot, item: Constraint, q: np.ndarray
     reach.set_target(obstacles[0].center if obstacles else robot.frame_pose(q, end)[:3, 3] + [2.0, -1.5, 1.0])
     if isinstance(item, wbc.JointPositionLimits):
         return [reach, wbc.PostureTask(1.0, target=np.clip(q + 3.0, -10.0, 10.0), gain=1.0)]
+    if isinstance(item, wbc.SupportPolygon):  # the platform held: the arm's reach moves the CoM over it
+        still = wbc.BaseVelocityTask(100.0)
+        still.set_target([0.0, 0.0, 0.0])
+        return [reach, still]
     return [reach]
 
 

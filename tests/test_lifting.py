@@ -16,6 +16,7 @@ if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the check
 
 from benchmarks.peer_setups import WorldVelocityLimits  # noqa: E402
 from benchmarks.scaling import chain_urdf, initial_configuration  # noqa: E402
+from wbc.tasks.task import TaskData
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +112,7 @@ def test_the_lifted_command_does_not_depend_on_the_cost_scale(chain32, scale):
     assert np.max(np.abs(v - reference)) < 1e-6 * (1.0 + np.max(np.abs(reference)))
 
 
-class NanRow(wbc.Task):
+class NanRow(wbc.Task, TaskData):
     """A Python task (dense: one row over every coordinate) whose target is NaN while ``broken``."""
 
     dim = 1

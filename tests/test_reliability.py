@@ -7,14 +7,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import wbc
-from wbc.constraints.constraint import Constraint
+from wbc.constraints.constraint import Constraint, ConstraintData
 from wbc.control.diagnostics import StaleDiagnosticsError
-from wbc.tasks.task import Task
+from wbc.tasks.task import Task, TaskData
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
 
 
-class PushJoint(Constraint):
+class PushJoint(Constraint, ConstraintData):
     """One row ``v[index] >= speed`` (beyond the speed limit when ``speed`` is large)."""
 
     n_inequalities = 1
@@ -30,7 +30,7 @@ class PushJoint(Constraint):
         pass
 
 
-class NanTask(Task):
+class NanTask(Task, TaskData):
     """A buggy task that writes NaN."""
 
     dim = 1
@@ -248,7 +248,7 @@ def test_nonholonomic_commands_never_slip(data, solver, margin, reduced, cost, g
     assert np.all(np.abs(v[3:]) <= DELUCA.velocity_limit[3:] + 1e-6)
 
 
-class BoxBound(Constraint):
+class BoxBound(Constraint, ConstraintData):
     """Bounds ``lower <= v <= upper`` (hard or soft), for testing the bound merge."""
 
     has_bounds = True

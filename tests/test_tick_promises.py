@@ -13,6 +13,7 @@ import wbc
 from wbc.control.diagnostics import StaleDiagnosticsError
 from wbc.runtime import kernels
 from wbc.solvers import QPSolution, QPSolver
+from wbc.tasks.task import TaskData
 
 HOME = np.array([0, 0, 0, 0, 0.5, 1.0, 1.2, 0.0])
 
@@ -54,7 +55,7 @@ def test_huge_base_cost_gives_the_limited_base_twist_without_slip():
     assert controller.last.max_violation <= 1e-9
 
 
-class ZeroRow(wbc.Task):
+class ZeroRow(wbc.Task, TaskData):
     """A Python task (no compiled ops) that asks nothing: 0 v = 0."""
 
     dim = 1
@@ -262,7 +263,7 @@ def test_items_shared_by_controllers_of_different_robots_give_each_its_own_comma
 
 
 def test_a_custom_item_that_is_its_own_data_serves_one_robot(youbot):
-    class Hold(wbc.Task):
+    class Hold(wbc.Task, TaskData):
         dim = 1
 
         def compute(self, kin, dt, jacobian, target):

@@ -12,11 +12,13 @@ Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wb
 from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     Constraint,
+    DofFreezing,
     JointPositionLimits,
     JointVelocityLimits,
     ManipulabilityBarrier,
     MecanumWheelLimits,
     NonholonomicBase,
+    SupportPolygon,
     WheelSpeedLimits,
 )
 from .control.controller import Controller
@@ -40,6 +42,7 @@ from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import (
     BaseVelocityTask,
+    CoMTask,
     FrameTask,
     ManipulabilityTask,
     PositionTask,
@@ -54,7 +57,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
@@ -62,5 +65,5 @@ __all__ = [
     "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
-    "RelativeFrameTask",
+    "RelativeFrameTask", "CoMTask",
 ]

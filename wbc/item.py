@@ -25,9 +25,9 @@ class Item:
     on in all of them. Once a controller uses the item, assigning any other public
     attribute raises instead of being silently ignored.
 
-    A simple custom item may be its own data (the default :meth:`bind` returns ``self``):
-    then it serves the controllers of one robot object only, and what it computes per
-    tick is shared by them.
+    A class that subclasses both the item and its data class (``class T(Task, TaskData)``) is its
+    own data (:meth:`bind` returns ``self``): it then serves the controllers of one robot object
+    only, and what it computes per tick is shared by them.
 
     **Copies.** ``copy.copy``, ``copy.deepcopy`` and pickling give a new item with the same
     settings, independent of the original and used by no controller yet (``__getstate__``):

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.errors import InvalidInputError
 from ..item import Item
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -70,30 +71,42 @@ class ConstraintData:
         return False
 
     def row_labels(self) -> list[str]:
-        """Human-readable names of the inequality rows, then of the equality rows."""
+        """Human-readable names of the inequality rows, then of the equality rows (read when the
+        diagnostics are, after a tick: rows whose meaning changes per tick name this tick's)."""
         return [f"row {i}" for i in range(self.n_inequalities + self.n_equalities)]
 
 
-class Constraint(Item, ConstraintData):
+class Constraint(Item):
     """Base class of all constraints: a specification that :meth:`Constraint.bind` turns into
-    per-controller :class:`ConstraintData` (see :class:`~wbc.item.Item`). A simple custom
-    constraint is its own data: set its row counts, implement :meth:`compute`."""
+    per-controller :class:`ConstraintData` (see :class:`~wbc.item.Item`). A constraint computes
+    nothing itself: its ``bind`` returns a :class:`ConstraintData` subclass of its own (a class
+    that subclasses both ``Constraint`` and ``ConstraintData`` is its own data, serving the
+    controllers of one robot object)."""
 
     #: True for the no-slip rows, which the reduced form (``reduced=True``) satisfies by construction
     satisfied_by_input_map: bool = False
+    #: the default of the data's :attr:`ConstraintData.hard` (True: an actuator or no-slip limit)
+    hard: bool = True
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or type(self).__name__
 
-    # A constraint that is its own data is its own ``constraint``, which stays read-only
-    # (ConstraintData's is an attribute set by its __init__; mypy flags the narrowing).
-    @property
-    def constraint(self) -> Constraint:  # type: ignore[override]
-        return self
-
     def bind(self, robot: Robot) -> ConstraintData:
-        """This constraint's data for a controller of ``robot`` (default: the constraint itself)."""
-        return Item.bind(self, robot)
+        """This constraint's data for a controller of ``robot``.
+
+        Raises:
+            InvalidInputError: the constraint says nothing about its rows (no data class of its
+                own, and it is not a :class:`ConstraintData` itself).
+        """
+        if isinstance(self, ConstraintData):
+            return Item.bind(self, robot)
+        name = type(self).__name__
+        if hasattr(self, "compute"):  # a constraint written for wbc <= 0.3, where every Constraint was its own data
+            raise InvalidInputError(f"{name} defines compute() but is not a ConstraintData: declare it "
+                                    f"`class {name}(Constraint, ConstraintData)` to be its own data, or move compute() "
+                                    "into a ConstraintData subclass returned by bind() (docs/extending.md)")
+        raise InvalidInputError(f"{name} computes no rows: return a ConstraintData subclass from its bind() "
+                                "(docs/extending.md)")
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"

@@ -12,10 +12,11 @@ from ..model.manipulability import Manipulability, Rows, row_selection
 from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from .constraint import Constraint, ConstraintData, ConstraintRows
+from .barrier import Barrier, BarrierData
+from .constraint import ConstraintRows
 
 
-class ManipulabilityBarrier(Constraint):
+class ManipulabilityBarrier(Barrier):
     """One inequality row that keeps ``m(q) >= m_min`` (see :mod:`wbc.model.manipulability`)::
 
         grad m(q) . v  >=  -gain (m(q) - m_min) / dt      written as   -grad m . v <= gain (m - m_min) / dt
@@ -39,6 +40,9 @@ class ManipulabilityBarrier(Constraint):
     Starting below ``m_min`` the row pulls ``m`` back up at the same geometric rate
     (if the velocity limits allow it).
 
+    A :class:`~wbc.constraints.barrier.Barrier` with ``b = m - m_min``; its compiled kernel
+    computes the same row in the native tick.
+
     Args:
         frame: frame whose Jacobian defines ``m``.
         min_value: ``m_min`` > 0, in the units of ``m`` for ``rows``.
@@ -47,9 +51,8 @@ class ManipulabilityBarrier(Constraint):
     """
 
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
-    gain = Operand("_settings", 0, as_gain)
-    min_value = Operand("_settings", 1, as_positive)
-    hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
+    gain = Operand("_settings", kernels.BARRIER_GAIN, as_gain)
+    min_value = Operand("_settings", kernels.BARRIER_MIN_VALUE, as_positive)
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: Rows = "all",
                  name: str | None = None) -> None:
@@ -59,7 +62,7 @@ class ManipulabilityBarrier(Constraint):
         row_selection(rows)
         self.rows = rows
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self._settings = np.zeros(2)  # (gain, m_min): compiled operand, shared by the controllers using it
+        self._settings = np.zeros(kernels.BARRIER_SETTINGS)  # compiled operand (layout: kernels.BARRIER_*), shared
         self.gain, self.min_value = gain, min_value
 
     def bind(self, robot: Robot) -> ManipulabilityBarrierData:
@@ -70,15 +73,14 @@ class ManipulabilityBarrier(Constraint):
                 f"gain={self.gain}, rows={self.rows!r})")
 
 
-class ManipulabilityBarrierData(ConstraintData):
+class ManipulabilityBarrierData(BarrierData):
     """:class:`ManipulabilityBarrier` in one controller: ``m`` of the robot's frame and its
     value at the last tick."""
 
-    n_inequalities = 1
     constraint: ManipulabilityBarrier
 
     def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:
-        super().__init__(barrier)
+        super().__init__(barrier, robot, 1)
         self._manipulability = Manipulability(robot, barrier.frame, barrier.rows)
         self._value = np.array([np.nan])  # compiled operand: m at the last tick
 
@@ -96,11 +98,12 @@ class ManipulabilityBarrierData(ConstraintData):
                     last=selected.stop, nv=kin.model.nv)
         return True
 
-    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        manipulability, barrier = self._manipulability, self.constraint
+    def compute_barrier(self, kin: Kinematics, values: np.ndarray, gradients: np.ndarray) -> None:
+        """``b = m - m_min``, ``grad b = grad m``."""
+        manipulability = self._manipulability
         self._value[0] = manipulability.compute(kin)
-        np.negative(manipulability.gradient, out=rows.G[0])
-        rows.h[0] = barrier.gain * (self.value - barrier.min_value) / dt
+        values[0] = self._value[0] - self.constraint.min_value
+        gradients[0] = manipulability.gradient
 
     def row_labels(self) -> list[str]:
         return [f"m >= {self.constraint.min_value:g}"]

@@ -340,7 +340,7 @@ class Controller:
         """``item``'s data for this controller (:meth:`wbc.item.Item.bind`); from now on only
         the item's settings may change."""
         data = item.bind(self.robot)
-        if data is not item:
+        if not isinstance(item, (TaskData, ConstraintData)):  # (an item declared as its own data may define them)
             _refuse_ignored_overrides(item, data)
         use_context = getattr(data, "use_context", None)
         if callable(use_context):  # data that reads the tick's context (wbc.model.tick_context)
@@ -549,14 +549,13 @@ _DATA_METHODS = ("compute", "compute_preview", "add_ops", "add_preview_ops", "re
 
 
 def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | ConstraintData) -> None:
-    """A specification subclass overriding what its (separate) data computes would be
-    silently ignored: refuse it, naming the data class to subclass instead."""
-    bases = (Task, Constraint, TaskData, ConstraintData)
+    """A specification defining what its (separate) data computes would be silently ignored:
+    refuse it, naming the data class to subclass instead (``Task`` and ``Constraint`` define
+    none of those methods, so any found on the item is the subclass's)."""
     for name in _DATA_METHODS:
-        owner = next((cls for cls in type(item).__mro__ if name in vars(cls)), None)
-        if owner is not None and owner not in bases:
+        if hasattr(item, name):
             raise InvalidInputError(
-                f"{type(item).__name__} overrides {name}(), but its rows are computed by {type(data).__name__}: "
+                f"{type(item).__name__} defines {name}(), but its rows are computed by {type(data).__name__}: "
                 f"subclass {type(data).__name__} and return it from bind() (docs/extending.md)")
 
 

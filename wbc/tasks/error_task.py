@@ -6,15 +6,19 @@ Jacobian ``J`` (dim x nv, ``de/dt = -J v`` for a fixed target) into arrays it is
 (:meth:`ErrorTaskData.compute_error_and_jacobian`). The generic :meth:`ErrorTaskData.compute`
 then writes the rows of the objective once, the same way for every such task::
 
-    W ( J v - gain/dt * e - xi ),   W = diag(sqrt(cost))
+    W ( J v - sat(gain/dt * e) - xi ),   W = diag(sqrt(cost))
 
-with ``xi`` the task's feed-forward velocity (set with its target, weighted with this tick's
+with ``sat`` the optional speed bounds of blocks of rows (``ErrorTask.speed_limits``: the
+feedback velocity of a block scaled down in norm to its bound, direction kept), ``xi`` the task's
+feed-forward velocity (set with its target, weighted with this tick's
 ``W``), and exposes ``W xi`` to the controller's error-scaled (LM) damping
 (``TaskData.feedforward``), which then damps the feedback part only. Mink's and Pink's tasks
 have the same contract (``compute_error``, ``compute_jacobian``); see docs/extending.md.
 """
 
 from __future__ import annotations
+
+from typing import ClassVar
 
 import numpy as np
 
@@ -31,7 +35,9 @@ class ErrorTask(Task):
     The subclass sizes the rows (``dim``), declares its costs as :class:`~wbc.core.settings.Cost`
     slices of ``_weights`` (``W = sqrt(cost)``, one per row, 1 until set), writes a moving
     target's feed-forward velocity into ``_feedforward`` (dim, unweighted; zero by default)
-    and returns its data from :meth:`bind`.
+    and returns its data from :meth:`bind`. A subclass whose weights and feed-forward live in
+    the settings vector of a compiled kernel (FrameTask, PositionTask) sets ``_weights`` and
+    ``_feedforward`` as views into it before calling ``ErrorTask.__init__``.
 
     Args:
         dim: number of rows.
@@ -40,11 +46,15 @@ class ErrorTask(Task):
     """
 
     gain = Setting(as_gain)
+    #: blocks of rows whose feedback velocity ``gain/dt * e`` is bounded in norm (direction kept):
+    #: (rows, name of the setting holding the bound [the error's units / s], inf for none)
+    speed_limits: ClassVar[tuple[tuple[slice, str], ...]] = ()
 
     def __init__(self, dim: int, gain: float = 1.0, name: str | None = None) -> None:
         super().__init__(name)
-        self._weights = np.ones(dim)  # W = sqrt(cost), per row
-        self._feedforward = np.zeros(dim)  # xi, unweighted
+        if getattr(self, "_weights", None) is None:  # (not already views into a kernel's settings)
+            self._weights = np.ones(dim)  # W = sqrt(cost), per row
+            self._feedforward = np.zeros(dim)  # xi, unweighted
         self.gain = gain
 
     def bind(self, robot: Robot) -> ErrorTaskData:
@@ -73,16 +83,25 @@ class ErrorTaskData(TaskData):
         raise NotImplementedError(f"{type(self).__name__} must implement compute_error_and_jacobian")
 
     def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        """``jacobian = W J``, ``target = W (gain/dt e + xi)``, from :meth:`compute_error_and_jacobian`."""
+        """``jacobian = W J``, ``target = W (sat(gain/dt e) + xi)``, from :meth:`compute_error_and_jacobian`."""
         self.check_ready()
         task = self.task
         self.compute_error_and_jacobian(kin, self.error, self.jacobian)
         np.multiply(self._weight_column, self.jacobian, out=jacobian)
         np.multiply(task._weights, task._feedforward, out=self.feedforward)
         np.multiply(self.error, task.gain / dt, out=target)
+        for rows, bound in task.speed_limits:
+            _saturate(target[rows], getattr(task, bound))
         target *= task._weights
         target += self.feedforward
 
     def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
         """The norm of the error (override for a breakdown)."""
         errors[self.name] = _norm(self.error)
+
+
+def _saturate(velocity: np.ndarray, bound: float) -> None:
+    """Scale ``velocity`` down in place to norm ``bound`` if it is longer (direction kept)."""
+    norm = _norm(velocity)
+    if norm > bound:
+        velocity *= bound / norm

@@ -8,14 +8,14 @@ import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.settings import Setting
-from ..core.validation import as_gain, as_nonnegative, as_positive
+from ..core.validation import as_nonnegative, as_positive
 from ..model.kinematics import Kinematics
 from ..model.manipulability import Manipulability, Rows, row_selection
 from ..model.robot import Robot
-from .task import Task, TaskData
+from .error_task import ErrorTask, ErrorTaskData
 
 
-class ManipulabilityTask(Task):
+class ManipulabilityTask(ErrorTask):
     """Pull the manipulability ``m`` of a frame (see :mod:`wbc.model.manipulability`) toward ``m*``.
 
     The task works on ``ln m``, so it is free of the units of ``m`` and pushes harder the
@@ -24,8 +24,8 @@ class ManipulabilityTask(Task):
 
         w ( (grad m / m) . v  -  gain / dt * ln(m* / m) ),    w = sqrt(cost)
 
-    i.e. the per-tick convention of :mod:`wbc.tasks.task` applied to the error
-    ``e = ln m* - ln m``: each tick asks to remove the fraction ``gain`` of the
+    i.e. the :class:`~wbc.tasks.error_task.ErrorTask` rows of the error ``e = ln m* - ln m``
+    with the Jacobian ``grad ln m = grad m / m``: each tick asks to remove the fraction ``gain`` of the
     log-ratio. Below ``m*`` the row rewards motion that raises ``m``; above it, motion
     that lowers it (the task regulates, it is not one-sided). To "maximize" ``m``, set
     ``m*`` at or above the largest value the robot can reach: near the maximum
@@ -45,8 +45,6 @@ class ManipulabilityTask(Task):
     """
 
     #: settings that may be changed between ticks (validated)
-    cost = Setting(as_nonnegative)  # [cost] / [1/s]^2
-    gain = Setting(as_gain)
     target = Setting(as_positive)  # m* > 0
 
     def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: Rows = "all",
@@ -54,10 +52,20 @@ class ManipulabilityTask(Task):
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
-        super().__init__(name)
-        self.cost, self.gain, self.target = cost, gain, target
+        super().__init__(1, gain, name)
+        self.cost, self.target = cost, target
         row_selection(rows)
         self.rows = rows
+
+    @property
+    def cost(self) -> float:
+        """Weight [cost] / [1/s]^2 of the row (``w = sqrt(cost)``); may be changed between ticks."""
+        return self._cost
+
+    @cost.setter
+    def cost(self, value: float) -> None:
+        self._cost = as_nonnegative(value, "cost")
+        self._weights[0] = math.sqrt(self._cost)
 
     def default_name(self) -> str:
         return f"ManipulabilityTask({self.frame})"
@@ -70,27 +78,22 @@ class ManipulabilityTask(Task):
                 f"target={self.target}, rows={self.rows!r})")
 
 
-class ManipulabilityTaskData(TaskData):
+class ManipulabilityTaskData(ErrorTaskData):
     """A :class:`ManipulabilityTask` in one controller: ``m`` of the robot's frame, and its
     value and log-ratio error at the last tick."""
 
-    dim = 1
     task: ManipulabilityTask
 
     def __init__(self, task: ManipulabilityTask, robot: Robot) -> None:
-        super().__init__(task)
+        super().__init__(task, robot)
         self._manipulability = Manipulability(robot, task.frame, task.rows)
         self.value = float("nan")  #: m at the last tick
-        self.error = float("nan")  #: ln(m* / m) at the last tick
+        self.error[0] = float("nan")  # ln(m* / m) at the last tick
 
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
+    def compute_error_and_jacobian(self, kin: Kinematics, error: np.ndarray, jacobian: np.ndarray) -> None:
+        """``e = ln(m* / m)`` and ``J = grad m / m`` (``m`` floored at ``1e-9 m*``)."""
         task, manipulability = self.task, self._manipulability
         self.value = manipulability.compute(kin)
         m = max(self.value, 1e-9 * task.target)
-        self.error = math.log(task.target / m)
-        weight = math.sqrt(task.cost)
-        np.multiply(manipulability.gradient, weight / m, out=jacobian[0])
-        target[0] = weight * task.gain / dt * self.error
-
-    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self.name] = abs(self.error)
+        error[0] = math.log(task.target / m)
+        np.multiply(manipulability.gradient, 1.0 / m, out=jacobian[0])

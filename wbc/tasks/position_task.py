@@ -12,10 +12,10 @@ from ..model.kinematics import Kinematics, frame_in_joint
 from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from .task import Task, TaskData, _norm
+from .error_task import ErrorTask, ErrorTaskData
 
 
-class PositionTask(Task):
+class PositionTask(ErrorTask):
     """Drive the origin of a frame to a target point (orientation free).
 
     Error ``e = p* - p`` [m] (world); rows ``W (J_lin v - r)`` with the linear rows of
@@ -23,6 +23,8 @@ class PositionTask(Task):
     ``pdot*`` an optional feed-forward velocity [m/s] and ``sat`` scaling the feedback
     part down to at most ``max_speed`` in norm (far targets are approached at a
     bounded speed instead of demanding metres per second that only saturate the joints).
+    An :class:`~wbc.tasks.error_task.ErrorTask` whose compiled kernel computes the same rows
+    in the native tick.
 
     Args:
         frame: frame name.
@@ -35,19 +37,20 @@ class PositionTask(Task):
     gain = Operand("_settings", kernels.POSITION_GAIN, as_gain)
     max_speed = Operand("_settings", kernels.POSITION_MAX_SPEED, as_speed_limit)
     cost = Cost("_weights", slice(0, 3))
+    speed_limits = ((slice(0, 3), "max_speed"),)
 
     def __init__(self, frame: str, cost: ArrayLike = 1.0, gain: float = 1.0, max_speed: float | None = None,
                  name: str | None = None) -> None:
         self.frame = frame
-        super().__init__(name)
         # every setting the compiled kernel reads, in one vector (layout: wbc.runtime.kernels.POSITION_*),
         # shared by the controllers using the task
         self._settings = np.zeros(kernels.POSITION_SETTINGS)
         self._weights = self._settings[kernels.POSITION_WEIGHTS]
         self._target = self._settings[kernels.POSITION_TARGET]
         self._feedforward = self._settings[kernels.POSITION_FEEDFORWARD]
+        super().__init__(3, gain, name)
         self.cost = cost
-        self.gain, self.max_speed = gain, max_speed
+        self.max_speed = max_speed
         self._has_target = False
 
     def default_name(self) -> str:
@@ -80,21 +83,24 @@ class PositionTask(Task):
                 f"max_speed={self.max_speed})")
 
 
-class PositionTaskData(TaskData):
+class PositionTaskData(ErrorTaskData):
     """A :class:`PositionTask` in one controller: its frame resolved against the robot, and
     the error ``p* - p`` of the last tick."""
 
-    dim = 3
     task: PositionTask
 
     def __init__(self, task: PositionTask, robot: Robot) -> None:
-        super().__init__(task)
-        self._joint_id, local, self._support = frame_in_joint(robot.model, robot.frame_id(task.frame))
+        super().__init__(task, robot)
+        self._frame_id = robot.frame_id(task.frame)
+        self._joint_id, local, self._support = frame_in_joint(robot.model, self._frame_id)
         self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
         self._frame[kernels.FRAME_LOCAL] = local
         self._jacobian = np.zeros((6, robot.nv))  # kernel scratch: the full frame Jacobian
-        self.error = np.zeros(3)  #: last error p* - p [m], world
-        self.feedforward = np.zeros(3)  #: W pdot* of the last tick (TaskData.feedforward)
+
+    def compute_error_and_jacobian(self, kin: Kinematics, error: np.ndarray, jacobian: np.ndarray) -> None:
+        """``e = p* - p`` and the linear rows of the frame's world-aligned Jacobian (Pinocchio's)."""
+        np.subtract(self.task._target, kin.frame_placement(self._frame_id).translation, out=error)
+        jacobian[...] = kin.frame_jacobian(self._frame_id)[:3]
 
     def add_ops(self, program: TickProgram, kin: Kinematics, stack_t: np.ndarray, start: int) -> bool:
         joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
@@ -103,12 +109,3 @@ class PositionTaskData(TaskData):
                     error=self.error, stack=stack_t, start=start, nv=stack_t.shape[0] - 1, rows=stack_t.shape[1],
                     jacobian=self._jacobian, feedforward=self.feedforward)
         return True
-
-    def compute(self, kin: Kinematics, dt: float, jacobian: np.ndarray, target: np.ndarray) -> None:
-        self.check_ready()
-        joint_jacobians, rotation, translation = kin.joint_views(self._joint_id)
-        kernels.position_task_rows(joint_jacobians, rotation, translation, self._support, self.task._settings,
-                                   self._frame, dt, self.error, jacobian, target, self._jacobian, self.feedforward)
-
-    def report(self, v: np.ndarray, errors: dict[str, float]) -> None:
-        errors[self.name] = _norm(self.error)

@@ -18,6 +18,7 @@ import math
 
 import numpy as np
 
+from ..core.errors import InvalidInputError
 from ..item import Item
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -93,30 +94,39 @@ class TaskData:
         """Add this tick's error measures (unweighted, SI units) to ``errors``."""
 
 
-class Task(Item, TaskData):
+class Task(Item):
     """Base class of all tasks: a specification (settings) that :meth:`Task.bind` turns into
     per-controller :class:`TaskData` (see :class:`~wbc.item.Item`).
 
-    A simple custom task is its own data: set ``dim``, implement :meth:`compute` and
-    :meth:`report` (and ``check_ready`` if it needs a target); one that holds per-robot state
-    overrides :meth:`bind` to return a :class:`TaskData` of its own.
+    A task computes nothing itself: its rows are computed by the data ``bind`` returns. A new
+    task that drives an error to zero subclasses :class:`~wbc.tasks.error_task.ErrorTask` (it
+    says its error and Jacobian, the rest is generic); any other returns a :class:`TaskData`
+    subclass of its own from :meth:`bind`. A class that subclasses both ``Task`` and
+    ``TaskData`` is its own data (it then serves the controllers of one robot object).
     """
 
     def __init__(self, name: str | None = None) -> None:
         self.name = name or self.default_name()
 
-    # A task that is its own data is its own ``task``, which stays read-only (TaskData's is an
-    # attribute because its __init__ sets it; mypy flags the narrowing of a writable attribute).
-    @property
-    def task(self) -> Task:  # type: ignore[override]
-        return self
-
     def default_name(self) -> str:
         return type(self).__name__
 
     def bind(self, robot: Robot) -> TaskData:
-        """This task's data for a controller of ``robot`` (default: the task itself)."""
-        return Item.bind(self, robot)
+        """This task's data for a controller of ``robot``.
+
+        Raises:
+            InvalidInputError: the task says nothing about its rows (no data class of its own,
+                and it is not a :class:`TaskData` itself).
+        """
+        if isinstance(self, TaskData):
+            return Item.bind(self, robot)
+        name = type(self).__name__
+        if hasattr(self, "compute"):  # a task written for wbc <= 0.3, where every Task was its own data
+            raise InvalidInputError(f"{name} defines compute() but is not a TaskData: declare it "
+                                    f"`class {name}(Task, TaskData)` to be its own data, or move compute() into a "
+                                    "TaskData subclass returned by bind() (docs/extending.md)")
+        raise InvalidInputError(f"{name} computes no rows: return a TaskData subclass from its bind(), or subclass "
+                                "wbc.tasks.error_task.ErrorTask and say its error and Jacobian (docs/extending.md)")
 
     def check_ready(self) -> None:
         """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
