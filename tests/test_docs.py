@@ -154,7 +154,7 @@ def test_python_blocks_run(page, folder):
             continue
         with redirect_stdout(io.StringIO()):
             try:
-                exec(compile(block.code, block.label, "exec"), namespace)
+                exec(compile(block.code, block.label, "exec", dont_inherit=True), namespace)  # (no __future__ of ours)
             except Exception as exc:
                 raise AssertionError(f"{block.label}: {type(exc).__name__}: {exc}") from exc
     if any(name in block.code for block in blocks(page) for name in ("send_wheel_speeds(", "send_arm_velocities(")):

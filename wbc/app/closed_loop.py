@@ -529,10 +529,11 @@ def wheel_ratio(robot: Robot, qs: NDArray[np.float64], vs: NDArray[np.float64]) 
 
 
 def lateral_slip(robot: Robot, qs: NDArray[np.float64], vs: NDArray[np.float64]) -> NDArray[np.float64] | None:
-    """(T,) sideways base speed [m/s] of a nonholonomic base, else None."""
+    """(T,) largest no-slip residual ``|N t|`` [m/s] of a nonholonomic base (the sideways speed
+    of a unicycle or synchro drive), else None."""
     if not robot.base.is_nonholonomic:
         return None
-    return np.abs(robot.base.twist(qs, vs)[:, 1])
+    return np.max(np.abs(robot.base.twist(qs, vs) @ robot.base.no_slip_rows().matrix.T), axis=1)
 
 
 def position_violation(robot: Robot, qs: NDArray[np.float64]) -> NDArray[np.float64]:

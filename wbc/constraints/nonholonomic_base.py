@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..core.errors import InvalidInputError
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -17,6 +15,7 @@ class NonholonomicBase(Constraint):
 
         -sin(heading) xdot + cos(heading) ydot = 0          (one equality row)
 
+    In general the base's no-slip rows ``N B(heading) v = 0`` (:meth:`MobileBase.no_slip_rows`).
     Equivalent to ``v = S(q) u`` with :meth:`Robot.input_map`; a controller built with
     ``reduced=True`` solves over ``u`` directly and skips this constraint (it holds by
     construction there).
@@ -26,21 +25,22 @@ class NonholonomicBase(Constraint):
 
     def bind(self, robot: Robot) -> NonholonomicBaseData:
         if not robot.base.is_nonholonomic:
-            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base, "
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.name} base, "
                                     "not a nonholonomic one")
         return NonholonomicBaseData(self, robot)
 
 
 class NonholonomicBaseData(ConstraintData):
-    """:class:`NonholonomicBase` in one controller: the robot's base coordinates."""
-
-    n_equalities = 1
+    """:class:`NonholonomicBase` in one controller: the base's no-slip rows."""
 
     def __init__(self, constraint: NonholonomicBase, robot: Robot) -> None:
         super().__init__(constraint)
-        x, y, heading = robot.base.indices
-        # the row (-sin, cos) on (xdot, ydot): cos (0, 1) + sin (-1, 0)
-        self._heading_rows = HeadingRows(np.array([[0.0, 1.0]]), np.array([[-1.0, 0.0]]), heading, x, y)
+        self._no_slip = robot.base.no_slip_rows()
+        self.n_equalities = self._no_slip.count
+        self._heading_rows = HeadingRows.of_twist(self._no_slip, robot.base.indices)
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        self._heading_rows.write_heading_column(rows.A)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         self._heading_rows.add_op(program, kin, rows.A)
@@ -50,4 +50,4 @@ class NonholonomicBaseData(ConstraintData):
         self._heading_rows.write(kin.q, rows.A)
 
     def row_labels(self) -> list[str]:
-        return ["no lateral slip"]
+        return list(self._no_slip.labels)

@@ -6,8 +6,8 @@ import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.validation import as_positive
+from ..model.bases.interface import BaseKind, TwistRows
 from ..model.kinematics import Kinematics
-from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
@@ -37,7 +37,7 @@ class WheelSpeedLimits(Constraint):
         if base.wheels is None or (self.required_kind is not None and base.kind is not self.required_kind):
             wanted = self.required_kind.value if self.required_kind else "wheeled"
             raise InvalidInputError(f"{self.name} needs a {wanted} base with wheel geometry; "
-                                    f"robot '{robot.name}' has a {base.kind.value} base")
+                                    f"robot '{robot.name}' has a {base.name} base")
         return WheelSpeedLimitsData(self, robot)
 
     def __repr__(self) -> str:
@@ -55,21 +55,15 @@ class WheelSpeedLimitsData(ConstraintData):
         self.max_speed = limits._max_speed if limits._max_speed is not None else wheels.max_speed
         if not np.isfinite(self.max_speed):
             raise InvalidInputError(f"{self.name}: no wheel speed limit given or declared by the model")
-        self._x, self._y, self._heading = base.indices
         self.n_wheels = self._H0.shape[0]
         self.n_inequalities = 2 * self.n_wheels
-        # du/d(xdot, ydot) = H0_xy R(heading)^T with R^T = [[c, s], [-s, c]]:
-        # c H0_xy + s H0_xy [[0, 1], [-1, 0]], for the forward rows and negated for the backward ones
-        forward = self._H0[:, :2]
-        turned = forward @ np.array([[0.0, 1.0], [-1.0, 0.0]])
-        self._heading_rows = HeadingRows(np.vstack([forward, -forward]), np.vstack([turned, -turned]),
-                                         self._heading, self._x, self._y)
+        # the rows +-H0 t on the base-frame twist t = B(heading) v: forward, then backward
+        self._heading_rows = HeadingRows.of_twist(TwistRows(np.vstack([self._H0, -self._H0]), self.max_speed,
+                                                            tuple(self.row_labels())), base.indices)
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.h.fill(self.max_speed)
-        n, G = self.n_wheels, rows.G
-        G[:n, self._heading] = self._H0[:, 2]
-        G[n:, self._heading] = -self._H0[:, 2]
+        self._heading_rows.write_heading_column(rows.G)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         self._heading_rows.add_op(program, kin, rows.G)

@@ -565,7 +565,7 @@ def _base_constraints(robot: Robot, constraints: list[Constraint], reduced: bool
     if reduced:
         return [c for c in constraints if not c.satisfied_by_input_map]
     if robot.base.is_nonholonomic and not any(c.satisfied_by_input_map for c in constraints):
-        raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.kind.value} base: add "
+        raise InvalidInputError(f"robot '{robot.name}' has a {robot.base.name} base: add "
                                 "NonholonomicBase() to the constraints or use reduced=True")
     return constraints
 

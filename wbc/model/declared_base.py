@@ -35,17 +35,14 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.errors import ModelError
-from .mobile_base import BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .bases.interface import LAYOUT_TOLERANCE, WheelMount, Wheels, kind_class
+from .mobile_base import BaseKind, MobileBase
 
 #: names of the base joints :func:`declare_base` adds, (x, y, heading)
 BASE_JOINT_NAMES = ("base_x", "base_y", "base_heading")
 #: base kinds by the name :func:`wbc.load_robot` accepts ("differential" is wbc's unicycle)
 KIND_NAMES = {"fixed": BaseKind.FIXED, "planar": BaseKind.PLANAR, "mecanum": BaseKind.MECANUM,
               "differential": BaseKind.UNICYCLE, "unicycle": BaseKind.UNICYCLE, "synchro": BaseKind.SYNCHRO}
-#: number of driven wheels each wheel model describes
-WHEEL_COUNT = {BaseKind.UNICYCLE: 2, BaseKind.MECANUM: 4}
-#: [m] how far a wheel may sit from where its wheel model puts it (symmetry, axle on the origin)
-LAYOUT_TOLERANCE = 1e-6
 #: [m] how far two wheel radii may differ
 RADIUS_TOLERANCE = 1e-9
 
@@ -118,8 +115,9 @@ def declare_base(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
     lock_ids = [joint_index(model, name, "lock", where) for name in declaration.lock]
     _check_distinct(model, chain + replace + wheel_ids + lock_ids, where)
     base_joint = (chain or replace or [0])[-1]  # the joint whose body is the base body
-    if kind in WHEEL_COUNT and wheel_ids and len(wheel_ids) != WHEEL_COUNT[kind]:
-        raise ModelError(f"{where}: a {_kind_name(kind)} base has {WHEEL_COUNT[kind]} driven wheels, {len(wheel_ids)} "
+    count = kind_class(kind).wheel_count
+    if count and wheel_ids and len(wheel_ids) != count:
+        raise ModelError(f"{where}: a {_kind_name(kind)} base has {count} driven wheels, {len(wheel_ids)} "
                          f"given ({', '.join(declaration.wheels)}); list the driven ones in wheels=[...] and the "
                          "others (casters, passive wheels) in lock=[...]")
     wheels = _read_wheels(model, urdf, declaration, wheel_ids, base_joint, where) if wheel_ids else None
@@ -129,8 +127,8 @@ def declare_base(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
     names = [model.names[j] for j in chain] if chain else list(BASE_JOINT_NAMES)
     with_base = reduced if chain else _prepend_base_joints(reduced, where)
     indices = tuple(with_base.joints[with_base.getJointId(name)].idx_v for name in names)
-    return with_base, MobileBase(kind, indices=(indices[0], indices[1], indices[2]), max_linear_speed=linear,
-                                 max_yaw_rate=yaw, wheels=wheels)
+    return with_base, kind_class(kind)(kind, indices=(indices[0], indices[1], indices[2]), max_linear_speed=linear,
+                                       max_yaw_rate=yaw, wheels=wheels)
 
 
 # ------------------------------------------------------------------ model surgery
@@ -153,17 +151,8 @@ def _prepend_base_joints(model: pin.Model, where: str) -> pin.Model:
 
 
 # ------------------------------------------------------------------ wheels
-@dataclass(frozen=True)
-class _Wheel:
-    name: str
-    position: np.ndarray  #: centre in the base frame [m]
-    axis: np.ndarray  #: unit rotation axis in the base frame
-    radius: float  #: [m]
-    max_speed: float  #: [rad/s] (inf: none in the URDF)
-
-
 def _read_wheels(model: pin.Model, urdf: Path | None, declaration: BaseDeclaration, wheel_ids: list[int],
-                 base_joint: int, where: str) -> MecanumWheels | DifferentialWheels | None:
+                 base_joint: int, where: str) -> Wheels | None:
     """The wheel model of the base kind from the wheel joints (None for kinds without one)."""
     data = model.createData()
     pin.forwardKinematics(model, data, pin.neutral(model))
@@ -180,7 +169,7 @@ def _read_wheels(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
                              "which moves on the base; a driven wheel is mounted on the base body itself")
         placement = base_pose.actInv(data.oMi[joint_id])
         radius = declaration.wheel_radius or _urdf_wheel_radius(urdf, model, joint_id, where)
-        wheels.append(_Wheel(name, np.array(placement.translation), placement.rotation @ axis_local, radius,
+        wheels.append(WheelMount(name, np.array(placement.translation), placement.rotation @ axis_local, radius,
                              float(model.velocityLimit[model.joints[joint_id].idx_v])))
     radii = [wheel.radius for wheel in wheels]
     if max(radii) - min(radii) > RADIUS_TOLERANCE:
@@ -191,36 +180,10 @@ def _read_wheels(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
             raise ModelError(f"{where}: wheel {wheel.name!r} turns about {np.round(wheel.axis, 6).tolist()} in the "
                              "base frame; a driven wheel turns about the base's y axis (its x axis is forward)")
     max_speed = declaration.max_wheel_speed or min(wheel.max_speed for wheel in wheels)
-    if declaration.kind is BaseKind.UNICYCLE and len(wheels) == 2:
-        return _differential(wheels, radii[0], max_speed, where)
-    if declaration.kind is BaseKind.MECANUM and len(wheels) == 4:
-        return _mecanum(wheels, radii[0], max_speed, where)
-    return None  # planar, synchro, or a count refused by the caller: the wheels are only locked
-
-
-def _differential(wheels: list[_Wheel], radius: float, max_speed: float, where: str) -> DifferentialWheels:
-    """Left (+y) and right wheels on an axle through the base origin, symmetric."""
-    left, right = sorted(wheels, key=lambda wheel: -wheel.position[1])
-    layout = ", ".join(f"{w.name} at {np.round(w.position[:2], 6).tolist()}" for w in (left, right))
-    if max(abs(left.position[0]), abs(right.position[0])) > LAYOUT_TOLERANCE \
-            or abs(left.position[1] + right.position[1]) > LAYOUT_TOLERANCE or left.position[1] <= 0.0:
-        raise ModelError(f"{where}: differential wheels {layout} (x, y in the base frame [m]); wbc's differential "
-                         "drive needs the axle on the base frame's y axis, the wheels at +-b: put the base frame "
-                         "(the model's root link) on the axle midpoint")
-    return DifferentialWheels(radius=radius, half_track=float(left.position[1]), max_speed=max_speed)
-
-
-def _mecanum(wheels: list[_Wheel], radius: float, max_speed: float, where: str) -> MecanumWheels:
-    """Four wheels at (+-l, +-w), rollers at 45 degrees (the X layout of the youBot)."""
-    half_length, half_width = (float(np.mean([abs(w.position[k]) for w in wheels])) for k in (0, 1))
-    corners = sorted((np.sign(w.position[0]), np.sign(w.position[1])) for w in wheels)
-    if corners != [(-1, -1), (-1, 1), (1, -1), (1, 1)] or any(
-            abs(abs(w.position[0]) - half_length) > LAYOUT_TOLERANCE
-            or abs(abs(w.position[1]) - half_width) > LAYOUT_TOLERANCE for w in wheels):
-        layout = ", ".join(f"{w.name} at {np.round(w.position[:2], 6).tolist()}" for w in wheels)
-        raise ModelError(f"{where}: mecanum wheels {layout} (x, y in the base frame [m]); wbc's mecanum model needs "
-                         "one wheel at each corner (+-l, +-w) of a rectangle centred on the base frame")
-    return MecanumWheels(radius=radius, half_length=half_length, half_width=half_width, max_speed=max_speed)
+    kind = kind_class(declaration.kind)
+    if kind.wheel_count and len(wheels) == kind.wheel_count:
+        return kind.wheels_from_mounts(wheels, radii[0], max_speed, where)
+    return None  # a kind without a wheel model (planar, synchro), or a count refused by the caller: locked only
 
 
 def _urdf_wheel_radius(urdf: Path | None, model: pin.Model, joint_id: int, where: str) -> float:

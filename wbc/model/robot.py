@@ -32,6 +32,7 @@ from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFr
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
 from . import shipped
+from .bases.interface import kind_class
 from .declared_base import (
     BaseDeclaration,
     base_kind,
@@ -41,7 +42,7 @@ from .declared_base import (
     planar_root_joints,
     wheel_like_joints,
 )
-from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase
+from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
@@ -95,17 +96,13 @@ class Robot:
         self.lower: NDArray[np.float64] = np.array(model.lowerPositionLimit, dtype=np.float64)
         self.upper: NDArray[np.float64] = np.array(model.upperPositionLimit, dtype=np.float64)
         self.velocity_limit: NDArray[np.float64] = np.array(model.velocityLimit, dtype=np.float64)
-        if self.base.is_mobile:
-            x, y, yaw = self.base.indices
-            self.lower[[x, y, yaw]] = -np.inf
-            self.upper[[x, y, yaw]] = np.inf
-            self.velocity_limit[[x, y]] = self.base.max_linear_speed
-            self.velocity_limit[yaw] = self.base.max_yaw_rate
+        self.base.limit_coordinates(self.lower, self.upper, self.velocity_limit)
         self._check_velocity_limits()
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
-        self._input_map = self._allocate_input_map()
+        self._input_map = self.base.allocate_input_map(self.nv)
+        self._input_map_varies = self.base.is_nonholonomic  # S depends on q (else S = I)
         self._frame_ids: dict[str, int] = {}
         for index, frame in enumerate(model.frames):
             self._frame_ids.setdefault(frame.name, index)
@@ -220,16 +217,6 @@ class Robot:
         """Number of real inputs: nv, or nv - 1 for a nonholonomic base (no lateral input)."""
         return self._input_map.shape[1]
 
-    def _allocate_input_map(self) -> NDArray[np.float64]:
-        if not self.base.is_nonholonomic:
-            return np.eye(self.nv)
-        x, y, heading = self.base.indices
-        others = [i for i in range(self.nv) if i not in (x, y, heading)]
-        S = np.zeros((self.nv, self.nv - 1))
-        S[heading, 1] = 1.0
-        S[others, np.arange(2, self.nv - 1)] = 1.0
-        return S
-
     def input_map(self, q: NDArray[np.float64] | Sequence[float],
                   out: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """``S(q)`` (nv x nu) with ``v = S(q) u`` over the real inputs ``u``.
@@ -240,10 +227,8 @@ class Robot:
         The task Jacobian over inputs is ``frame_jacobian(q, frame) @ input_map(q)``.
         """
         S = self._input_map if out is None else out
-        if self.base.is_nonholonomic:
-            x, y, heading = self.base.indices
-            angle = q[heading]
-            S[x, 0], S[y, 0] = np.cos(angle), np.sin(angle)
+        if self._input_map_varies:
+            self.base.write_input_map(q, S)
         elif out is not None:
             out[...] = self._input_map
         return S.copy() if out is None else S
@@ -306,7 +291,8 @@ class Robot:
         """Configuration reached from ``q`` after moving at constant velocity ``v`` for ``dt`` [s].
 
         Returns:
-            ``pinocchio.integrate(model, q, v * dt)``, a new array of size :attr:`nq`.
+            ``pinocchio.integrate(model, q, v * dt)`` (unless the base integrates its coordinates
+            otherwise: :meth:`MobileBase.integrate`), a new array of size :attr:`nq`.
 
         Raises:
             InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
@@ -315,10 +301,10 @@ class Robot:
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
             dt = as_positive(dt, "dt")
-        return pin.integrate(self.model, q, v * dt)
+        return self.base.integrate(self.model, q, v, dt)
 
     def __repr__(self) -> str:
-        return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, base={self.base.kind.value})"
+        return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, base={self.base.name})"
 
     def __getstate__(self) -> dict[str, Any]:
         """Pickling: Pinocchio 3.3's model serialisation (a boost text archive) cannot read back
@@ -620,9 +606,10 @@ def _base_of_joints(model: pin.Model, spec: PlanarBaseTable | MecanumBaseTable |
                              f"replace = [...]: wbc then puts its own base joints in their place")
         indices.append(joint.idx_v)
     _check_base_joints(model, names)
-    return MobileBase(
-        kind=base_kind(spec.kind),
-        indices=tuple(indices),
+    kind = base_kind(spec.kind)
+    return kind_class(kind)(
+        kind,
+        indices=(indices[0], indices[1], indices[2]),
         max_linear_speed=_or_inf(spec.max_linear_speed),
         max_yaw_rate=_or_inf(spec.max_yaw_rate),
         wheels=_wheels(getattr(spec, "wheels", None)),
@@ -701,9 +688,8 @@ def _detect_planar_base(model: pin.Model) -> MobileBase:
     chained = all(model.parents[i] == i - 1 for i in (1, 2, 3))
     if chained and tuple(j.shortname() for j in joints) == expected:
         limits = model.velocityLimit
-        return MobileBase(
-            BaseKind.PLANAR,
-            indices=tuple(j.idx_v for j in joints),
+        return PlanarBase(
+            indices=(joints[0].idx_v, joints[1].idx_v, joints[2].idx_v),
             max_linear_speed=float(min(limits[joints[0].idx_v], limits[joints[1].idx_v])),
             max_yaw_rate=float(limits[joints[2].idx_v]),
         )

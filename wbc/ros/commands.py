@@ -30,19 +30,24 @@ from .messages import Float64MultiArray, MultiArrayDimension, MultiArrayLayout, 
 
 
 def limit_ratio(robot: Robot, q: NDArray[np.float64], v: NDArray[np.float64]) -> float:
-    """The largest ``|speed| / limit`` of command ``v`` at ``q`` over the joints (base-frame
-    ``v_x, v_y, omega`` for a mobile base) and the wheels of a base with a wheel speed limit;
+    """The largest ``|speed| / limit`` of command ``v`` at ``q`` over the joints (for a mobile
+    base: its yaw rate and its base-frame speed rows ``M t <= b``, :meth:`MobileBase.speed_rows`)
+    and the wheels of a base with a wheel speed limit;
     ``inf`` if ``v`` is not finite. At most 1 when ``v`` satisfies every speed limit."""
     if not np.all(np.isfinite(v)):
         return math.inf
     base = robot.base
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):  # huge finite v: inf, said by the ratio
         speeds = np.abs(v)
-        if base.is_mobile:
+        if base.is_mobile:  # the yaw rate, then the base-frame speed rows M t <= b
             x, y, yaw = base.indices
-            speeds[[x, y, yaw]] = np.abs(base.twist(q, v))
+            speeds[[x, y, yaw]] = 0.0, 0.0, abs(v[yaw])
         ratios = np.where(np.isfinite(robot.velocity_limit), speeds / robot.velocity_limit, 0.0)
         worst = float(np.max(ratios))
+        rows = base.speed_rows()
+        if rows.count:
+            row = float(np.max(rows.matrix @ base.twist(q, v) / rows.bound))
+            worst = math.nan if math.isnan(row) else max(worst, row)
         wheels = base.wheels
         if wheels is not None and math.isfinite(wheels.max_speed):
             wheel = float(np.max(np.abs(wheels.inverse_matrix() @ base.twist(q, v)))) / wheels.max_speed
@@ -72,7 +77,10 @@ class CommandWriter:
                 self._base = (participant.writer(config.base.topic, TwistStamped), stamped, twist)
             else:
                 self._base = (participant.writer(config.base.topic, Twist), twist, twist)
-        self._nonholonomic = robot.base.is_nonholonomic
+        # the projector onto the twists the base's no-slip rows N allow (I - N+ N): a unicycle's
+        # twist without its v_y residual, a holonomic base's as it is
+        no_slip = robot.base.no_slip_rows().matrix
+        self._slip_free = np.eye(3) - np.linalg.pinv(no_slip) @ no_slip
 
     def publish(self, q: NDArray[np.float64], v: NDArray[np.float64]) -> NDArray[np.float64]:
         """Write command ``v`` at ``q`` (after the check of the module docstring); the command written."""
@@ -108,8 +116,8 @@ class CommandWriter:
             writer.write(message)
         if self._base is not None:
             base_writer, sample, twist = self._base
-            v_x, v_y, omega = self.robot.base.twist(q, v).tolist()
-            twist.linear.x, twist.linear.y, twist.angular.z = v_x, 0.0 if self._nonholonomic else v_y, omega
+            v_x, v_y, omega = (self._slip_free @ self.robot.base.twist(q, v) + 0.0).tolist()  # (+0.0: no -0.0)
+            twist.linear.x, twist.linear.y, twist.angular.z = v_x, v_y, omega
             if isinstance(sample, TwistStamped):
                 now = time.time_ns()
                 sample.header.stamp.sec, sample.header.stamp.nanosec = divmod(now, 1_000_000_000)

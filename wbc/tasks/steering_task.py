@@ -74,8 +74,11 @@ class SteeringTask(Task):
 
     def bind(self, robot: Robot) -> SteeringTaskData:
         if not robot.base.is_nonholonomic:
-            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.kind.value} base; "
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.name} base; "
                                     "steering is only needed by nonholonomic bases")
+        if robot.base.no_slip_rows().matrix.tolist() != [[0.0, 1.0, 0.0]]:
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.name} base, whose no-slip "
+                                    "rows are not v_y = 0; SteeringTask turns a base that drives along its x axis")
         return SteeringTaskData(self, robot)
 
     def __repr__(self) -> str:
