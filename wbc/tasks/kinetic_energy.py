@@ -26,7 +26,7 @@ class KineticEnergyRegularization(ErrorTask):
     (a controller of a robot with another nv is refused: create another regularization).
 
     Needs a model with inertias: a robot whose mass matrix is not positive definite (links
-    without ``<inertial>``, massless joints) is refused with a :class:`~wbc.errors.ModelError`
+    without ``<inertial>``, massless joints) is refused with a :class:`~wbc.core.errors.ModelError`
     when bound, or at the tick where it stops being positive definite.
 
     Args:
