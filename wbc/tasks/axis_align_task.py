@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.validation import as_nonnegative
+from ..core.settings import UniformCost
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .axis_error import as_unit_axis, axis_error, perpendicular, skew
@@ -39,6 +37,8 @@ class AxisAlignTask(ErrorTask):
         gain: fraction of the error removed per tick, in (0, 1].
     """
 
+    cost = UniformCost("_weights")
+
     def __init__(self, frame: str, axis: ArrayLike = (0.0, 0.0, 1.0), target_axis: ArrayLike = (0.0, 0.0, -1.0),
                  cost: float = 1.0, gain: float = 1.0, name: str | None = None) -> None:
         self.frame = frame
@@ -48,17 +48,6 @@ class AxisAlignTask(ErrorTask):
         self._target_axis = np.zeros(3)
         self._basis = np.zeros((2, 3))  # B^T: rows b1, b2
         self.set_target(target_axis)
-
-    @property
-    def cost(self) -> float:
-        """[cost] / [rad]^2 weight of both rows; may be changed between ticks."""
-        return self._cost
-
-    @cost.setter
-    def cost(self, value: float) -> None:
-        cost = as_nonnegative(value, "cost")
-        self._weights[:] = math.sqrt(cost)
-        self._cost = cost
 
     def default_name(self) -> str:
         return f"AxisAlignTask({self.frame})"

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.errors import InvalidInputError
 from ..core.validation import as_vector
 
-#: below this |a x d| the vectors count as aligned or opposed (the limits above)
+#: below this ``|a x d|`` the vectors count as aligned or opposed (the limits above)
 PARALLEL = 1e-9
 #: an axis shorter than this is refused (no direction)
 MIN_AXIS_NORM = 1e-9

@@ -38,6 +38,9 @@ class DampingTask(ErrorTask):
             **the mobile base's included** (its motion is what one most often wants to price).
     """
 
+    #: no error to feed back (e = 0): not a setting, the rows are the same for any gain
+    gain = 1.0
+
     def __init__(self, cost: ArrayLike, joints: Sequence[str] | None = None, name: str | None = None) -> None:
         if joints is not None and (isinstance(joints, str) or not all(isinstance(j, str) for j in joints)):
             raise InvalidInputError(f"joints must be a list of joint names, got {joints!r}"

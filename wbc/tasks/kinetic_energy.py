@@ -8,7 +8,7 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.errors import ModelError
-from ..core.validation import as_nonnegative
+from ..core.settings import UniformCost
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .error_task import ErrorTask, ErrorTaskData
@@ -33,21 +33,15 @@ class KineticEnergyRegularization(ErrorTask):
         cost: [cost] / [J]: weight of ``v^T M v``, >= 0; may be changed every tick.
     """
 
+    cost = UniformCost("_weights")
+
+    #: no error to feed back (e = 0): not a setting, the rows are the same for any gain
+    gain = 1.0
+
     def __init__(self, cost: float = 1.0, name: str | None = None) -> None:
         super().__init__(1, 1.0, name)
         self._sized = False  # whether a controller fixed the number of rows
         self.cost = cost
-
-    @property
-    def cost(self) -> float:
-        """[cost] / [J], >= 0; may be changed between ticks."""
-        return self._cost
-
-    @cost.setter
-    def cost(self, value: float) -> None:
-        cost = as_nonnegative(value, "cost")
-        self._weights[:] = math.sqrt(cost)
-        self._cost = cost
 
     def size_rows(self, rows: int, robot: Robot) -> None:
         """One row per velocity coordinate of ``robot``: fixed by the first controller binding the task."""
@@ -55,7 +49,7 @@ class KineticEnergyRegularization(ErrorTask):
             raise ModelError(f"{self.name} has {self._weights.size} rows for another robot; robot {robot.name!r} "
                              f"has nv = {rows}: create another KineticEnergyRegularization for it")
         if not self._sized:
-            self._weights, self._feedforward = np.full(rows, math.sqrt(self._cost)), np.zeros(rows)
+            self._weights, self._feedforward = np.full(rows, math.sqrt(self.cost)), np.zeros(rows)
             self._sized = True
 
     def bind(self, robot: Robot) -> KineticEnergyRegularizationData:

@@ -19,7 +19,7 @@ MIN_TARGET_DISTANCE = 1e-3
 
 class LookAtTask(ErrorTask):
     """Turn ``axis`` (a direction fixed in ``frame``, e.g. a camera's optical z axis) toward a
-    world point ``p*`` (:meth:`set_target`).
+    world point ``p*``. The point is given as ``target`` or by :meth:`set_target`.
 
     With the frame's world placement ``(R, p)``, ``a = R axis`` (unit) and the line of sight
     ``d = (p* - p) / rho``, ``rho = |p* - p|``, the error is the rotation turning ``a`` onto
