@@ -111,6 +111,9 @@ CASES = [
          "no error: rows W v, target 0 (tests/test_damping_task.py)"),
     Case("KineticEnergyRegularization", "youbot", lambda robot, q: wbc.KineticEnergyRegularization(0.3), None,
          "no error: rows sqrt(cost) U v, target 0 (tests/test_kinetic_energy.py)"),
+    Case("LinearTask", "youbot", lambda robot, q: wbc.LinearTask(
+        [[0, 0, 0, 1, -1, 0, 0, 0], [0.5, 0, 0.2, 0, 0, 1, 0, 0]], b=[0.1, -0.2], cost=[1.0, 2.0]), None,
+         "a reference, not an error: A v = b in closed loop (tests/test_linear_task.py)"),
     Case("BaseVelocityTask", "youbot", _base_velocity_task, None, "a velocity reference: J v = r in closed loop"),
     Case("SteeringTask", "deluca_mm", lambda robot, q: wbc.SteeringTask(1e-2, gain=1.0, speed_scale=0.5), None,
          "steers toward the holonomic preview: tests/test_mobile_bases.py (parking)"),

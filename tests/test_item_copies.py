@@ -186,6 +186,10 @@ EXAMPLES: dict[type, Example] = {
     wbc.KineticEnergyRegularization: Example(YOUBOT, Q_YOUBOT, lambda: wbc.KineticEnergyRegularization(1e-2), {
         "cost": lambda t: setattr(t, "cost", 1.0),
     }, stack=lambda: [_position_task()]),
+    wbc.LinearTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LinearTask([[0, 0, 0, 1, -1, 0, 0, 0]], b=[0.1], cost=1.0), {
+        "cost": lambda t: setattr(t, "cost", 1e-2),
+        "set_target": lambda t: t.set_target([-0.2]),
+    }, stack=lambda: [_position_task()]),
     wbc.PostureTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.PostureTask(1e-2, gain=0.1), {
         "gain": lambda t: setattr(t, "gain", 0.5),
         "set_target": lambda t: t.set_target(Q_YOUBOT + 0.2),

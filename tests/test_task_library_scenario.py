@@ -36,6 +36,8 @@ def test_the_look_at_scenario_reaches_the_point_with_the_marker_in_view():
     ('type = "DampingTask"\ncost = [1.0, 2.0]', "2 costs, but robot 'youbot' has 8"),
     ('type = "DampingTask"\ncost = 1.0\njoints = ["arm_joint_7"]', "'arm_joint_7' is not a joint"),
     ('type = "KineticEnergyRegularization"\ncost = -1.0', "cost must be finite and >= 0"),
+    ('type = "LinearTask"\nA = [[0, 0, 0, 1, -1, 0, 0]]', "A has 7 columns, robot 'youbot' has nv = 8"),
+    ('type = "LinearTask"\nA = [[0, 0, 0, 1, -1, 0, 0, "x"]]', "A = .*expected"),
 ])
 def test_bad_entries_are_scenario_errors_naming_the_entry(tmp_path, entry, message):
     text = SCENARIO.read_text().replace('type = "KineticEnergyRegularization"\ncost = 1e-4', entry)
@@ -43,3 +45,14 @@ def test_bad_entries_are_scenario_errors_naming_the_entry(tmp_path, entry, messa
     path.write_text(text)
     with pytest.raises(ScenarioError, match=message):
         load_scenario(path)
+
+
+def test_a_linear_task_reads_its_matrix_from_the_file(tmp_path):
+    entry = ('type = "LinearTask"\nA = [[0, 0, 0, 1, -1, 0, 0, 0], [1, 0, 0, 0, 0, 0, 0, 0]]\n'
+             'b = [0.0, 0.1]\ncost = 1e-3')
+    path = tmp_path / "linear.toml"
+    path.write_text(SCENARIO.read_text().replace('type = "KineticEnergyRegularization"\ncost = 1e-4', entry))
+    task = load_scenario(path).tasks[-1]
+    assert isinstance(task, wbc.LinearTask)
+    np.testing.assert_array_equal(task.matrix, [[0, 0, 0, 1, -1, 0, 0, 0], [1, 0, 0, 0, 0, 0, 0, 0]])
+    np.testing.assert_array_equal(task.target, [0.0, 0.1])

@@ -47,6 +47,7 @@ from .tasks import (
     DampingTask,
     FrameTask,
     KineticEnergyRegularization,
+    LinearTask,
     LookAtTask,
     ManipulabilityTask,
     PositionTask,
@@ -70,4 +71,5 @@ __all__ = [
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
     "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization", "LookAtTask", "AxisAlignTask",
+    "LinearTask",
 ]

@@ -6,6 +6,7 @@ from .com_task import CoMTask
 from .damping_task import DampingTask
 from .frame_task import FrameTask
 from .kinetic_energy import KineticEnergyRegularization
+from .linear_task import LinearTask
 from .look_at_task import LookAtTask
 from .manipulability_task import ManipulabilityTask
 from .position_task import PositionTask
@@ -16,4 +17,4 @@ from .task import Task
 
 __all__ = ["Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask",
            "ManipulabilityTask", "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization",
-           "LookAtTask", "AxisAlignTask"]
+           "LookAtTask", "AxisAlignTask", "LinearTask"]
