@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 import wbc
+from conftest import ROOT
 from tests.test_look_at_task import rows
+from wbc.qp import lifting
 
 DT = 0.01
 Q = np.array([0.1, -0.2, 0.3, 0.2, 0.9, -0.8, 1.0, 0.4])
@@ -47,6 +49,38 @@ def test_the_controllers_cost_is_the_written_out_least_squares_and_follows_reass
         commands.append(v)
     assert np.linalg.norm(commands[1][:3]) < 0.5 * np.linalg.norm(commands[0][:3])
     assert np.linalg.norm(commands[1][3:]) > np.linalg.norm(commands[0][3:])
+
+
+def test_high_dof_lifted_qps_keep_the_rows_diagonal_and_agree_with_the_dense_ones(tmp_path, monkeypatch):
+    """On a 32-joint chain the damping rows (diagonal_rows) take no auxiliary variable of the lifted
+    QP (k = 6: the frame task's rows only), and the lifted controller commands what a dense one does,
+    before and after the costs change."""
+    import sys
+    if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
+        sys.path.insert(0, str(ROOT))
+    from benchmarks.scaling import chain_urdf, initial_configuration
+
+    path = tmp_path / "chain32.urdf"
+    path.write_text(chain_urdf(32))
+    chain, q = wbc.load_robot(path), initial_configuration(32)
+    controllers, tasks = {}, {}
+    for mode, minimum in (("lifted", lifting.LIFT_MIN_DOF), ("dense", 10**6)):
+        monkeypatch.setattr(lifting, "LIFT_MIN_DOF", minimum)
+        ee = wbc.FrameTask("ee", 1.0, 0.5, gain=0.5)
+        target = chain.frame_pose(q, "ee")
+        target[:3, 3] += [0.2, -0.1, 0.1]
+        ee.set_target(target)
+        tasks[mode] = wbc.DampingTask(np.linspace(1e-3, 1e-1, 32))
+        controllers[mode] = wbc.Controller(chain, [ee, tasks[mode]], [wbc.JointVelocityLimits()])
+    assert controllers["lifted"]._lifted is not None and controllers["lifted"]._lifted.k == 6
+    assert controllers["dense"]._lifted is None
+    for tick in range(20):
+        if tick == 10:
+            for task in tasks.values():
+                task.cost = np.linspace(1.0, 1e-3, 32)
+        v, reference = controllers["lifted"].step(q), controllers["dense"].step(q)
+        np.testing.assert_allclose(v, reference, rtol=0, atol=1e-7 * (1 + np.abs(reference).max()))
+        q = chain.integrate(q, v, 0.01)
 
 
 def test_bad_input_is_refused_by_name(youbot):
