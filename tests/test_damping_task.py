@@ -86,6 +86,8 @@ def test_high_dof_lifted_qps_keep_the_rows_diagonal_and_agree_with_the_dense_one
 def test_bad_input_is_refused_by_name(youbot):
     with pytest.raises(wbc.InvalidInputError, match="write joints=\\['base_x'\\]"):
         wbc.DampingTask(1.0, joints="base_x")
+    with pytest.raises(wbc.InvalidInputError, match="joints is empty"):
+        wbc.DampingTask(1.0, joints=[])
     with pytest.raises(wbc.InvalidInputError, match="cost must be >= 0"):
         wbc.DampingTask([1.0, -1.0])
     with pytest.raises(wbc.InvalidInputError, match="cost contains NaN"):

@@ -22,14 +22,13 @@ class DampingTask(ErrorTask):
     There is no error (``e = 0``, the rows are exact: no gain, no LM damping); ``J`` is the
     selection of the coordinates. ``cost`` may be reassigned every tick, per coordinate (e.g.
     ``task.cost = [10, 10, 10, 1, 1, 1, 1, 1]`` on the youBot makes platform motion ten times
-    costlier than arm motion); unlike ``Controller(damping=...)`` it weighs each coordinate
-    on its own level and cost scale.
+    costlier than arm motion); unlike ``Controller(damping=...)``, one value for every
+    coordinate, it prices each coordinate on its own, on the tasks' cost scale.
 
     Rows: one per velocity coordinate of the selected joints, in the order of ``joints`` (of
-    ``v`` for every coordinate). Their
-    number is fixed when the first controller binds the task (from a vector ``cost`` given
-    before, or the robot's selection); a controller of a robot with another number of
-    selected coordinates is refused (create another DampingTask for it).
+    ``v`` for every coordinate). Their number is fixed when the first controller binds the task
+    (from a vector ``cost`` given before, or the robot's selection); a controller of a robot
+    with another number of selected coordinates is refused (create another DampingTask for it).
 
     Args:
         cost: [cost] / ([rad/s]^2 or [m/s]^2): a scalar (every selected coordinate) or one per
@@ -45,6 +44,8 @@ class DampingTask(ErrorTask):
         if joints is not None and (isinstance(joints, str) or not all(isinstance(j, str) for j in joints)):
             raise InvalidInputError(f"joints must be a list of joint names, got {joints!r}"
                                     + (f"; write joints=[{joints!r}]" if isinstance(joints, str) else ""))
+        if joints is not None and len(joints) == 0:
+            raise InvalidInputError("joints is empty; name the joints to damp, or give joints=None for every one")
         self.joints = None if joints is None else tuple(joints)
         super().__init__(1, 1.0, name)
         self._sized = False  # whether the number of rows is fixed (a vector cost, or a controller bound it)
