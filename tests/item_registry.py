@@ -67,6 +67,19 @@ def _manipulability_task(robot: wbc.Robot, q: np.ndarray) -> Task:
     return wbc.ManipulabilityTask("ee", 1.0, gain=0.4, target=wbc.manipulability(robot, q, "ee"))
 
 
+def _look_at_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    """The gripper's x axis on a point 0.6 m along it (y, z: off the line, so the translation matters)."""
+    pose = robot.frame_pose(q, "ee")
+    task = wbc.LookAtTask("ee", axis=[1.0, 0.0, 0.0], cost=[1.0, 2.0, 0.5], gain=0.4)
+    task.set_target(pose[:3, 3] + 0.6 * pose[:3, 0])
+    return task
+
+
+def _axis_align_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    return wbc.AxisAlignTask("ee", axis=[0.0, 0.0, 1.0], target_axis=robot.frame_pose(q, "ee")[:3, 2], cost=2.0,
+                             gain=0.4)
+
+
 def _sphere_near_the_gripper(robot: wbc.Robot, q: np.ndarray) -> Constraint:
     centre = robot.frame_pose(q, "ee")[:3, 3] + [0.0, 0.0, 0.2]
     return wbc.CollisionAvoidance([wbc.Sphere(centre, 0.05)], self_collision=False, gain=0.4,
@@ -92,6 +105,15 @@ CASES = [
     Case("RelativeFrameTask", "youbot", _relative_frame_task, 0.4),
     Case("PostureTask", "youbot", lambda robot, q: wbc.PostureTask(0.5, target=q, gain=0.4), 0.4),
     Case("ManipulabilityTask", "youbot", _manipulability_task, 0.4),
+    Case("LookAtTask", "youbot", _look_at_task, 0.4),
+    Case("AxisAlignTask", "youbot", _axis_align_task, 0.4),
+    Case("DampingTask", "youbot", lambda robot, q: wbc.DampingTask([4.0, 4.0, 2.0, 1.0, 1.0, 0.5, 0.5, 0.5]), None,
+         "no error: rows W v, target 0 (tests/test_damping_task.py)"),
+    Case("KineticEnergyRegularization", "youbot", lambda robot, q: wbc.KineticEnergyRegularization(0.3), None,
+         "no error: rows sqrt(cost) U v, target 0 (tests/test_kinetic_energy.py)"),
+    Case("LinearTask", "youbot", lambda robot, q: wbc.LinearTask(
+        [[0, 0, 0, 1, -1, 0, 0, 0], [0.5, 0, 0.2, 0, 0, 1, 0, 0]], b=[0.1, -0.2], cost=[1.0, 2.0]), None,
+         "a reference, not an error: A v = b in closed loop (tests/test_linear_task.py)"),
     Case("BaseVelocityTask", "youbot", _base_velocity_task, None, "a velocity reference: J v = r in closed loop"),
     Case("SteeringTask", "deluca_mm", lambda robot, q: wbc.SteeringTask(1e-2, gain=1.0, speed_scale=0.5), None,
          "steers toward the holonomic preview: tests/test_mobile_bases.py (parking)"),

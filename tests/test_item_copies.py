@@ -170,6 +170,26 @@ EXAMPLES: dict[type, Example] = {
         "cost": lambda t: setattr(t, "cost", [0.1, 2.0, 1.0]),
         "set_target": lambda t: t.set_target([0.2, 0.3, 0.4], velocity=[0.0, 0.01, 0.0]),
     }, stack=lambda: [wbc.PostureTask(1e-2)]),
+    wbc.LookAtTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LookAtTask("ee", gain=0.01, target=[1.0, 0.5, 0.3]), {
+        "cost": lambda t: setattr(t, "cost", [3.0, 0.1, 1.0]),
+        "gain": lambda t: setattr(t, "gain", 0.03),
+        "set_target": lambda t: t.set_target([0.5, -0.5, 1.0]),
+    }, stack=lambda: [wbc.PostureTask(1e-2)]),
+    wbc.AxisAlignTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.AxisAlignTask("ee", cost=1.0, gain=0.01), {
+        "cost": lambda t: setattr(t, "cost", 0.1),
+        "gain": lambda t: setattr(t, "gain", 0.03),
+        "set_target": lambda t: t.set_target([1.0, 0.0, 0.0]),
+    }, stack=lambda: [wbc.PostureTask(1e-2)]),
+    wbc.DampingTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DampingTask(1e-2), {
+        "cost": lambda t: setattr(t, "cost", [1.0, 1.0, 1.0, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3]),
+    }, stack=lambda: [_position_task()]),
+    wbc.KineticEnergyRegularization: Example(YOUBOT, Q_YOUBOT, lambda: wbc.KineticEnergyRegularization(1e-2), {
+        "cost": lambda t: setattr(t, "cost", 1.0),
+    }, stack=lambda: [_position_task()]),
+    wbc.LinearTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LinearTask([[0, 0, 0, 1, -1, 0, 0, 0]], b=[0.1], cost=1.0), {
+        "cost": lambda t: setattr(t, "cost", 1e-2),
+        "set_target": lambda t: t.set_target([-0.2]),
+    }, stack=lambda: [_position_task()]),
     wbc.PostureTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.PostureTask(1e-2, gain=0.1), {
         "gain": lambda t: setattr(t, "gain", 0.5),
         "set_target": lambda t: t.set_target(Q_YOUBOT + 0.2),

@@ -41,9 +41,14 @@ from .model.robot import Robot, load_robot, model_path, shipped_models
 from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import (
+    AxisAlignTask,
     BaseVelocityTask,
     CoMTask,
+    DampingTask,
     FrameTask,
+    KineticEnergyRegularization,
+    LinearTask,
+    LookAtTask,
     ManipulabilityTask,
     PositionTask,
     PostureTask,
@@ -65,5 +70,6 @@ __all__ = [
     "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
-    "RelativeFrameTask", "CoMTask",
+    "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization", "LookAtTask", "AxisAlignTask",
+    "LinearTask",
 ]

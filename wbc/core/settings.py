@@ -1,10 +1,11 @@
 """Settings of tasks and constraints: validated attributes that may change between ticks.
 
-Three descriptors, for the three places a setting can live:
+Four descriptors, for the places a setting can live:
 
 * :class:`Setting` -- a plain attribute (read by Python code each tick);
 * :class:`Operand` -- one slot of an operand array that a compiled op reads;
-* :class:`Cost` -- a cost stored as its square root (row weights) in a slice of such an array.
+* :class:`Cost` -- a cost stored as its square root (row weights) in a slice of such an array;
+* :class:`UniformCost` -- one scalar cost for every row of such an array.
 
 Each validates on assignment (``check(value, name)``, from :mod:`wbc.core.validation`) and the new
 value acts from the next tick on, in every controller using the item; :class:`wbc.item.Item`
@@ -13,13 +14,14 @@ lets these (and properties with setters) be assigned after a controller uses the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Generic, TypeVar, overload
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .validation import as_weights
+from .validation import as_nonnegative, as_weights
 
 _In = TypeVar("_In")  # what an assignment takes (the check's argument)
 _Out = TypeVar("_Out")  # what a read gives (the check's result)
@@ -103,3 +105,30 @@ class Cost:
         cost = as_weights(value, len(weights), self._name)
         weights[...] = np.sqrt(cost)
         instance.__dict__[self._name] = cost  # what was asked, without the rounding of sqrt
+
+
+class UniformCost:
+    """One scalar cost for every row, stored as its square root in the whole operand array:
+    ``cost = UniformCost("_weights")``. Reads give the cost (a float); assignments are validated
+    (finite, >= 0) and act from the next tick on. The array is looked up at each assignment, so
+    an item may replace it (resize its rows) before a controller uses it."""
+
+    def __init__(self, array: str) -> None:
+        self._array = array
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self._name = name
+
+    @overload
+    def __get__(self, instance: None, owner: type | None = None) -> UniformCost: ...
+    @overload
+    def __get__(self, instance: object, owner: type | None = None) -> float: ...
+    def __get__(self, instance: object, owner: type | None = None) -> UniformCost | float:
+        if instance is None:
+            return self
+        return float(instance.__dict__[self._name])
+
+    def __set__(self, instance: object, value: float) -> None:
+        cost = as_nonnegative(value, self._name)
+        getattr(instance, self._array)[...] = math.sqrt(cost)
+        instance.__dict__[self._name] = cost
