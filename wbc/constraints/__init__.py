@@ -1,5 +1,6 @@
 """Constraints: hard limits of the control QP."""
 
+from .acceleration_limits import AccelerationLimits
 from .constraint import Constraint, ConstraintRows
 from .joint_position_limits import JointPositionLimits
 from .joint_velocity_limits import JointVelocityLimits
@@ -7,5 +8,5 @@ from .manipulability_barrier import ManipulabilityBarrier
 from .nonholonomic_base import NonholonomicBase
 from .wheel_speed_limits import MecanumWheelLimits, WheelSpeedLimits
 
-__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
+__all__ = ["AccelerationLimits", "Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
            "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits"]
