@@ -8,5 +8,5 @@ from .manipulability_barrier import ManipulabilityBarrier
 from .nonholonomic_base import NonholonomicBase
 from .wheel_speed_limits import MecanumWheelLimits, WheelSpeedLimits
 
-__all__ = ["AccelerationLimits", "Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
-           "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits"]
+__all__ = ["AccelerationLimits", "Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits",
+           "ManipulabilityBarrier", "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits"]
