@@ -193,16 +193,20 @@ class AccelerationLimitsData(ConstraintData):
         self._speed[:n_joints] = speed[self._joints]
         if base_channels:
             self._accel[n_joints:n_joints + 2] = accel[[self._x, self._y]]
-            self._jerk[n_joints:n_joints + 2] = jerk[[self._x, self._y]]
             self._speed[n_joints:n_joints + 2] = speed[[self._x, self._y]]
         if n_wheels:
             self._accel[n_joints + 2:] = wheel_accel
             self._speed[n_joints + 2:] = base.wheels.max_speed
+        self._neg_speed = -self._speed
         self._prev, self._prev2 = np.zeros(n), np.zeros(n)  # w_prev, w_prev2: from rest
         self._lower, self._upper = np.empty(n), np.empty(n)
         self._jerk_lower, self._jerk_upper = np.empty(n), np.empty(n)
         self._jerk_step, self._center = np.empty(n), np.empty(n)
         self._twist = np.zeros(3)  # (v_x, v_y, omega) of the reference velocity
+        if base.is_mobile:
+            self._twist_speed = speed[[self._x, self._y, self._yaw]].copy()
+            self._yaw_channel = int(np.flatnonzero(self._joints == self._yaw)[0])
+            self._wheel_speed = np.inf if base.wheels is None else base.wheels.max_speed
         self._zero = np.zeros(nv)
         self._seen: object = None  # the context's previous command at the last compute (one shift per tick)
         self._heading = 0.0  # the heading at the last compute: the previous command's heading
@@ -265,15 +269,32 @@ class AccelerationLimitsData(ConstraintData):
         prev, n_joints = self._prev, self._n_joints
         np.take(v, self._joints, out=prev[:n_joints])
         if self._n_base:
-            c, s = math.cos(heading), math.sin(heading)
-            twist = self._twist
-            twist[0], twist[1], twist[2] = c * v[self._x] + s * v[self._y], -s * v[self._x] + c * v[self._y], \
-                v[self._yaw]
-            prev[n_joints:n_joints + 2] = twist[:2]
-            if self.n_wheels:
-                np.matmul(self._H0, twist, out=prev[n_joints + 2:])
+            self._base_reference(v, heading, prev)
             self._heading = q[self._yaw]
         np.clip(prev, -self._speed, self._speed, out=prev)
+
+    def _base_reference(self, v: NDArray[np.float64], heading: float, prev: NDArray[np.float64]) -> None:
+        """The base channels' reference: the twist ``(v_x, v_y, omega)`` of ``v`` at ``heading``,
+        scaled as a whole into the base and wheel speed limits (so that it satisfies all of them
+        at once: a command equal to it meets every box and every speed row), and its wheel speeds."""
+        c, s = math.cos(heading), math.sin(heading)
+        twist, n_joints = self._twist, self._n_joints
+        twist[0], twist[1], twist[2] = c * v[self._x] + s * v[self._y], -s * v[self._x] + c * v[self._y], v[self._yaw]
+        scale = 1.0
+        for k in range(3):
+            if abs(twist[k]) > self._twist_speed[k]:
+                scale = min(scale, self._twist_speed[k] / abs(twist[k]))
+        wheels = prev[n_joints + 2:]
+        if self.n_wheels:
+            np.matmul(self._H0, twist, out=wheels)
+            fastest = np.abs(wheels).max()
+            if fastest > self._wheel_speed:
+                scale = min(scale, self._wheel_speed / fastest)
+        if scale < 1.0:
+            twist *= scale
+            wheels *= scale
+        prev[n_joints:n_joints + 2] = twist[:2]
+        prev[self._yaw_channel] = twist[2]
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         self._shift_history(kin.q)
@@ -282,6 +303,8 @@ class AccelerationLimitsData(ConstraintData):
         np.multiply(self._accel, dt, out=upper)
         np.subtract(prev, upper, out=lower)
         np.add(prev, upper, out=upper)
+        np.maximum(lower, self._neg_speed, out=lower)  # meets the speed limits: prev is inside them
+        np.minimum(upper, self._speed, out=upper)
         # viability, clipped into the box
         if self._viable.size:
             np.take(kin.q, self._viable_q, out=self._q)
