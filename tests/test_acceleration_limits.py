@@ -5,6 +5,8 @@ toward position limits against a simulated braking sequence."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -76,6 +78,30 @@ def test_youbot_reach_accel_ramps_every_speed_and_converges(reach_accel, solver)
     first = np.abs(robot.wheel_speeds(qs[0], vs[0]))
     assert first.max() <= wheel_a * scenario.dt + TOLERANCE
     assert result.wheel_ratio.max() > 0.99
+
+
+def test_the_limits_add_no_oscillation(reach_accel):
+    """Sign changes of each joint's acceleration (steps above 1e-6, from rest) with the limits stay
+    within 1.5x of the same scenario without them; with youbot_reach's gain (0.2, far above
+    a_max dt / v_max) the limited loop overshoots back and forth: more than 3x."""
+    def sign_changes(vs: np.ndarray) -> int:
+        steps = np.diff(np.vstack([np.zeros(vs.shape[1]), vs]), axis=0)
+        total = 0
+        for column in steps.T:
+            signs = np.sign(column[np.abs(column) > 1e-6])
+            total += int(np.count_nonzero(signs[1:] != signs[:-1]))
+        return total
+
+    counts = {}
+    for gain in (0.0125, 0.2):
+        for limited in (False, True):
+            scenario = load_scenario("youbot_reach_accel")
+            scenario.tasks[0].gain = gain
+            constraints = scenario.constraints if limited else scenario.constraints[:-1]
+            assert isinstance(scenario.constraints[-1], wbc.AccelerationLimits)
+            counts[gain, limited] = sign_changes(run(dataclasses.replace(scenario, constraints=constraints)).v)
+    assert counts[0.0125, True] <= 1.5 * counts[0.0125, False]
+    assert counts[0.2, True] > 3 * counts[0.2, False]  # the check can fail
 
 
 def test_without_the_limits_the_wheels_jump(reach_accel):
