@@ -26,13 +26,14 @@ piecewise quadratic, and its inverse is exact::
 invariant: a command that respected it leaves a braking command that respects it at the next tick,
 so position limits are never overshot and braking never empties the acceleration box.
 
-**Precedence** (documented in docs/acceleration.md). The constraint is *hard*: the position damper
+**Precedence** (docs/acceleration.md). The constraint is *hard*: the position damper
 (:class:`~wbc.JointPositionLimits`, soft) is clipped into it. Among its own bounds: the model's speed
-limits beat the acceleration box (the reference ``w_prev`` is clipped into them, so a measured
-velocity beyond a speed limit brakes to it as fast as allowed and the box always meets the speed
-limit); the acceleration box beats viability (from a state that cannot stop in time -- a measured
-velocity, a start outside the limits -- the joint brakes at ``a``, no harder); viability beats the
-jerk bound (braking for a position limit may exceed ``max_jerk``).
+limits win (the reference velocity is taken into them first -- the base twist scaled as a whole into
+the base and wheel speed limits, so that a command equal to it meets every row -- and the box is
+intersected with them); then the acceleration box (from a state that cannot stop in time -- a
+measured velocity, a start outside the limits -- the joint brakes at ``a``, no harder); then
+viability; then the jerk bound (braking for a position or speed limit may exceed ``max_jerk``, which
+bounds the joint coordinates only).
 """
 
 from __future__ import annotations
