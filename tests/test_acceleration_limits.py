@@ -5,7 +5,9 @@ toward position limits against a simulated braking sequence."""
 
 from __future__ import annotations
 
+import copy
 import dataclasses
+import pickle
 
 import numpy as np
 import pytest
@@ -230,6 +232,29 @@ def test_jerk_bounds_the_change_of_acceleration(youbot):
     assert np.abs(second[:, 2:]).max() <= jerk * controller.dt**2 + TOLERANCE
     assert np.abs(second[:, 2:]).max() >= 0.5 * jerk * controller.dt**2  # the bound acted
     np.testing.assert_allclose(qs[-1][3:], target[3:], atol=1e-3)
+
+
+@pytest.mark.parametrize("duplicate", [copy.deepcopy, lambda c: pickle.loads(pickle.dumps(c))],
+                         ids=["deepcopy", "pickle"])
+def test_a_copy_continues_from_the_previous_command(youbot, duplicate):
+    """A copy of a running controller carries the previous command: without jerk limits it commands
+    what the original does; with them it knows no earlier command and takes the last acceleration
+    as zero, so its first step changes the speed by at most j dt^2 (not a jump from rest)."""
+    q0 = np.array([0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.2, 0.0])
+    for jerk in (None, 20.0):
+        ee, posture = reach_tasks(youbot, offset=(0.3, -0.2, 0.1))
+        controller = wbc.Controller(youbot, [ee, posture], [wbc.JointVelocityLimits(),
+                                                            wbc.AccelerationLimits(max_jerk=jerk)])
+        q = q0
+        for _ in range(20):
+            q = youbot.integrate(q, controller.step(q), controller.dt)
+        previous = controller.context.previous.copy()
+        twin = duplicate(controller)
+        v = twin.step(q)
+        if jerk is None:
+            np.testing.assert_allclose(v, controller.step(q), rtol=0, atol=1e-12)
+        else:
+            assert np.abs(v[2:] - previous[2:]).max() <= jerk * controller.dt**2 + TOLERANCE
 
 
 # ------------------------------------------------------------------ viability (§7)

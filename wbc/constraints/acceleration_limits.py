@@ -210,6 +210,7 @@ class AccelerationLimitsData(ConstraintData):
             self._wheel_speed = np.inf if base.wheels is None else base.wheels.max_speed
         self._zero = np.zeros(nv)
         self._seen: object = None  # the context's previous command at the last compute (one shift per tick)
+        self._started = False  # computed once already
         self._heading = 0.0  # the heading at the last compute: the previous command's heading
         self._viability_channels(robot)
         if self._base_rows or n_wheels:
@@ -273,6 +274,10 @@ class AccelerationLimitsData(ConstraintData):
             self._base_reference(v, heading, prev)
             self._heading = q[self._yaw]
         np.clip(prev, -self._speed, self._speed, out=prev)
+        if not self._started:
+            self._started = True
+            if previous is not None:  # a copy or pickle of a running controller: no earlier command known,
+                self._prev2[:] = prev  # take the last acceleration as zero (not as a jump from rest)
 
     def _base_reference(self, v: NDArray[np.float64], heading: float, prev: NDArray[np.float64]) -> None:
         """The base channels' reference: the twist ``(v_x, v_y, omega)`` of ``v`` at ``heading``,
