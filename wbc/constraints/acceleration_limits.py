@@ -180,9 +180,10 @@ class AccelerationLimitsData(ConstraintData):
         wheel_accel = limits._max_wheel_acceleration
         if wheel_accel is None and base.wheels is not None and "acceleration" in robot.parameters:
             wheel_accel = _declared(robot).wheels
-        self._H0 = None if base.wheels is None or wheel_accel is None else base.wheels.inverse_matrix()
+        wheels = base.wheels if wheel_accel is not None else None
+        self._H0 = np.zeros((0, 3)) if wheels is None else wheels.inverse_matrix()  # no rows without a limit
         n_joints = len(self._joints)
-        n_wheels = 0 if self._H0 is None else self._H0.shape[0]
+        n_wheels = self._H0.shape[0]
         self.n_wheels = n_wheels
         self.n_inequalities = (4 if self._base_rows else 0) + 2 * n_wheels
         # channels: joints, then (v_x, v_y) of the base if it has rows, then the wheels
@@ -197,7 +198,8 @@ class AccelerationLimitsData(ConstraintData):
             self._speed[n_joints:n_joints + 2] = speed[[self._x, self._y]]
         if n_wheels:
             self._accel[n_joints + 2:] = wheel_accel
-            self._speed[n_joints + 2:] = base.wheels.max_speed
+            assert wheels is not None
+            self._speed[n_joints + 2:] = wheels.max_speed
         self._neg_speed = -self._speed
         self._prev, self._prev2 = np.zeros(n), np.zeros(n)  # w_prev, w_prev2: from rest
         self._lower, self._upper = np.empty(n), np.empty(n)
