@@ -73,6 +73,19 @@ def _sphere_near_the_gripper(robot: wbc.Robot, q: np.ndarray) -> Constraint:
                                   detection_distance=0.4)
 
 
+
+def _com_task(robot: wbc.Robot, q: np.ndarray) -> Task:
+    task = wbc.CoMTask(cost=[1.0, 2.0, 0.5], gain=0.4)
+    task.set_target_from_configuration(robot, q)
+    return task
+
+
+def _support_polygon(robot: wbc.Robot, q: np.ndarray) -> Constraint:
+    """A rectangle on the platform whose front edge (6 cm ahead of its centre, 1 cm margin) the
+    centre of mass (5.5-5.8 cm ahead at q0 and q1) meets when the arm reaches out."""
+    return wbc.SupportPolygon([[-0.1, -0.1], [0.07, -0.1], [0.07, 0.1], [-0.1, 0.1]], frame="base_link",
+                              margin=0.01, gain=0.4)
+
 CASES = [
     Case("FrameTask", "youbot", _frame_task, 0.4),
     Case("PositionTask", "youbot", _position_task, 0.4),
@@ -92,4 +105,8 @@ CASES = [
     Case("CollisionAvoidance", "youbot", _sphere_near_the_gripper, 0.4),
     Case("AccelerationLimits", "youbot", lambda robot, q: wbc.AccelerationLimits(max_jerk=50.0), None,
          "bounds around the previous command: tests/test_acceleration_limits.py"),
+    Case("CoMTask", "youbot", _com_task, 0.4),
+    Case("SupportPolygon", "youbot", _support_polygon, 0.4),
+    Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,
+         "constant bounds v_j = 0"),
 ]

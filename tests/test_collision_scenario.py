@@ -66,3 +66,28 @@ def test_bad_collision_settings_are_scenario_errors(tmp_path):
     path.write_text(SCENARIO.read_text().replace("min_distance = 0.02 ", "min_distance = 0.5 "))
     with pytest.raises(wbc.ScenarioError, match="below detection_distance"):
         load_scenario(path)
+
+
+def test_the_run_reports_and_plots_the_smallest_distance_against_the_margin(tmp_path):
+    """collision_traces measures each recorded configuration of the runs with and without the
+    constraint (coal on the raw shapes as the oracle); wbc run's summary and figure show it."""
+    from wbc.app.cli import format_summary
+    from wbc.app.plotting import figure
+
+    guarded, free = load_scenario(SCENARIO), load_scenario(SCENARIO)
+    obstacles = free.constraints.pop().obstacles
+    runs = [(s, closed_loop.run(s, duration=3.0)) for s in (guarded, free)]
+    trace = closed_loop.collision_traces(runs)
+    assert trace is not None and trace.margin == MIN_DISTANCE and trace.detection_distance == 0.3
+    for (scenario, result), series in zip(runs, trace.series, strict=True):
+        closest = _closest_per_tick(scenario, obstacles, result.q)
+        np.testing.assert_allclose(series, np.where(closest < 0.3, closest, np.inf), atol=1e-6)
+    with_it, without = trace.summary(0), trace.summary(1)
+    assert with_it["collision_distance_min_m"] >= MIN_DISTANCE - TOLERANCE
+    assert without["collision_distance_min_m"] < 0.0  # through the ball
+    text = format_summary("youbot_obstacle", "daqp", runs[0][1].summary() | with_it | {"loop": "kinematic"})
+    smallest = with_it["collision_distance_min_m"] * 1e3
+    assert f"collision distance min     {smallest:.2f} mm  (min_distance 20 mm)" in text
+    axes = {ax.get_label(): ax for ax in figure(runs).axes}
+    floor = [line for line in axes["distance"].lines if line.get_linestyle() == "--"]
+    assert len(floor) == 1 and floor[0].get_ydata()[0] == pytest.approx(20.0)

@@ -287,3 +287,17 @@ def test_a_continuous_yaw_joint_named_as_a_base_coordinate_says_to_replace_it(tm
     (tmp_path / "cart.toml").write_text('[base]\nkind = "planar"\njoints = ["shoulder", "elbow", "caster_joint"]\n')
     with pytest.raises(wbc.ModelError, match=r"'caster_joint' is a RUBZ joint of 2 coordinates.*replace = \[\.\.\.\]"):
         wbc.load_robot(tmp_path / "cart.urdf")
+
+
+def test_speed_limits_alone_bound_the_base_the_model_has_and_never_fix_it(tmp_path):
+    """``load_robot(urdf, max_linear_speed=...)`` without ``base``: a planar root stays a planar
+    base with those limits (it was silently fixed at the origin before); a robot with no base to
+    bound is told to declare one."""
+    robot = load_quietly(write_robot(tmp_path), max_linear_speed=0.3, max_yaw_rate=0.5)
+    assert robot.base.kind is wbc.BaseKind.PLANAR
+    assert (robot.base.max_linear_speed, robot.base.max_yaw_rate) == (0.3, 0.5)
+    fixed = tmp_path / "arm.urdf"
+    fixed.write_text(PLANAR_ROBOT.format(lift=0.05, axle=0.0, track=HALF_TRACK, radius=RADIUS).replace(
+        'type="planar"', 'type="fixed"'))
+    with pytest.raises(wbc.ModelError, match=r"max_linear_speed bound a mobile base.*declare its base"):
+        load_quietly(fixed, max_linear_speed=0.3)

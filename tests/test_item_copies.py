@@ -21,8 +21,10 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from wbc.constraints.barrier import Barrier
 from wbc.constraints.constraint import ConstraintData
 from wbc.item import Item
+from wbc.tasks.com_task import center_of_mass
 from wbc.tasks.error_task import ErrorTask
 
 
@@ -41,7 +43,7 @@ def _package_items() -> set[type]:
 
 
 #: base classes that are not items of a stack by themselves
-BASES = {wbc.Task, wbc.Constraint, ErrorTask}
+BASES = {wbc.Task, wbc.Constraint, ErrorTask, Barrier}
 
 YOUBOT = wbc.load_robot("youbot")
 DELUCA = wbc.load_robot("deluca_mm")
@@ -120,6 +122,32 @@ Q_AT_LIMIT = np.where(np.arange(8) == 5, YOUBOT.upper, Q_YOUBOT)  # arm_joint_3 
 #: the youBot's arm stretched toward its singular upright pose, where m is small
 Q_STRETCHED = np.array([0.1, -0.2, 0.3, 0.2, 0.05, 0.05, 0.05, 0.1])
 
+
+def _com_task() -> wbc.CoMTask:
+    task = wbc.CoMTask(cost=[1.0, 1.0, 0.5], gain=0.01)
+    task.set_target(center_of_mass(YOUBOT, Q_YOUBOT) + [0.02, -0.01, 0.01])
+    return task
+
+
+def _support_polygon() -> wbc.SupportPolygon:
+    """A square 5 mm ahead of the centre of mass in the platform's frame at Q_YOUBOT (a reach
+    forward pushes it into the front edge)."""
+    pose = YOUBOT.frame_pose(Q_YOUBOT, "base_link")
+    front = (pose[:3, :3].T @ (center_of_mass(YOUBOT, Q_YOUBOT) - pose[:3, 3]))[0] + 0.005
+    return wbc.SupportPolygon([[-0.3, -0.3], [front, -0.3], [front, 0.3], [-0.3, 0.3]], frame="base_link", gain=0.5)
+
+
+def _reach_forward() -> wbc.PositionTask:
+    task = wbc.PositionTask("ee", gain=0.5)
+    task.set_target(YOUBOT.frame_pose(Q_YOUBOT, "ee")[:3, 3] + [0.3, 0.0, -0.05])
+    return task
+
+
+def _still_base() -> wbc.BaseVelocityTask:
+    still = wbc.BaseVelocityTask(100.0)
+    still.set_target([0.0, 0.0, 0.0])
+    return still
+
 EXAMPLES: dict[type, Example] = {
     wbc.FrameTask: Example(YOUBOT, Q_YOUBOT, _frame_task, {
         "gain": lambda t: setattr(t, "gain", 0.03),
@@ -184,6 +212,17 @@ EXAMPLES: dict[type, Example] = {
     # acceleration (0.02 < pi * 0.01 rad/s), so the command is the same every tick at this q
     wbc.AccelerationLimits: Example(YOUBOT, Q_AT_LIMIT, wbc.AccelerationLimits, {},
                                     stack=lambda: [wbc.PostureTask(1.0, target=Q_AT_LIMIT + 0.002, gain=0.1)]),
+    wbc.CoMTask: Example(YOUBOT, Q_YOUBOT, _com_task, {
+        "cost": lambda t: setattr(t, "cost", [0.1, 2.0, 1.0]),
+        "gain": lambda t: setattr(t, "gain", 0.05),
+        "set_target": lambda t: t.set_target(center_of_mass(YOUBOT, Q_YOUBOT) + [-0.02, 0.0, 0.0], [0.0, 0.01, 0.0]),
+    }, stack=lambda: [wbc.PostureTask(1e-2)]),
+    wbc.SupportPolygon: Example(YOUBOT, Q_YOUBOT, _support_polygon, {
+        "gain": lambda c: setattr(c, "gain", 0.1),
+        "margin": lambda c: setattr(c, "margin", 0.003),
+    }, stack=lambda: [_reach_forward(), _still_base(), wbc.PostureTask(1e-3)]),
+    wbc.DofFreezing: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DofFreezing(["arm_joint_2"]), {},
+                             stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
     wbc.NonholonomicBase: Example(DELUCA, Q_DELUCA, wbc.NonholonomicBase, {},
                                   stack=lambda: [_position_task(DELUCA, Q_DELUCA), wbc.PostureTask(1e-3)]),
 }

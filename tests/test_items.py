@@ -193,6 +193,10 @@ def _pushing_tasks(case: Case, robot: wbc.Robot, item: Constraint, q: np.ndarray
     reach.set_target(obstacles[0].center if obstacles else robot.frame_pose(q, end)[:3, 3] + [2.0, -1.5, 1.0])
     if isinstance(item, wbc.JointPositionLimits):
         return [reach, wbc.PostureTask(1.0, target=np.clip(q + 3.0, -10.0, 10.0), gain=1.0)]
+    if isinstance(item, wbc.SupportPolygon):  # the platform held: the arm's reach moves the CoM over it
+        still = wbc.BaseVelocityTask(100.0)
+        still.set_target([0.0, 0.0, 0.0])
+        return [reach, still]
     return [reach]
 
 

@@ -64,7 +64,7 @@ class ScriptedController:
     def step(self, q: np.ndarray) -> np.ndarray:
         k = self.count
         self.last = SimpleNamespace(success=k not in self.failures, tick_time=self.script[0][k],
-                                    solve_time=self.script[1][k])
+                                    solve_time=self.script[1][k], conflicts=[f"scripted {k}"])
         self.count += 1
         return np.zeros(self.nv)
 
@@ -81,6 +81,7 @@ def test_latency_percentiles_and_fallbacks_are_over_every_tick(tmp_path, rng):
     assert result.stride == 12 and result.time.shape == (9,)
     summary = result.summary()
     assert summary["ticks"] == 100 and summary["fallback_ticks"] == 3 == result.fallback_ticks
+    assert result.conflicts == [(4, ("scripted 3",)), (59, ("scripted 58",)), (100, ("scripted 99",))]
     assert summary["tick_latency_median_us"] == pytest.approx(np.median(tick_times) * 1e6, rel=1e-12)
     assert summary["tick_latency_p99_us"] == pytest.approx(np.percentile(tick_times, 99) * 1e6, rel=1e-12)
     assert summary["solve_time_median_us"] == pytest.approx(np.median(solve_times) * 1e6, rel=1e-12)

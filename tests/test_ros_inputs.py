@@ -177,3 +177,24 @@ def test_discovery_settings_follow_the_ros2_variables():
     assert domain_config({"CYCLONEDDS_URI": LOOPBACK_CONFIG}) == LOOPBACK_CONFIG
     with pytest.raises(RosError, match="ROS_AUTOMATIC_DISCOVERY_RANGE"):
         domain_config({"ROS_AUTOMATIC_DISCOVERY_RANGE": "EVERYWHERE"})
+
+
+def test_the_node_status_notes_each_episode_of_fallback_ticks_and_its_conflict_once():
+    """NodeStatus.record_outcome (what the node's diagnostics publish): the conflicts are asked
+    for at the first tick of each episode of fallback ticks only (they cost small QPs)."""
+    from wbc.ros.status import NodeStatus
+
+    status, asked = NodeStatus(), []
+
+    def conflicts(k):
+        def named():
+            asked.append(k)
+            return [f"Push: row {k}", "JointVelocityLimits: arm_joint_2 upper"]
+        return named
+
+    for k, success in enumerate([True, False, False, True, False, True, True]):
+        status.record_outcome(success, conflicts(k))
+    assert status.fallback_ticks == 3 and status.conflict_episodes == 2 and asked == [1, 4]
+    assert status.last_conflicts == ["Push: row 4", "JointVelocityLimits: arm_joint_2 upper"]
+    summary = status.summary({}, 0, 0)
+    assert summary["conflict_episodes"] == 2 and summary["last_conflicts"][0] == "Push: row 4"

@@ -705,3 +705,27 @@ def test_live_view_in_a_headless_browser_while_the_run_streams(browser_path):
     robot = robot_mask(image)
     rows, columns = region(project(camera, youbot_points(scenario.robot, track.q[:recorded + 1])))
     assert robot[rows, columns].sum() > 500 and robot.sum() == robot[rows, columns].sum()
+
+
+def test_a_scenarios_collision_obstacles_are_drawn_where_they_are():
+    """Every obstacle kind of wbc.collision becomes drawn shapes at its pose (a capsule: a cylinder
+    of its length and a sphere at each end; a plane: a thin square just below it)."""
+    sphere, box = wbc.Sphere([0.7, 0.0, 0.1], 0.05), wbc.Box(np.eye(4), [0.2, 0.3, 0.4])
+    capsule, plane = wbc.Capsule([0.0, 0.0, 0.5], [0.0, 0.6, 0.5], 0.03), wbc.Plane([-1.0, 0.0, 0.0], -1.2)
+    drawn = [view.drawn_obstacle(o) for o in (sphere, box, capsule, plane)]
+    (ball,), (block,), (cylinder, end0, end1), (floor,) = drawn
+    assert ball.kind == "sphere" and ball.size == (0.05,) and np.allclose(ball.pose[:3, 3], [0.7, 0.0, 0.1])
+    assert block.kind == "box" and block.size == (0.2, 0.3, 0.4)
+    assert cylinder.kind == "cylinder" and cylinder.size == pytest.approx((0.03, 0.6))
+    assert np.allclose(cylinder.pose[:3, 3], [0.0, 0.3, 0.5]) and np.allclose(np.abs(cylinder.pose[:3, 2]), [0, 1, 0])
+    assert {tuple(end0.pose[:3, 3]), tuple(end1.pose[:3, 3])} == {(0.0, 0.0, 0.5), (0.0, 0.6, 0.5)}
+    # the plane x = 1.2 with the free side toward -x: the square lies just beyond it, facing -x
+    assert floor.kind == "box" and floor.size[2] == view.PLANE_THICKNESS
+    assert np.allclose(floor.pose[:3, 3], [1.2 + view.PLANE_THICKNESS / 2, 0.0, 0.0])
+    assert np.allclose(floor.pose[:3, 2], [-1.0, 0.0, 0.0])
+    scenario = load_scenario("youbot_obstacle")
+    kinds = sorted(o.kind for o in view.scenario_obstacles([scenario, scenario]))  # each obstacle once
+    assert kinds == ["box", "box", "sphere"]  # the ball, the box beside the path, the wall (a plane)
+    page = view.replay_html([], obstacles=view.scenario_obstacles([scenario]))
+    (ball_message,) = [m for _, m in messages(embedded_recording(page), "IcosphereMessage")]
+    assert ball_message["props"]["radius"] == 0.05

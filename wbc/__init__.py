@@ -13,11 +13,13 @@ from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     AccelerationLimits,
     Constraint,
+    DofFreezing,
     JointPositionLimits,
     JointVelocityLimits,
     ManipulabilityBarrier,
     MecanumWheelLimits,
     NonholonomicBase,
+    SupportPolygon,
     WheelSpeedLimits,
 )
 from .control.controller import Controller
@@ -41,6 +43,7 @@ from .qp.problem import QP
 from .solvers import available_solvers
 from .tasks import (
     BaseVelocityTask,
+    CoMTask,
     FrameTask,
     ManipulabilityTask,
     PositionTask,
@@ -55,7 +58,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits", "AccelerationLimits",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing", "AccelerationLimits",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
@@ -63,5 +66,5 @@ __all__ = [
     "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
-    "RelativeFrameTask",
+    "RelativeFrameTask", "CoMTask",
 ]

@@ -36,7 +36,7 @@ class CommandLineError(WbcError, ValueError):
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .closed_loop import manipulability_traces, run
+    from .closed_loop import collision_traces, manipulability_traces, run
     from .scenario import load_scenario
 
     _check_run_options(args)
@@ -51,10 +51,11 @@ def _run(args: argparse.Namespace) -> int:
                                    simulation=_simulation(args, scenario),
                                    on_tick=None if live is None else live.follow(k)))
                     for k, scenario in enumerate(scenarios)]
-            trace = manipulability_traces(runs)
-            summaries: list[dict[str, float | str]] = [
+            trace, distances = manipulability_traces(runs), collision_traces(runs)
+            summaries: list[dict[str, Any]] = [
                 {"scenario": scenario.name, "solver": result.solver} | _loop(result) | result.summary()
-                | ({} if trace is None else trace.summary(k)) for k, (scenario, result) in enumerate(runs)]
+                | ({} if trace is None else trace.summary(k)) | ({} if distances is None else distances.summary(k))
+                | _conflicts(result) for k, (scenario, result) in enumerate(runs)]
             if args.json:
                 print(json.dumps(summaries, indent=2))
             else:
@@ -92,9 +93,10 @@ def _write_outputs(args: argparse.Namespace, runs: Sequence[tuple[Scenario, RunR
 
         writers.append(("--plot", "plot", lambda: plot_runs(runs, args.plot)))
     if args.html is not None:
-        from .view import write_html
+        from .view import scenario_obstacles, write_html
 
-        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html)))
+        obstacles = scenario_obstacles([scenario for scenario, _ in runs])
+        writers.append(("--html", "3-D replay", lambda: write_html(runs, args.html, obstacles)))
     for option, what, write in writers:
         try:
             path = write()
@@ -111,10 +113,10 @@ def _live_view(args: argparse.Namespace, scenarios: Sequence[Scenario], out: Tex
         yield None
         return
     from .closed_loop import tick_count
-    from .view import LiveView
+    from .view import LiveView, scenario_obstacles
 
     with LiveView([(scenario, tick_count(scenario, args.duration)) for scenario in scenarios],
-                  port=args.view) as live:
+                  port=args.view, obstacles=scenario_obstacles(scenarios)) as live:
         print(f"3-D view at {live.url}: the run(s) stream live, then replay (Ctrl-C to stop)", file=out, flush=True)
         yield live
 
@@ -197,6 +199,12 @@ def _simulation(args: argparse.Namespace, scenario: Scenario) -> MujocoSimulatio
     return MujocoSimulation(scenario.robot, scenario.dt, noise=args.noise or 0.0, delay=args.delay or 0)
 
 
+def _conflicts(result: RunResult) -> dict[str, list[dict[str, Any]]]:
+    """The run's episodes of fallback ticks and the constraints in conflict at each (summary entry)."""
+    return {"conflicts": [{"tick": episode.tick, "constraints": list(episode.constraints)}
+                          for episode in result.conflicts]}
+
+
 def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
     """The summary of one run as ``wbc run`` prints it (``s``: the run's summary, as in ``--json``:
     numbers, and strings for the loop and the manipulability's frame and rows)."""
@@ -217,6 +225,14 @@ def format_summary(name: str, solver: str, s: Mapping[str, Any]) -> str:
         f"  tick latency median / p99  {s['tick_latency_median_us']:.1f} / {s['tick_latency_p99_us']:.1f} µs"
         f"  (solve median {s['solve_time_median_us']:.1f} µs)",
     ]
+    if "collision_distance_min_m" in s:
+        sampled = (f"  (sampled: one tick in {s['collision_sampled_every_ticks']})"
+                   if "collision_sampled_every_ticks" in s else "")
+        lines.append(f"  collision distance min     {s['collision_distance_min_m'] * 1e3:.2f} mm  "
+                     f"(min_distance {s['collision_margin_m'] * 1e3:g} mm){sampled}")
+    for episode in s.get("conflicts", []):
+        named = ", ".join(episode["constraints"]) or "none found (the backend failed on a feasible QP)"
+        lines.append(f"  fallback from tick {episode['tick']:<8d} constraints in conflict: {named}")
     if "worst_wheel_speed_ratio" in s:
         lines.append(f"  worst wheel speed          {s['worst_wheel_speed_ratio'] * 100:.1f} % of its limit")
     if "max_lateral_slip_m_s" in s:

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 import pinocchio as pin
 from numpy.typing import NDArray
 
+from ..collision import CollisionAvoidance, Distances
 from ..constraints import ManipulabilityBarrier
 from ..control.controller import Controller
 from ..core.errors import InvalidInputError
@@ -26,6 +27,14 @@ if TYPE_CHECKING:
 
 MAX_ROWS = 100_000  #: rows a run keeps by default: a longer run keeps every k-th tick (RunResult.stride)
 CHUNK_TICKS = 4096  #: ticks buffered at full resolution before they are reduced to rows
+
+
+class ConflictEpisode(NamedTuple):
+    """A run of consecutive ticks answered by a fallback, with the constraints found in conflict
+    at its first tick (``Controller.last.conflicts``)."""
+
+    tick: int  #: the episode's first tick (1 = the first step)
+    constraints: tuple[str, ...]  #: labels of the conflicting constraints (empty: none found)
 
 
 @dataclass
@@ -84,6 +93,8 @@ class RunResult:
     stride: int = 1  #: ticks per row
     loop: str = "kinematic"  #: how the loop was closed: "kinematic", or "mujoco" (:attr:`loop_details`)
     loop_details: str = ""  #: e.g. "velocity servos, noise 0.0001, delay 1 tick" of a MuJoCo loop
+    #: each episode of ticks answered by a fallback, with the constraints in conflict at its first tick
+    conflicts: list[ConflictEpisode] = field(default_factory=list)
 
     @property
     def ticks(self) -> int:
@@ -237,6 +248,9 @@ def run(scenario: Scenario, solver: str | None = None, duration: float | None = 
             simulation.advance()
             q = simulation.q
         record.tick(v, q, position_error, orientation_error, last.solve_time, last.tick_time, not last.success)
+        if not last.success and record.succeeded:  # the first tick of an episode
+            record.conflicts.append(ConflictEpisode(k + 1, tuple(last.conflicts)))
+        record.succeeded = last.success
         if on_tick is not None:
             on_tick(k + 1, q)
     return record.result(scenario.name, controller.solver.name, dt, orientation_tracked(task), simulation)
@@ -282,6 +296,8 @@ class _Recorder:
         if self.tool_path is not None and frame is not None:
             self.tool_path[0] = robot.frame_pose(q0, frame)[:3, 3]
         self.done = self.buffered = self.fallbacks = 0  # ticks reduced to rows, ticks in the buffer
+        self.conflicts: list[ConflictEpisode] = []  # episodes of fallback ticks
+        self.succeeded = True  # whether the last tick was answered by the full QP
         self.squares = np.zeros(2)  # sums of the squared position and orientation errors
         self.final_errors = np.zeros(2)
 
@@ -366,7 +382,7 @@ class _Recorder:
             velocity_violation=self.velocity_violation, velocity_ratio=self.velocity_ratio, statistics=statistics,
             fallback_ticks=self.fallbacks, base_path=self.q[:, list(robot.base.indices[:2])] if robot.base.is_mobile
             else None, tool_path=self.tool_path, wheel_ratio=self.wheel_ratio, lateral_slip=self.lateral_slip,
-            orientation_tracked=tracked, stride=self.stride, loop=loop, loop_details=details)
+            orientation_tracked=tracked, stride=self.stride, loop=loop, loop_details=details, conflicts=self.conflicts)
 
 
 def orientation_tracked(task: Task | None) -> bool:
@@ -415,15 +431,65 @@ def manipulability_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> Manipul
         return None
     robot_name, first = next((pair for pair in watched if isinstance(pair[1], ManipulabilityBarrier)), watched[0])
     floor = first.min_value if isinstance(first, ManipulabilityBarrier) else None
-    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows) for q in result.q])
+    series = [np.array([manipulability(scenario.robot, q, first.frame, first.rows, first.joints) for q in result.q])
               if scenario.robot.name == robot_name else None
               for scenario, result in runs]
+    watched_measure = (first.frame, first.rows, first.joints)
     guarded = [floor is not None and any(isinstance(item, ManipulabilityBarrier) and item.min_value == floor
-                                         and (item.frame, item.rows) == (first.frame, first.rows)
+                                         and (item.frame, item.rows, item.joints) == watched_measure
                                          for item in scenario.constraints)
                for scenario, _ in runs]
     return ManipulabilityTrace(first.frame, first.rows, floor, series, guarded, [result.stride for _, result in runs])
 
+
+@dataclass
+class CollisionTrace:
+    """The smallest signed distance between the collision pairs of the first
+    :class:`~wbc.CollisionAvoidance` found in the scenarios, in every run of the same robot (with
+    or without that constraint), and its margin ``min_distance``."""
+
+    margin: float  #: [m] the constraint's min_distance
+    detection_distance: float  #: [m] pairs farther apart are not measured
+    #: one (R+1,) array per run [m], at each recorded configuration (inf: no pair within the
+    #: detection distance); None for a run of another robot
+    series: list[NDArray[np.float64] | None]
+    strides: list[int]  #: per run, the ticks per recorded row (RunResult.stride)
+
+    def summary(self, run: int) -> dict[str, float]:
+        """The smallest distance of run ``run`` and the margin (empty for a run of another robot)."""
+        series = self.series[run]
+        if series is None:
+            return {}
+        summary = {"collision_distance_min_m": float(series.min()), "collision_margin_m": self.margin}
+        if self.strides[run] > 1:
+            summary["collision_sampled_every_ticks"] = self.strides[run]
+        return summary
+
+
+def collision_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> CollisionTrace | None:
+    """The distances of :class:`CollisionTrace` (None when no scenario has collision avoidance):
+    the same pairs and obstacles measured at every recorded configuration of each run of that
+    robot, as a with/without comparison needs."""
+    found = next(((scenario.robot.name, item) for scenario, _ in runs for item in scenario.constraints
+                  if isinstance(item, CollisionAvoidance)), None)
+    if found is None:
+        return None
+    robot_name, avoidance = found
+    series: list[NDArray[np.float64] | None] = []
+    for scenario, result in runs:
+        if scenario.robot.name != robot_name:
+            series.append(None)
+            continue
+        distances = Distances(scenario.robot, avoidance.obstacles, avoidance.self_collision,
+                              avoidance.detection_distance)
+        pairs = distances.buffers()
+        smallest = []
+        for q in result.q:
+            count = distances.compute(q, pairs)
+            smallest.append(float(pairs.distance[:count].min()) if count else np.inf)
+        series.append(np.array(smallest))
+    return CollisionTrace(avoidance.min_distance, avoidance.detection_distance, series,
+                          [result.stride for _, result in runs])
 
 def posture_traces(runs: Sequence[tuple[Scenario, RunResult]]) -> list[NDArray[np.float64] | None] | None:
     """When some scenario has priority levels: the error ``|q* (-) q|`` of the first PostureTask

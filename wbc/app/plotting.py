@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..model.robot import Robot
-from .closed_loop import RunResult, manipulability_traces, posture_traces
+from .closed_loop import RunResult, collision_traces, manipulability_traces, posture_traces
 from .outputs import check_output, write_atomically
 from .scenario import Scenario
 
@@ -186,7 +186,9 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     ``wheels``, ``chain``, ``other``; one run shows the joints closest to their limits, several
     the largest ratio of each run), ``latency``, ``paths`` (top view of a mobile base and its
     tool; for fixed bases the tool in the world plane of its largest extent; start and end
-    marked), when a scenario watches the manipulability, ``m``, and when a scenario has
+    marked), when a scenario watches the manipulability, ``m``, when a scenario has collision
+    avoidance, ``distance`` (the smallest distance between its pairs per recorded tick against
+    its min_distance, :func:`wbc.app.closed_loop.collision_traces`), and when a scenario has
     priority levels, ``posture`` (the error of each run's PostureTask,
     :func:`wbc.app.closed_loop.posture_traces`).
     """
@@ -203,12 +205,13 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     results = [result for _, result in runs]
     groups = [speed_groups(scenario.robot, result, _tracked_frame(scenario)) for scenario, result in runs]
     trace = manipulability_traces(runs)
+    distances = collision_traces(runs)
     postures = posture_traces(runs)
     error_keys = ["position"] + (["orientation"] if any(r.orientation_tracked for r in results) else [])
     speed_keys = [key for key in ("base", "wheels", "chain", "other") if any(g.key == key for gs in groups for g in gs)]
     speed_rows = [speed_keys] if len(speed_keys) < 4 else [speed_keys[:2], speed_keys[2:]]
     layout: list[HashableList[str]] = [_row(error_keys), *map(_row, speed_rows), _row(["latency", "paths"])]
-    layout += ([_row(["m"])] if trace else []) + ([_row(["posture"])] if postures else [])
+    layout += [_row([key]) for key, shown in (("m", trace), ("distance", distances), ("posture", postures)) if shown]
     fig, axes = plt.subplot_mosaic(layout, figsize=(13, 3.8 * len(layout)), constrained_layout=True)
     colors = [plt.rcParams["axes.prop_cycle"].by_key()["color"][k % 10] for k in range(len(runs))]
     several = len(runs) > 1
@@ -235,28 +238,17 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
     _paths_panel(axes["paths"], [result for _, result in recorded], colors)
 
     if trace is not None:
-        ax = axes["m"]
-        for result, series, color in zip(results, trace.series, colors, strict=True):
-            if series is None:
-                continue
-            ax.plot(np.arange(series.size) * result.dt * result.stride, series, color=color, label=result.scenario,
-                    gid=RUN_LINE)
-        if trace.min_value is not None:
-            ax.axhline(trace.min_value, color="k", ls="--", lw=1, label=f"m_min = {trace.min_value:g}")
-        ax.set(title=f"Manipulability m of '{trace.frame}' ({trace.rows} rows)", xlabel="time [s]", ylabel="m",
-               ylim=(0, None))
-        _legend(ax, several)
-        ax.grid(True, alpha=0.3)
-
+        floor = None if trace.min_value is None else (trace.min_value, f"m_min = {trace.min_value:g}")
+        _trace_panel(axes["m"], results, trace.series, colors, several, floor,
+                     f"Manipulability m of '{trace.frame}' ({trace.rows} rows)", "m")
+    if distances is not None:
+        _trace_panel(axes["distance"], results, [None if d is None else d * 1e3 for d in distances.series], colors,
+                     several, (distances.margin * 1e3, f"min_distance = {distances.margin * 1e3:g} mm"),
+                     f"Smallest distance between collision pairs (within {distances.detection_distance:g} m)",
+                     "[mm]")
     if postures:
-        ax = axes["posture"]
-        for result, series, color in zip(results, postures, colors, strict=True):
-            if series is not None:
-                ax.plot(np.arange(series.size) * result.dt * result.stride, series, color=color,
-                        label=result.scenario, gid=RUN_LINE)
-        ax.set(title="Posture error ‖q* ⊖ q‖ of the PostureTask", xlabel="time [s]", ylabel="[rad]", ylim=(0, None))
-        _legend(ax, several)
-        ax.grid(True, alpha=0.3)
+        _trace_panel(axes["posture"], results, postures, colors, several, None,
+                     "Posture error ‖q* ⊖ q‖ of the PostureTask", "[rad]")
 
     fig.suptitle(_suptitle(results))
     if several:  # the runs' colours, once for every panel
@@ -264,6 +256,22 @@ def figure(runs: Sequence[tuple[Scenario, RunResult]]) -> Figure:
                    loc="outside lower center", ncol=min(len(results), 5), fontsize=9, frameon=False)
     return fig
 
+
+def _trace_panel(ax: Axes, results: Sequence[RunResult], series: Sequence[NDArray[np.float64] | None],
+                 colors: Sequence[str], several: bool, floor: tuple[float, str] | None, title: str,
+                 ylabel: str) -> None:
+    """One value per recorded configuration of each run (None: a run without it; inf is not
+    drawn), and a dashed floor line with its label."""
+    for result, values, color in zip(results, series, colors, strict=True):
+        if values is not None:
+            shown = np.where(np.isfinite(values), values, np.nan)
+            ax.plot(np.arange(values.size) * result.dt * result.stride, shown, color=color, label=result.scenario,
+                    gid=RUN_LINE)
+    if floor is not None:
+        ax.axhline(floor[0], color="k", ls="--", lw=1, label=floor[1])
+    ax.set(title=title, xlabel="time [s]", ylabel=ylabel, ylim=(0, None))
+    _legend(ax, several)
+    ax.grid(True, alpha=0.3)
 
 def _legend(ax: Axes, several: bool) -> None:
     """The legend of a panel: with several runs, only what is not a run (their colours are in

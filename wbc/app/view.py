@@ -10,8 +10,9 @@ imports: ``import wbc`` does not load it. What is drawn, per run:
 * the reference task's targets: a green marker at the current target (with axes if the
   orientation is tracked) and the whole reference as a thin green line;
 * the tool path (the reference task's frame) traced up to the current time;
-* obstacles (:class:`Obstacle`, translucent red). Scenarios have none yet: this is the hook
-  through which a scenario's obstacles will be drawn.
+* obstacles (:class:`Obstacle`, translucent red): those of the scenarios' collision
+  avoidance (:func:`scenario_obstacles`: spheres, boxes, capsules, and planes as a thin
+  3 m square), where they are when the run starts.
 
 Several runs are overlaid, each robot in its own colour, on one timeline (a run that ends
 earlier holds its last configuration).
@@ -35,6 +36,8 @@ import pinocchio as pin
 import viser
 from numpy.typing import ArrayLike, NDArray
 
+from ..collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
+from ..collision.obstacles import Obstacle as CollisionObstacle
 from ..model.robot import Robot
 from .closed_loop import RunResult, TickObserver, orientation_tracked
 from .outputs import HTML_FORMATS, check_output, write_atomically
@@ -89,6 +92,38 @@ class Obstacle:
         object.__setattr__(self, "size", size)
         object.__setattr__(self, "pose", pose)
 
+
+#: [m] side of the square a Plane obstacle is drawn as, and its thickness (below the plane)
+PLANE_SIDE, PLANE_THICKNESS = 3.0, 0.002
+
+
+def scenario_obstacles(scenarios: Sequence[Scenario]) -> list[Obstacle]:
+    """The obstacles of the scenarios' :class:`~wbc.CollisionAvoidance` constraints as drawn
+    shapes (each obstacle once, where it is now)."""
+    seen: dict[int, CollisionObstacle] = {}
+    for scenario in scenarios:
+        for constraint in scenario.constraints:
+            if isinstance(constraint, CollisionAvoidance):
+                seen |= {id(obstacle): obstacle for obstacle in constraint.obstacles}
+    return [shape for obstacle in seen.values() for shape in drawn_obstacle(obstacle)]
+
+
+def drawn_obstacle(obstacle: CollisionObstacle) -> list[Obstacle]:
+    """The shapes that draw one collision obstacle (a capsule: a cylinder and two spheres)."""
+    pose = obstacle.pose
+    if isinstance(obstacle, Sphere):
+        return [Obstacle("sphere", (obstacle.radius,), pose)]
+    if isinstance(obstacle, Box):
+        return [Obstacle("box", tuple(obstacle.size.tolist()), pose)]
+    if isinstance(obstacle, Capsule):
+        p0, p1 = obstacle.points
+        length = float(np.linalg.norm(p1 - p0))
+        ends = [Obstacle("sphere", (obstacle.radius,), _translation(p)) for p in (p0, p1)]
+        return ([Obstacle("cylinder", (obstacle.radius, length), pose)] if length > 0.0 else []) + ends
+    if isinstance(obstacle, Plane):
+        below = pose @ _translation([0.0, 0.0, -PLANE_THICKNESS / 2])
+        return [Obstacle("box", (PLANE_SIDE, PLANE_SIDE, PLANE_THICKNESS), below)]
+    raise TypeError(f"no drawing for a {type(obstacle).__name__} obstacle")
 
 @dataclass(frozen=True)
 class Shape:

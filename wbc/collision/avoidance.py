@@ -181,4 +181,7 @@ class CollisionAvoidanceData(ConstraintData):
         return [self.distances.labels[k] for k in self.pairs.pair[:self.pairs.count].tolist()]
 
     def row_labels(self) -> list[str]:
-        return [f"{self.name}[row {i}]" for i in range(self.n_inequalities)]
+        """This tick's pair of each row (``"link↔sphere0"``), then ``"row i (no pair)"`` for the
+        inert rows of the capacity."""
+        active = self.active_labels()
+        return active + [f"row {i} (no pair)" for i in range(len(active), self.n_inequalities)]

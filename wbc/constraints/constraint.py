@@ -71,7 +71,8 @@ class ConstraintData:
         return False
 
     def row_labels(self) -> list[str]:
-        """Human-readable names of the inequality rows, then of the equality rows."""
+        """Human-readable names of the inequality rows, then of the equality rows (read when the
+        diagnostics are, after a tick: rows whose meaning changes per tick name this tick's)."""
         return [f"row {i}" for i in range(self.n_inequalities + self.n_equalities)]
 
 

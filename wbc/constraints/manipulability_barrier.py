@@ -2,20 +2,23 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
 from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
-from ..model.manipulability import Manipulability, Rows, row_selection
+from ..model.manipulability import Manipulability, Rows, check_joint_names, row_selection
 from ..model.robot import Robot
 from ..runtime import kernels
 from ..runtime.program import TickProgram
-from .constraint import Constraint, ConstraintData, ConstraintRows
+from .barrier import Barrier, BarrierData
+from .constraint import ConstraintRows
 
 
-class ManipulabilityBarrier(Constraint):
+class ManipulabilityBarrier(Barrier):
     """One inequality row that keeps ``m(q) >= m_min`` (see :mod:`wbc.model.manipulability`)::
 
         grad m(q) . v  >=  -gain (m(q) - m_min) / dt      written as   -grad m . v <= gain (m - m_min) / dt
@@ -39,47 +42,52 @@ class ManipulabilityBarrier(Constraint):
     Starting below ``m_min`` the row pulls ``m`` back up at the same geometric rate
     (if the velocity limits allow it).
 
+    A :class:`~wbc.constraints.barrier.Barrier` with ``b = m - m_min``; its compiled kernel
+    computes the same row in the native tick.
+
     Args:
         frame: frame whose Jacobian defines ``m``.
         min_value: ``m_min`` > 0, in the units of ``m`` for ``rows``.
         gain: fraction of the margin ``m - m_min`` that may be consumed per tick, (0, 1].
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
+        joints: the measure of these joints' columns only (e.g. the arm of a mobile manipulator);
+            None: every joint. A chain's measure is computed in Python (not in the native tick).
     """
 
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
-    gain = Operand("_settings", 0, as_gain)
-    min_value = Operand("_settings", 1, as_positive)
-    hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
+    gain = Operand("_settings", kernels.BARRIER_GAIN, as_gain)
+    min_value = Operand("_settings", kernels.BARRIER_MIN_VALUE, as_positive)
 
     def __init__(self, frame: str, min_value: float, gain: float = 0.5, rows: Rows = "all",
-                 name: str | None = None) -> None:
+                 joints: Sequence[str] | None = None, name: str | None = None) -> None:
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
         row_selection(rows)
         self.rows = rows
+        self.joints = None if joints is None else tuple(check_joint_names(joints))
         super().__init__(name or f"ManipulabilityBarrier({frame})")
-        self._settings = np.zeros(2)  # (gain, m_min): compiled operand, shared by the controllers using it
+        self._settings = np.zeros(kernels.BARRIER_SETTINGS)  # compiled operand (layout: kernels.BARRIER_*), shared
         self.gain, self.min_value = gain, min_value
 
     def bind(self, robot: Robot) -> ManipulabilityBarrierData:
         return ManipulabilityBarrierData(self, robot)
 
     def __repr__(self) -> str:
+        chain = "" if self.joints is None else f", joints={list(self.joints)!r}"
         return (f"ManipulabilityBarrier(frame={self.frame!r}, min_value={self.min_value}, "
-                f"gain={self.gain}, rows={self.rows!r})")
+                f"gain={self.gain}, rows={self.rows!r}{chain})")
 
 
-class ManipulabilityBarrierData(ConstraintData):
+class ManipulabilityBarrierData(BarrierData):
     """:class:`ManipulabilityBarrier` in one controller: ``m`` of the robot's frame and its
     value at the last tick."""
 
-    n_inequalities = 1
     constraint: ManipulabilityBarrier
 
     def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:
-        super().__init__(barrier)
-        self._manipulability = Manipulability(robot, barrier.frame, barrier.rows)
+        super().__init__(barrier, robot, 1)
+        self._manipulability = Manipulability(robot, barrier.frame, barrier.rows, barrier.joints)
         self._value = np.array([np.nan])  # compiled operand: m at the last tick
 
     @property
@@ -96,11 +104,12 @@ class ManipulabilityBarrierData(ConstraintData):
                     last=selected.stop, nv=kin.model.nv)
         return True
 
-    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        manipulability, barrier = self._manipulability, self.constraint
+    def compute_barrier(self, kin: Kinematics, values: np.ndarray, gradients: np.ndarray) -> None:
+        """``b = m - m_min``, ``grad b = grad m``."""
+        manipulability = self._manipulability
         self._value[0] = manipulability.compute(kin)
-        np.negative(manipulability.gradient, out=rows.G[0])
-        rows.h[0] = barrier.gain * (self.value - barrier.min_value) / dt
+        values[0] = self._value[0] - self.constraint.min_value
+        gradients[0] = manipulability.gradient
 
     def row_labels(self) -> list[str]:
         return [f"m >= {self.constraint.min_value:g}"]

@@ -7,6 +7,7 @@ from numpy.typing import NDArray
 
 from ..core.errors import WbcError
 from ..core.outcome import Outcome
+from .conflicts import find_conflicts
 from .tick_buffers import TickBuffers
 
 _OPTIMAL = Outcome.OPTIMAL
@@ -50,7 +51,12 @@ class TickDiagnostics:
       level's cost, as in the QP, before the damping); ``level_optima`` -- the same at the
       level's own answer, the best it could do below the levels above it (NaN for a level that
       was not solved). ``level_errors[k] - level_optima[k]`` is what the levels below cost level
-      k: zero up to the band (:data:`wbc.control.hierarchy.BAND`) and the backend's tolerance.
+      k: zero up to the band (:data:`wbc.control.hierarchy.BAND`) and the backend's tolerance;
+    * ``conflicts`` -- on a tick that did not succeed, the labels of a set of constraints that
+      cannot hold together (bounds and rows, as in ``active_constraints``; each one takes part,
+      removing any one resolves the conflict: :mod:`wbc.control.conflicts`), e.g.
+      ``["PushJoint: row 0", "JointVelocityLimits: arm_joint_1 upper"]``; ``[]`` when the
+      constraints were compatible (the backend failed for another reason) or the tick succeeded.
     """
 
     tick: int  #: the tick counter (1 at the first step)
@@ -63,7 +69,8 @@ class TickDiagnostics:
     v: NDArray[np.float64] | None  #: the command (set by every step)
     u: NDArray[np.float64] | None  #: the command over the real inputs, ``v = S(q) u`` (``u is v`` for holonomic bases)
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",
-                 "_buffers", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima")
+                 "_buffers", "_task_errors", "_active", "_violation", "_level_errors", "_level_optima",
+                 "_conflicts")
 
     def __init__(self, buffers: TickBuffers, tick: int, solver: str, outcome: Outcome, status: str,
                  solve_time: float, tick_time: float, v: NDArray[np.float64] | None = None,
@@ -77,6 +84,7 @@ class TickDiagnostics:
         self._violation: float | None = None
         self._level_errors: list[float] | None = None
         self._level_optima: list[float] | None = None
+        self._conflicts: list[str] | None = None
 
     def _source(self) -> TickBuffers:
         if self._buffers.tick != self.tick:
@@ -119,9 +127,16 @@ class TickDiagnostics:
             self._level_optima = self._source().level_optima(self.v, self.outcome is not Outcome.ZERO)
         return self._level_optima
 
+    @property
+    def conflicts(self) -> list[str]:
+        if self._conflicts is None:
+            self._conflicts = [] if self.success else find_conflicts(self._source())
+        return self._conflicts
+
     def freeze(self) -> TickDiagnostics:
         """Compute every lazy field now, so the record stays readable after later ticks."""
         _ = self.task_errors, self.max_violation, self.active_constraints, self.level_errors, self.level_optima
+        _ = self.conflicts
         return self
 
     def __repr__(self) -> str:

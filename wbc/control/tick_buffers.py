@@ -92,10 +92,11 @@ class TickBuffers:
         active = np.nonzero(np.concatenate([at_upper, at_lower], 1))
         names = [labels.bound_labels[k][i] for k, i in zip(*active, strict=True)]
         qp = self.qp
+        row_labels = labels.row_labels
         if qp.n_ineq:
             rows = qp.C[: qp.n_ineq] @ v - qp.h
-            names += [labels.row_labels[i] for i in np.flatnonzero(rows >= -ACTIVE_TOLERANCE)]
-        return names + labels.row_labels[qp.n_ineq:]  # equality rows always hold
+            names += [row_labels[i] for i in np.flatnonzero(rows >= -ACTIVE_TOLERANCE)]
+        return names + row_labels[qp.n_ineq:]  # equality rows always hold
 
     def level_errors(self, v: NDArray[np.float64] | None) -> list[float]:
         """``|A_k v - b_k|`` of each level at the command ``v`` (weighted task residuals, as in the cost)."""

@@ -33,6 +33,7 @@ Note: ``wbc.manipulability`` is the function (exported from :mod:`wbc`); import 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
@@ -41,6 +42,7 @@ from scipy.linalg.lapack import dgesvd, dposv
 
 from ..core.errors import InvalidInputError
 from ..runtime import kernels
+from .declared_base import joint_index
 from .kinematics import Kinematics, frame_in_joint
 from .robot import Robot
 
@@ -60,7 +62,10 @@ def row_selection(rows: str) -> slice:
 
 
 class Manipulability:
-    """Manipulability ``m`` and its gradient for one frame and row selection.
+    """Manipulability ``m`` and its gradient for one frame and row selection, of the whole body
+    or of a chain of it (``joints``: the measure of the columns of those joints only, e.g. the
+    arm of a mobile manipulator, whose whole-body measure the base keeps large while the arm
+    folds).
 
     :meth:`compute` reads an already updated :class:`~wbc.model.kinematics.Kinematics`
     (the controller's, on the hot path) and leaves the results in :attr:`value`
@@ -72,22 +77,28 @@ class Manipulability:
     Hessian (:meth:`wbc.model.kinematics.Kinematics.frame_hessian`).
     """
 
-    def __init__(self, robot: Robot, frame: str, rows: Rows = "all") -> None:
+    def __init__(self, robot: Robot, frame: str, rows: Rows = "all", joints: Sequence[str] | None = None) -> None:
         self.frame = frame
         self.rows = rows
         self._rows = row_selection(rows)
         self.frame_id = robot.frame_id(frame)
+        self.joints = None if joints is None else tuple(joints)
+        #: the velocity coordinates of ``joints`` (None: every one)
+        self.columns = None if joints is None else chain_columns(robot, self.frame_id, joints)
         self.value = 0.0  #: m at the last :meth:`compute`
         self.gradient = np.zeros(robot.nv)  #: grad m (size nv) at the last :meth:`compute`, overwritten in place
         # G^T (nv x 6): G on the selected rows, zero elsewhere, stored transposed because
         # that is the memory order Kinematics.contract_frame_hessian contracts without a copy
         self._weights_t = np.zeros((robot.nv, 6))
         self._weighted_t = self._weights_t[:, self._rows]
-        self._wide = (self._rows.stop - self._rows.start) <= robot.nv
+        width = robot.nv if self.columns is None else self.columns.size
+        self._wide = (self._rows.stop - self._rows.start) <= width
+        # G^T on the chain's columns (a chain's measure): scattered into the rows of _weights_t
+        self._chain_t = None if self.columns is None else np.zeros((width, self._rows.stop - self._rows.start))
         model = robot.model
         self._joint_id, self._local, self._support = frame_in_joint(model, self.frame_id)
         chain = list(model.supports[self._joint_id])[1:]
-        self._compiled = all(model.joints[j].nv == 1 for j in chain)
+        self._compiled = self.columns is None and all(model.joints[j].nv == 1 for j in chain)
         self._ancestor = np.zeros((robot.nv, robot.nv))  # 1 where joint of i is a strict ancestor of k's
         for position, joint_id in enumerate(chain):
             k = model.joints[joint_id].idx_v
@@ -124,6 +135,9 @@ class Manipulability:
                 self._rows.start, self._rows.stop, self.gradient)
             return self.value
         jacobian = kin.frame_jacobian(self.frame_id)[self._rows]  # C-contiguous rows
+        if self.columns is not None:
+            jacobian = jacobian[:, self.columns]
+        weighted_t = self._weighted_t if self._chain_t is None else self._chain_t
         wide = self._wide
         gram = jacobian.dot(jacobian.T) if wide else jacobian.T.dot(jacobian)
         size = len(gram)
@@ -136,40 +150,81 @@ class Manipulability:
         if determinant > kernels.GRAM_CONDITION * mean_eigenvalue**size:
             self.value = math.sqrt(determinant)
             # G = m (J J^T)^-1 J  (wide)  or  m J (J^T J)^-1 = m ((J^T J)^-1 J^T)^T  (tall)
-            np.multiply(solution.T if wide else solution, self.value, out=self._weighted_t)
+            np.multiply(solution.T if wide else solution, self.value, out=weighted_t)
         else:
             u, s, vt, info = dgesvd(jacobian, full_matrices=0)  # LAPACK directly: ~2x numpy's wrapper
             if info != 0:
                 u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
             values = s.tolist()
-            np.matmul(vt.T, (u * _products_of_the_others(values)).T, out=self._weighted_t)
+            np.matmul(vt.T, (u * _products_of_the_others(values)).T, out=weighted_t)
             self.value = math.prod(values)
+        if self._chain_t is not None:  # G is zero on the other columns: dm/dq_i = <G, dJ/dq_i> over the chain's
+            self._weighted_t[self.columns] = self._chain_t
         kin.contract_frame_hessian(self.frame_id, self._weights_t, self.gradient)
         return self.value
 
     def __repr__(self) -> str:
-        return f"Manipulability(frame={self.frame!r}, rows={self.rows!r})"
+        chain = "" if self.joints is None else f", joints={list(self.joints)!r}"
+        return f"Manipulability(frame={self.frame!r}, rows={self.rows!r}{chain})"
 
 
-def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> float:
-    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected rows).
+def check_joint_names(joints: Sequence[str]) -> Sequence[str]:
+    """``joints`` if it is a non-empty list of names, else InvalidInputError naming the fix."""
+    if isinstance(joints, str) or not joints or not all(isinstance(joint, str) for joint in joints):
+        raise InvalidInputError(f"joints must be a non-empty list of joint names, got {joints!r}"
+                                + (f"; write joints=[{joints!r}]" if isinstance(joints, str) else ""))
+    return joints
+
+def chain_columns(robot: Robot, frame_id: int, joints: Sequence[str]) -> NDArray[np.intp]:
+    """The velocity coordinates of ``joints`` (every coordinate of each), each a joint that moves
+    the frame (on its path from the root).
+
+    Raises:
+        InvalidInputError: not a non-empty list of names, a joint named twice or one that does not
+            move the frame.
+        ModelError: an unknown joint (with close names).
+    """
+    check_joint_names(joints)
+    model = robot.model
+    support = set(model.supports[model.frames[frame_id].parentJoint])
+    columns: list[int] = []
+    for name in joints:
+        joint_id = joint_index(model, name, "joints", f"manipulability of '{model.frames[frame_id].name}'")
+        if joint_id not in support:
+            raise InvalidInputError(f"joint {name!r} does not move frame '{model.frames[frame_id].name}' (it is not "
+                                    "on the frame's path from the root): its measure would be 0")
+        joint = model.joints[joint_id]
+        columns += range(joint.idx_v, joint.idx_v + joint.nv)
+    if len(set(columns)) != len(columns):
+        raise InvalidInputError(f"a joint is named twice in {list(joints)}")
+    return np.array(columns, dtype=np.intp)
+
+
+def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all",
+                   joints: Sequence[str] | None = None) -> float:
+    """Yoshikawa's measure ``m(q)`` of ``frame`` (product of the singular values of the selected
+    rows; of the columns of ``joints`` only, when given).
 
     Raises:
         UnknownFrameError: no frame of that name.
-        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+        InvalidInputError: a malformed ``q``, an unknown ``rows``, ``joints`` that do not move the frame.
     """
     jacobian = robot.frame_jacobian(q, frame)[row_selection(rows)]
+    if joints is not None:
+        jacobian = jacobian[:, chain_columns(robot, robot.frame_id(frame), joints)]
     return float(np.prod(np.linalg.svd(jacobian, compute_uv=False)))
 
 
-def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all") -> NDArray[np.float64]:
-    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v``.
+def manipulability_gradient(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all",
+                            joints: Sequence[str] | None = None) -> NDArray[np.float64]:
+    """``grad m(q)`` (size nv): ``dm/dt = (grad m)^T v`` along any joint velocity ``v`` (of the
+    chain of ``joints``, when given: see :class:`Manipulability`).
 
     Raises:
         UnknownFrameError: no frame of that name.
-        InvalidInputError: a malformed ``q`` or an unknown ``rows``.
+        InvalidInputError: a malformed ``q``, an unknown ``rows``, ``joints`` that do not move the frame.
     """
-    evaluator = Manipulability(robot, frame, rows)
+    evaluator = Manipulability(robot, frame, rows, joints)
     kin = Kinematics(robot)
     kin.update(robot.check_configuration(q))
     evaluator.compute(kin)
@@ -181,4 +236,5 @@ def _products_of_the_others(s: list[float]) -> NDArray[np.float64]:
     return np.array([math.prod(s[:l]) * math.prod(s[l + 1:]) for l in range(len(s))])
 
 
-__all__ = ["Manipulability", "manipulability", "manipulability_gradient", "row_selection", "ROWS"]
+__all__ = ["Manipulability", "manipulability", "manipulability_gradient", "row_selection", "ROWS", "chain_columns",
+           "check_joint_names"]

@@ -427,7 +427,9 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     model = _build_model(path)
     where = str(path)
     if declared:
-        declaration = BaseDeclaration(base_kind("fixed" if base is None else base), tuple(wheels), wheel_radius,
+        if base is None:  # limits or joints to hold, for the base the model has: planar if it has one
+            base = "planar" if planar_root_joints(model) else "fixed"
+        declaration = BaseDeclaration(base_kind(base), tuple(wheels), wheel_radius,
                                       tuple(lock), tuple(replace), max_linear_speed, max_yaw_rate, max_wheel_speed)
         model, mobile_base = _declared(model, path, declaration, where)
     elif planar_root_joints(model):
@@ -444,6 +446,12 @@ def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where:
         return declare_base(model, urdf, declaration, where)
     if declaration.wheels or declaration.replace:
         raise ModelError(f"{where}: a fixed base has no wheels and replaces nothing; list joints to hold in lock=[...]")
+    speeds = {"max_linear_speed": declaration.max_linear_speed, "max_yaw_rate": declaration.max_yaw_rate,
+              "max_wheel_speed": declaration.max_wheel_speed}
+    given = [key for key, value in speeds.items() if value is not None]
+    if given:
+        raise ModelError(f"{where}: {', '.join(given)} bound a mobile base, and this robot is loaded with a fixed "
+                         "one; declare its base (base='planar' | 'mecanum' | 'differential' | 'synchro')")
     held = sorted(joint_index(model, name, "lock", where) for name in declaration.lock)
     planar = planar_root_joints(model)  # a planar root joint held: the robot stands at the origin
     locked = sorted(set(held + planar))

@@ -58,8 +58,6 @@ class ConstraintLayout:
         n_hard = sum(c.hard for c in bounded)
         self.bounds = BoundPolicy(n_hard, len(bounded) - n_hard, nv)
         self.blocks: list[tuple[ConstraintData, ConstraintRows]] = []
-        inequality_labels: list[str] = []
-        equality_labels: list[str] = []
         soft_rows: list[int] = []
         i_ineq = i_eq = 0
         for constraint in constraints:
@@ -71,19 +69,28 @@ class ConstraintLayout:
             rows = ConstraintRows(lower, upper, qp.G[i_ineq:i_ineq + p], qp.h[i_ineq:i_ineq + p],
                                   qp.A[i_eq:i_eq + e], qp.b[i_eq:i_eq + e])
             self.blocks.append((constraint, rows))
-            labels = [f"{constraint.name}: {label}" for label in constraint.row_labels()]
-            inequality_labels += labels[:p]
-            equality_labels += labels[p:]
             if not constraint.hard:
                 soft_rows += range(i_ineq, i_ineq + p)
             constraint.write_static(rows)
             i_ineq, i_eq = i_ineq + p, i_eq + e
-        self.row_labels = inequality_labels + equality_labels  #: the QP's rows in order
         self.soft_rows = np.array(soft_rows, dtype=int)  #: indices among the inequality rows
         #: labels of every bound slot: (upper of each coordinate, then lower)
         self.bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in velocity_names]
                              for c in bounded] or [[""] * (2 * nv)]
 
+
+    @property
+    def row_labels(self) -> list[str]:
+        """Labels of the QP's rows in order (inequality rows, then equality rows), as the
+        constraints name them now: a constraint whose rows change meaning from tick to tick
+        (collision pairs) names this tick's."""
+        inequality: list[str] = []
+        equality: list[str] = []
+        for constraint, _ in self.blocks:
+            labels = [f"{constraint.name}: {label}" for label in constraint.row_labels()]
+            inequality += labels[:constraint.n_inequalities]
+            equality += labels[constraint.n_inequalities:]
+        return inequality + equality
 
 class LevelRows:
     """The rows of each priority level in a controller's task stack (tasks ordered by level; one

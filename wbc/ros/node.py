@@ -228,7 +228,7 @@ class Node:
         last = self.controller.last
         sent = self.commands.publish(self.q, v)
         status.control_ticks += 1
-        status.fallback_ticks += not last.success
+        status.record_outcome(last.success, lambda: last.conflicts)  # after the command went out
         status.last_status, status.last_solve_time = last.status, last.solve_time
         status.step.add(last.tick_time)
         status.latency.add(time.monotonic() - now)
@@ -249,6 +249,8 @@ class Node:
         values = {"ticks": str(status.ticks), "control_ticks": str(status.control_ticks),
                   "overruns": str(status.overruns), "watchdog_trips": str(status.watchdog_trips),
                   "fallback_ticks": str(status.fallback_ticks), "solver_status": status.last_status,
+                  "conflict_episodes": str(status.conflict_episodes),
+                  "conflicts": ", ".join(status.last_conflicts),
                   "latency_p50_us": f"{status.latency.percentile(50) * us:.1f}",
                   "latency_p99_us": f"{status.latency.percentile(99) * us:.1f}",
                   "dropped_messages": str(self.drops.total), "last_dropped": self.drops.last,
@@ -257,7 +259,8 @@ class Node:
         values |= {f"dropped {key}": str(count) for key, count in self.drops.counts.items()}
         warnings = []
         if status.last_status and status.last_status != "optimal":
-            warnings.append(f"fallback: {status.last_status}")
+            warnings.append(f"fallback: {status.last_status}"
+                            + (f" (conflict: {', '.join(status.last_conflicts)})" if status.last_conflicts else ""))
         if self.drops.total:
             warnings.append(f"{self.drops.total} messages dropped (last: {self.drops.last})")
         if status.overruns:

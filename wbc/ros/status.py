@@ -16,6 +16,7 @@ Latencies are kept for the last :data:`WINDOW` ticks (exact percentiles over the
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -60,6 +61,11 @@ class NodeStatus:
     #: control ticks with no new joint state since the previous one (the robot's state was late: the
     #: command is computed from the state of a tick before)
     repeated_state_ticks: int = 0
+    #: episodes of consecutive fallback ticks, and the constraints in conflict at the latest one's
+    #: first tick (``controller.last.conflicts``; empty when none were found)
+    conflict_episodes: int = 0
+    last_conflicts: list[str] = field(default_factory=list)
+    in_fallback: bool = False  #: the latest control tick was answered by a fallback
     zero_sent: bool = False  #: the latest command written is the zero command of the watchdog
     state: str = "waiting"  #: "waiting" (no state yet), "control", "stale"
     stale_reason: str = ""
@@ -74,6 +80,16 @@ class NodeStatus:
     position_error_squares: float = 0.0
     position_error_max: float = 0.0
 
+    def record_outcome(self, success: bool, conflicts: Callable[[], list[str]]) -> None:
+        """Count a control tick answered by a fallback; at the first of an episode of such ticks,
+        note the constraints in conflict (``conflicts()`` is called then only: it solves small QPs)."""
+        if not success:
+            self.fallback_ticks += 1
+            if not self.in_fallback:
+                self.conflict_episodes += 1
+                self.last_conflicts = conflicts()
+        self.in_fallback = not success
+
     def record_error(self, error: float) -> None:
         self.position_error.add(error)
         self.position_error_squares += error * error
@@ -85,6 +101,7 @@ class NodeStatus:
         summary: dict[str, Any] = {
             "ticks": self.ticks, "control_ticks": self.control_ticks, "overruns": self.overruns,
             "watchdog_trips": self.watchdog_trips, "fallback_ticks": self.fallback_ticks,
+            "conflict_episodes": self.conflict_episodes, "last_conflicts": list(self.last_conflicts),
             "repeated_state_ticks": self.repeated_state_ticks,
             "commands_scaled_into_limits": scaled, "commands_replaced_by_zero": replaced,
             "dropped_messages": sum(drops.values()), "dropped_by_reason": dict(drops),

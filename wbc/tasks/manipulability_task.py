@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -10,7 +11,7 @@ from ..core.errors import InvalidInputError
 from ..core.settings import Setting
 from ..core.validation import as_nonnegative, as_positive
 from ..model.kinematics import Kinematics
-from ..model.manipulability import Manipulability, Rows, row_selection
+from ..model.manipulability import Manipulability, Rows, check_joint_names, row_selection
 from ..model.robot import Robot
 from .error_task import ErrorTask, ErrorTaskData
 
@@ -42,13 +43,15 @@ class ManipulabilityTask(ErrorTask):
         gain: fraction of ``ln(m*/m)`` removed per tick, (0, 1].
         target: ``m*`` > 0 in the units of ``m`` for ``rows``.
         rows: ``"all"``, ``"position"`` or ``"orientation"`` rows of the Jacobian.
+        joints: the measure of these joints' columns only (e.g. the arm of a mobile manipulator:
+            its base keeps the whole-body measure large while the arm folds); None: every joint.
     """
 
     #: settings that may be changed between ticks (validated)
     target = Setting(as_positive)  # m* > 0
 
     def __init__(self, frame: str, cost: float, gain: float = 0.1, *, target: float, rows: Rows = "all",
-                 name: str | None = None) -> None:
+                 joints: Sequence[str] | None = None, name: str | None = None) -> None:
         if not isinstance(frame, str):
             raise InvalidInputError(f"frame must be a frame name, got {frame!r}")
         self.frame = frame
@@ -56,6 +59,7 @@ class ManipulabilityTask(ErrorTask):
         self.cost, self.target = cost, target
         row_selection(rows)
         self.rows = rows
+        self.joints = None if joints is None else tuple(check_joint_names(joints))
 
     @property
     def cost(self) -> float:
@@ -74,8 +78,9 @@ class ManipulabilityTask(ErrorTask):
         return ManipulabilityTaskData(self, robot)
 
     def __repr__(self) -> str:
+        chain = "" if self.joints is None else f", joints={list(self.joints)!r}"
         return (f"ManipulabilityTask(frame={self.frame!r}, cost={self.cost}, gain={self.gain}, "
-                f"target={self.target}, rows={self.rows!r})")
+                f"target={self.target}, rows={self.rows!r}{chain})")
 
 
 class ManipulabilityTaskData(ErrorTaskData):
@@ -86,7 +91,7 @@ class ManipulabilityTaskData(ErrorTaskData):
 
     def __init__(self, task: ManipulabilityTask, robot: Robot) -> None:
         super().__init__(task, robot)
-        self._manipulability = Manipulability(robot, task.frame, task.rows)
+        self._manipulability = Manipulability(robot, task.frame, task.rows, task.joints)
         self.value = float("nan")  #: m at the last tick
         self.error[0] = float("nan")  # ln(m* / m) at the last tick
 

@@ -46,18 +46,18 @@ class PostureTask(Task):
         self._cost_spec = cost
         self._target_spec = target
         self._joint_spec = joints
-        self._settings = np.zeros(1)  # (gain,): compiled operand, shared by the controllers using the task
+        self._settings = np.zeros(kernels.POSTURE_SETTINGS)  # compiled operand (layout: kernels.POSTURE_*), shared
         self.gain = gain
         self._data: weakref.WeakSet[PostureTaskData] = weakref.WeakSet()  # for set_target
 
     @property
     def gain(self) -> float:
         """Fraction of the error removed per tick, in (0, 1]; may be changed between ticks."""
-        return float(self._settings[0])
+        return float(self._settings[kernels.POSTURE_GAIN])
 
     @gain.setter
     def gain(self, value: float) -> None:
-        self._settings[0] = as_gain(value)
+        self._settings[kernels.POSTURE_GAIN] = as_gain(value)
 
     @property
     def target(self) -> ArrayLike | None:

@@ -54,22 +54,22 @@ class SteeringTask(Task):
     """
 
     #: settings that may be changed between ticks (validated; they live in the compiled operand)
-    gain = Operand("_parameters", 1, as_gain)
-    speed_scale = Operand("_parameters", 2, as_positive)
+    gain = Operand("_parameters", kernels.STEERING_GAIN, as_gain)
+    speed_scale = Operand("_parameters", kernels.STEERING_SPEED_SCALE, as_positive)
 
     @property
     def cost(self) -> float:
         """[cost] / [rad/s]^2."""
-        return self._parameters[0] ** 2
+        return self._parameters[kernels.STEERING_WEIGHT] ** 2
 
     @cost.setter
     def cost(self, value: float) -> None:
-        self._parameters[0] = math.sqrt(as_positive(value, "cost"))
+        self._parameters[kernels.STEERING_WEIGHT] = math.sqrt(as_positive(value, "cost"))
 
     def __init__(self, cost: float = 1.0, gain: float = 0.1, speed_scale: float = 0.1,
                  name: str | None = None) -> None:
         super().__init__(name)
-        self._parameters = np.zeros(3)  # kernel operand: (sqrt(cost), gain, speed_scale)
+        self._parameters = np.zeros(kernels.STEERING_SETTINGS)  # kernel operand (layout: kernels.STEERING_*)
         self.cost, self.gain, self.speed_scale = cost, gain, speed_scale
 
     def bind(self, robot: Robot) -> SteeringTaskData:

@@ -70,7 +70,10 @@ FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 24, 25, 26  # gain in (0,
 FRAME_SETTINGS = 27
 #: layout of a frame's placement data (one vector per controller and frame, see frame_in_joint)
 FRAME_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation [m]
-FRAME_DATA = 24  # 12:24 is the kernels' scratch (R* R^T, then the frame origin)
+FRAME_LOCAL_ROTATION = slice(0, 9)  # its rotation part
+FRAME_RELATIVE = slice(12, 21)  # kernels' scratch: R* R^T (row-major)
+FRAME_ORIGIN = slice(21, 24)  # kernels' scratch: the frame origin in the world [m]
+FRAME_DATA = 24
 
 #: layout of the PositionTask settings vector (owned by the task, shared by its controllers)
 POSITION_TARGET = slice(0, 3)  # p* [m]
@@ -78,6 +81,18 @@ POSITION_WEIGHTS = slice(3, 6)  # W = sqrt(cost)
 POSITION_FEEDFORWARD = slice(6, 9)  # pdot* [m/s]
 POSITION_GAIN, POSITION_MAX_SPEED = 9, 10  # gain in (0, 1], [m/s]
 POSITION_SETTINGS = 11
+#: layout of the PostureTask settings vector
+POSTURE_GAIN = 0  # gain in (0, 1]
+POSTURE_SETTINGS = 1
+#: layout of the SteeringTask settings vector
+STEERING_WEIGHT, STEERING_GAIN, STEERING_SPEED_SCALE = 0, 1, 2  # sqrt(cost), gain in (0, 1], [m/s]
+STEERING_SETTINGS = 3
+
+# ------------------------------------------------------------ constraints
+
+#: layout of the ManipulabilityBarrier settings vector
+BARRIER_GAIN, BARRIER_MIN_VALUE = 0, 1  # gain in (0, 1], m_min > 0
+BARRIER_SETTINGS = 2
 
 # ---------------------------------------------------------- manipulability
 

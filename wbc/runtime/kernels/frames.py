@@ -14,12 +14,28 @@ from numba import njit
 
 from . import (
     FRAME_DATA,
+    FRAME_FEEDFORWARD,
+    FRAME_GAIN,
+    FRAME_LOCAL,
+    FRAME_LOCAL_ROTATION,
+    FRAME_MAX_ANGULAR_SPEED,
+    FRAME_MAX_SPEED,
+    FRAME_ORIGIN,
+    FRAME_RELATIVE,
     FRAME_SETTINGS,
+    FRAME_TARGET_POSITION,
+    FRAME_TARGET_ROTATION,
+    FRAME_WEIGHTS,
     POSE_LAST_ROW,
     POSE_NOT_FINITE,
     POSE_NOT_ROTATION,
     POSE_OK,
+    POSITION_FEEDFORWARD,
+    POSITION_GAIN,
+    POSITION_MAX_SPEED,
     POSITION_SETTINGS,
+    POSITION_TARGET,
+    POSITION_WEIGHTS,
     prepare_cache,
 )
 from .ops import STACK, Op
@@ -134,12 +150,14 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
     defect = pose_defect(pose, tolerance)
     if defect != POSE_OK:
         return defect
+    rotation, position, feedforward = settings[FRAME_TARGET_ROTATION], settings[FRAME_TARGET_POSITION], \
+        settings[FRAME_FEEDFORWARD]
     for a in range(3):
         for b in range(3):
-            settings[3 * a + b] = pose[a, b]
-        settings[9 + a] = pose[a, 3]
+            rotation[3 * a + b] = pose[a, b]
+        position[a] = pose[a, 3]
     for a in range(6):
-        settings[18 + a] = twist[a] if len(twist) == 6 else 0.0
+        feedforward[a] = twist[a] if len(twist) == 6 else 0.0
     return defect
 
 
@@ -157,12 +175,13 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
     ``W xi*`` (with this tick's W) into ``weighted_feedforward`` (layouts: the ``FRAME_*``
     settings and the frame data of this module).
     """
-    Rt, pt = settings[0:9], settings[9:12]
-    weights, feedforward = settings[12:18], settings[18:24]
-    gain, max_speed, max_angular_speed = settings[24] / dt, settings[25], settings[26]
-    Rf, relative, origin = frame[0:9], frame[12:21], frame[21:24]
+    Rt, pt = settings[FRAME_TARGET_ROTATION], settings[FRAME_TARGET_POSITION]
+    weights, feedforward = settings[FRAME_WEIGHTS], settings[FRAME_FEEDFORWARD]
+    gain = settings[FRAME_GAIN] / dt
+    max_speed, max_angular_speed = settings[FRAME_MAX_SPEED], settings[FRAME_MAX_ANGULAR_SPEED]
+    Rf, relative, origin = frame[FRAME_LOCAL_ROTATION], frame[FRAME_RELATIVE], frame[FRAME_ORIGIN]
     Ri = joint_rotation
-    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[0:12], support, jacobian, origin)
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[FRAME_LOCAL], support, jacobian, origin)
     for a in range(6):
         for k in range(jacobian.shape[1]):
             jacobian[a, k] *= weights[a]
@@ -195,14 +214,14 @@ def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, 
     """Rows of :class:`~wbc.PositionTask`: ``error = p* - p``, ``jacobian = W J_lin``,
     ``target = W (sat(gain/dt * error) + pdot*)``, and its feed-forward part ``W pdot*`` into
     ``weighted_feedforward`` (layouts: ``POSITION_*`` settings, frame data)."""
-    origin = frame[21:24]
-    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[0:12], support,
+    origin = frame[FRAME_ORIGIN]
+    frame_jacobian(joint_jacobians, joint_rotation, joint_translation, frame[FRAME_LOCAL], support,
                    frame_jacobian_scratch, origin)
-    weights, feedforward = settings[3:6], settings[6:9]
-    gain, max_speed = settings[9] / dt, settings[10]
+    goal, weights, feedforward = settings[POSITION_TARGET], settings[POSITION_WEIGHTS], settings[POSITION_FEEDFORWARD]
+    gain, max_speed = settings[POSITION_GAIN] / dt, settings[POSITION_MAX_SPEED]
     norm = 0.0
     for a in range(3):
-        error[a] = settings[a] - origin[a]
+        error[a] = goal[a] - origin[a]
         norm += error[a] * error[a]
     norm = math.sqrt(norm) * gain
     scale = gain if norm <= max_speed else max_speed / norm * gain

@@ -8,7 +8,15 @@ import math
 import numpy as np
 from numba import njit
 
-from . import prepare_cache
+from . import (
+    POSTURE_GAIN,
+    POSTURE_SETTINGS,
+    STEERING_GAIN,
+    STEERING_SETTINGS,
+    STEERING_SPEED_SCALE,
+    STEERING_WEIGHT,
+    prepare_cache,
+)
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -21,8 +29,8 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, dt: float,
                  error: np.ndarray, target: np.ndarray) -> None:
     """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
-    (``settings = (gain,)``)."""
-    scale = settings[0] / dt
+    (settings layout: ``POSTURE_*``)."""
+    scale = settings[POSTURE_GAIN] / dt
     for i in range(len(q)):
         error[i] = reference[i] - q[i]
         target[i] = weights[i] * scale * error[i]
@@ -34,19 +42,19 @@ def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: in
                  dt: float, error: np.ndarray, jacobian: np.ndarray, target: np.ndarray) -> None:
     """Row of :class:`~wbc.SteeringTask` from the holonomic ``preview`` velocity:
     ``delta = wrap_[-pi/2, pi/2)(atan2(ydot, xdot) - heading)``, weight
-    ``sqrt(cost) min(1, speed / speed_scale)``; ``parameters = (sqrt(cost), gain, speed_scale)``."""
+    ``sqrt(cost) min(1, speed / speed_scale)``; ``parameters``: layout ``STEERING_*``."""
     xdot, ydot = preview[x], preview[y]
     speed = math.sqrt(xdot * xdot + ydot * ydot)
     delta = 0.0
     if speed > 0.0:
         delta = math.atan2(ydot, xdot) - q[heading]
         delta = (delta + math.pi / 2) % math.pi - math.pi / 2  # drive forward or backward
-    weight = parameters[0] * min(1.0, speed / parameters[2])
+    weight = parameters[STEERING_WEIGHT] * min(1.0, speed / parameters[STEERING_SPEED_SCALE])
     error[0] = delta
     for k in range(len(jacobian)):
         jacobian[k] = 0.0
     jacobian[heading] = weight
-    target[0] = weight * parameters[1] * delta / dt
+    target[0] = weight * parameters[STEERING_GAIN] * delta / dt
 
 
 # ------------------------------------------------------------- constraints
@@ -88,8 +96,8 @@ def _posture(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings
 
 #: PostureTask's targets into columns start:start + dim of the stack (its W J is static)
 POSTURE = Op("POSTURE", _posture, (
-    ("q", ("dim",)), ("reference", ("dim",)), ("weights", ("dim",)), ("settings", (1,)), ("error", ("dim",)),
-    STACK, ("start", None), ("dim", None), ("nv", None), ("rows", None)),
+    ("q", ("dim",)), ("reference", ("dim",)), ("weights", ("dim",)), ("settings", (POSTURE_SETTINGS,)),
+    ("error", ("dim",)), STACK, ("start", None), ("dim", None), ("nv", None), ("rows", None)),
     checks=("0 <= start", "start + dim <= rows"))
 
 
@@ -101,8 +109,9 @@ def _steering(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, 
 
 #: SteeringTask's row into column start of the stack, from the holonomic preview
 STEERING = Op("STEERING", _steering, (
-    ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None), ("settings", (3,)),
-    ("error", (1,)), STACK, ("start", None), ("nv", None), ("rows", None), ("nq", None)),
+    ("preview", ("nv",)), ("q", ("nq",)), ("x", None), ("y", None), ("heading", None),
+    ("settings", (STEERING_SETTINGS,)), ("error", (1,)), STACK, ("start", None), ("nv", None), ("rows", None),
+    ("nq", None)),
     checks=("0 <= start", "start < rows", "0 <= x < nv", "0 <= y < nv", "0 <= heading < nq"))
 
 

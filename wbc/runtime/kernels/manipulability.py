@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from . import GRAM_CONDITION, prepare_cache
+from . import BARRIER_GAIN, BARRIER_MIN_VALUE, BARRIER_SETTINGS, GRAM_CONDITION, prepare_cache
 from .frames import frame_jacobian
 from .ops import Op
 
@@ -232,14 +232,14 @@ def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_t
                 origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, settings: np.ndarray,
                 value: np.ndarray, first_row: int, last_row: int, dt: float) -> None:
     """Row of :class:`~wbc.ManipulabilityBarrier`: ``-grad m . v <= gain (m - m_min) / dt``;
-    ``settings = (gain, m_min)``, ``m`` written to ``value[0]``."""
+    settings layout ``BARRIER_*``, ``m`` written to ``value[0]``."""
     frame_jacobian(joint_jacobians, joint_rotation, joint_translation, local, support, jacobian, origin)
     m = manipulability_gradient(joint_jacobians, jacobian, origin, support, ancestor, first_row, last_row,
                                 gradient)
     value[0] = m
     for i in range(len(gradient)):
         G[i] = -gradient[i]
-    h[0] = settings[0] * (m - settings[1]) / dt
+    h[0] = settings[BARRIER_GAIN] * (m - settings[BARRIER_MIN_VALUE]) / dt
 
 
 # ------------------------------------------------------- tick-program ops
@@ -259,5 +259,5 @@ def _manipulability_barrier(joint_jacobians_t: np.ndarray, rotation_t: np.ndarra
 MANIPULABILITY_BARRIER = Op("MANIPULABILITY_BARRIER", _manipulability_barrier, (
     ("joint_jacobians_t", ("nv", 6)), ("rotation_t", (3, 3)), ("translation", (3,)), ("local", (12,)),
     ("support", ("nv",)), ("ancestor", ("nv", "nv")), ("jacobian", (6, "nv")), ("origin", (3,)),
-    ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (2,)), ("value", (1,)),
+    ("gradient", ("nv",)), ("G", ("nv",)), ("h", (1,)), ("settings", (BARRIER_SETTINGS,)), ("value", (1,)),
     ("first", None), ("last", None), ("nv", None)), checks=("0 <= first < last <= 6",))
