@@ -125,6 +125,8 @@ CASES = [
     Case("ManipulabilityBarrier", "youbot",
          lambda robot, q: wbc.ManipulabilityBarrier("ee", 0.5 * wbc.manipulability(robot, q, "ee"), gain=0.4), 0.4),
     Case("CollisionAvoidance", "youbot", _sphere_near_the_gripper, 0.4),
+    Case("AccelerationLimits", "youbot", lambda robot, q: wbc.AccelerationLimits(max_jerk=50.0), None,
+         "bounds around the previous command: tests/test_acceleration_limits.py"),
     Case("CoMTask", "youbot", _com_task, 0.4),
     Case("SupportPolygon", "youbot", _support_polygon, 0.4),
     Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,

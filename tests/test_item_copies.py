@@ -118,6 +118,7 @@ class Example:
 
 
 Q_LIMIT = _near_limit(YOUBOT, Q_YOUBOT, 5, 0.01)
+Q_AT_LIMIT = np.where(np.arange(8) == 5, YOUBOT.upper, Q_YOUBOT)  # arm_joint_3 on its upper limit
 #: the youBot's arm stretched toward its singular upright pose, where m is small
 Q_STRETCHED = np.array([0.1, -0.2, 0.3, 0.2, 0.05, 0.05, 0.05, 0.1])
 
@@ -227,6 +228,10 @@ EXAMPLES: dict[type, Example] = {
         "min_distance": lambda c: setattr(c, "min_distance", 0.04),
         "detection_distance": lambda c: setattr(c, "detection_distance", 0.05),  # the ball's pair (0.054 m) leaves
     }, stack=lambda: [_toward_ball(), wbc.PostureTask(1e-2)]),
+    # arm_joint_3 on its limit: the braking bound stops it; the other joints' demand is inside one tick's
+    # acceleration (0.02 < pi * 0.01 rad/s), so the command is the same every tick at this q
+    wbc.AccelerationLimits: Example(YOUBOT, Q_AT_LIMIT, wbc.AccelerationLimits, {},
+                                    stack=lambda: [wbc.PostureTask(1.0, target=Q_AT_LIMIT + 0.002, gain=0.1)]),
     wbc.CoMTask: Example(YOUBOT, Q_YOUBOT, _com_task, {
         "cost": lambda t: setattr(t, "cost", [0.1, 2.0, 1.0]),
         "gain": lambda t: setattr(t, "gain", 0.05),

@@ -214,14 +214,16 @@ def test_constraint_rows_hold_in_closed_loop(case: Case):
         limits.append(wbc.NonholonomicBase())  # its synchro base needs the no-slip row
     controller = wbc.Controller(robot, _pushing_tasks(case, robot, item, q), [item, *limits], dt=DT)
     reference = item.bind(robot)  # another data of the item: its rows written out in Python
+    if hasattr(reference, "use_context"):  # it reads the previous command (wbc.model.tick_context)
+        reference.use_context(controller.context)
     binding = 0
     for _ in range(300):
+        rows = constraint_rows(reference, robot, q)  # before the step, whose context holds the previous command
         v = controller.step(q)
         if not (reference.hard or controller.last.success):
             # a fallback's command keeps the hard limits; soft rows may yield (wbc.Controller)
             q = robot.integrate(q, v, DT)
             continue
-        rows = constraint_rows(reference, robot, q)
         tolerance = 1e-7 * (1 + np.abs(v).max())
         assert np.all(rows.lower - tolerance <= v) and np.all(v <= rows.upper + tolerance)
         assert np.all(rows.G @ v <= rows.h + tolerance)

@@ -11,6 +11,7 @@ Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wb
 
 from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
+    AccelerationLimits,
     Constraint,
     DofFreezing,
     JointPositionLimits,
@@ -62,7 +63,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing", "AccelerationLimits",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",

@@ -1,5 +1,6 @@
 """Constraints: hard limits of the control QP."""
 
+from .acceleration_limits import AccelerationLimits
 from .constraint import Constraint, ConstraintRows
 from .dof_freezing import DofFreezing
 from .joint_position_limits import JointPositionLimits
@@ -9,6 +10,6 @@ from .nonholonomic_base import NonholonomicBase
 from .support_polygon import SupportPolygon
 from .wheel_speed_limits import MecanumWheelLimits, WheelSpeedLimits
 
-__all__ = ["Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier",
-           "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon",
+__all__ = ["AccelerationLimits", "Constraint", "ConstraintRows", "JointPositionLimits", "JointVelocityLimits",
+           "ManipulabilityBarrier", "MecanumWheelLimits", "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon",
            "DofFreezing"]

@@ -512,6 +512,15 @@ class UnicycleBaseTable(MobileBaseTable):
     wheels: DifferentialWheelsTable | None = None
 
 
+class AccelerationTable(Table):
+    """``[acceleration]``: the defaults of :class:`wbc.AccelerationLimits` (cite the source of each number)."""
+
+    joints: dict[str, Positive] = {}  # per joint name [rad/s^2 or m/s^2]
+    base_linear: Positive | None = None  # |a_x|, |a_y| of the platform in the base frame [m/s^2]
+    base_yaw: Positive | None = None  # yaw acceleration [rad/s^2]
+    wheels: Positive | None = None  # wheel acceleration |du_i/dt| [rad/s^2]
+
+
 class Sidecar(Table):
     """``<name>.toml`` next to a URDF (see models/youbot/youbot.toml)."""
 
@@ -522,6 +531,7 @@ class Sidecar(Table):
     base: Annotated[FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
                     Field(discriminator="kind")] = FixedBaseTable(kind="fixed")
     geometry: dict[str, float] = {}
+    acceleration: AccelerationTable | None = None
 
 
 def _read_sidecar(path: Path) -> tuple[Sidecar, dict[str, Any]]:

@@ -1,0 +1,361 @@
+"""Acceleration and jerk limits: a bound on the change of the command per tick (issue 24 §6, §7).
+
+Each *channel* -- a velocity coordinate (arm joint, base yaw), the platform's base-frame
+velocity ``(v_x, v_y)``, and each wheel speed ``u_i`` of a wheeled base -- gets::
+
+    |w - w_prev| <= a dt                               (acceleration)
+    |(w - w_prev) - (w_prev - w_prev2)| <= j dt^2      (jerk, when max_jerk is given)
+
+where ``w`` is the channel's value of this tick's command and ``w_prev``, ``w_prev2`` those of the
+measured velocity (``step(q, v_measured=...)``) or, without one, of the previous commands; the
+controller starts from rest (``w_prev = w_prev2 = 0`` before the first tick). Joints are bounds on
+``v``; the base-frame velocity and the wheel speeds are rows turning with the heading
+(:class:`~wbc.constraints.heading_rows.HeadingRows`, the rows of :class:`~wbc.JointVelocityLimits`
+and :class:`~wbc.WheelSpeedLimits`), so they carry over to the reduced nonholonomic form.
+
+**Viability** (Del Prete et al. 2018, "Joint position and velocity bounds in discrete-time
+acceleration/torque control of robot manipulators", IEEE RA-L 3(1)). A joint with position limits
+is also bounded by the largest speed from which braking at ``a`` stops it before its limit. With
+``q+ = q + v dt`` and the braking commands ``v, v - a dt, v - 2 a dt, ...``, the distance covered
+is ``D(v) = dt sum_{k=0}^{m} (v - k a dt)`` with ``m = floor(v / (a dt))``; ``D`` is increasing and
+piecewise quadratic, and its inverse is exact::
+
+    delta = d / (a dt^2),  m = floor((sqrt(8 delta + 1) - 1) / 2),  v_max(d) = a dt (delta / (m + 1) + m / 2)
+
+(``~ sqrt(2 a d)`` far from the limit, 0 on it). Since ``D(v - a dt) = D(v) - v dt`` the bound is
+invariant: a command that respected it leaves a braking command that respects it at the next tick,
+so position limits are never overshot and braking never empties the acceleration box.
+
+**Precedence** (docs/acceleration.md). The constraint is *hard*: the position damper
+(:class:`~wbc.JointPositionLimits`, soft) is clipped into it. Among its own bounds: the model's speed
+limits win (the reference velocity is taken into them first -- the base twist scaled as a whole into
+the base and wheel speed limits, so that a command equal to it meets every row -- and the box is
+intersected with them); then the acceleration box (from a state that cannot stop in time -- a
+measured velocity, a start outside the limits -- the joint brakes at ``a``, no harder); then
+viability; then the jerk bound (braking for a position or speed limit may exceed ``max_jerk``, which
+bounds the joint coordinates only).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..core.errors import InvalidInputError
+from ..model.kinematics import Kinematics
+from ..model.robot import AccelerationTable, Robot
+from ..model.tick_context import TickContext
+from .constraint import Constraint, ConstraintData, ConstraintRows
+from .heading_rows import HeadingRows
+
+
+def _as_limit(value: ArrayLike | None, name: str) -> NDArray[np.float64] | None:
+    """A scalar or per-coordinate limit: > 0 (inf: no limit), no NaN."""
+    if value is None:
+        return None
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be a number or a vector of numbers, got {value!r}") from None
+    if array.ndim > 1 or array.size == 0:
+        raise InvalidInputError(f"{name} must be a scalar or a vector (one entry per velocity coordinate), "
+                                f"got shape {array.shape}")
+    if np.any(np.isnan(array)) or np.any(array <= 0.0):
+        raise InvalidInputError(f"{name} must be > 0 (inf: no limit), got {value!r}")
+    return array
+
+
+def braking_speed(distance: NDArray[np.float64], a_max: NDArray[np.float64], dt: float,
+                  out: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The largest speed toward a limit ``distance`` away from which braking at ``a_max`` per tick
+    stops short of it (the exact inverse of the braking distance, see the module docstring); for a
+    negative distance (beyond the limit) ``distance / dt``, the speed that lands on it in one tick."""
+    step = a_max * dt
+    for i in range(distance.size):
+        d = distance[i]
+        if d < 0.0:
+            out[i] = d / dt
+            continue
+        delta = d / (step[i] * dt)
+        m = math.floor((math.sqrt(8.0 * delta + 1.0) - 1.0) / 2.0)
+        out[i] = step[i] * (delta / (m + 1) + 0.5 * m)
+    return out
+
+
+class AccelerationLimits(Constraint):
+    """Bound the change of the command per tick: ``|v - v_prev| <= max_acceleration dt`` for each
+    velocity coordinate, the platform's acceleration in the base frame and the wheel accelerations
+    of a wheeled base; optionally the change of that change (``max_jerk``); with the viability bound
+    that keeps the joints inside their position limits (module docstring).
+
+    Args:
+        max_acceleration: [rad/s^2, m/s^2] a scalar or one entry per velocity coordinate (for a mobile
+            base the x, y entries bound the base-frame ``a_x, a_y``); ``inf``: unbounded. Default:
+            the model's sidecar ``[acceleration]`` table.
+        max_jerk: [rad/s^3, m/s^3] the same shape; default None: no jerk bound.
+        max_wheel_acceleration: [rad/s^2] of each wheel; default: the sidecar's
+            ``[acceleration] wheels`` (no wheel rows when the model declares none).
+    """
+
+    hard = True
+
+    def __init__(self, max_acceleration: ArrayLike | None = None, max_jerk: ArrayLike | None = None, *,
+                 max_wheel_acceleration: float | None = None, name: str | None = None) -> None:
+        super().__init__(name)
+        self._max_acceleration = _as_limit(max_acceleration, "max_acceleration")
+        self._max_jerk = _as_limit(max_jerk, "max_jerk")
+        wheel = _as_limit(max_wheel_acceleration, "max_wheel_acceleration")
+        if wheel is not None and wheel.ndim:
+            raise InvalidInputError("max_wheel_acceleration must be one number (every wheel), "
+                                    f"got {max_wheel_acceleration!r}")
+        self._max_wheel_acceleration = None if wheel is None else float(wheel)
+
+    def bind(self, robot: Robot) -> AccelerationLimitsData:
+        return AccelerationLimitsData(self, robot)
+
+    def __repr__(self) -> str:
+        return (f"AccelerationLimits(max_acceleration={self._max_acceleration}, max_jerk={self._max_jerk}, "
+                f"max_wheel_acceleration={self._max_wheel_acceleration})")
+
+
+def _per_coordinate(limit: NDArray[np.float64], robot: Robot, name: str) -> NDArray[np.float64]:
+    if limit.ndim == 0:
+        return np.full(robot.nv, float(limit))
+    if limit.size != robot.nv:
+        raise InvalidInputError(f"{name} has {limit.size} entries; robot '{robot.name}' has {robot.nv} velocity "
+                                f"coordinates ({', '.join(robot.joint_names)}): give one number or {robot.nv}")
+    return limit.copy()
+
+
+def _declared(robot: Robot) -> AccelerationTable:
+    table = robot.parameters.get("acceleration")
+    if table is None:
+        raise InvalidInputError(f"AccelerationLimits: robot '{robot.name}' declares no acceleration limits "
+                                "(sidecar [acceleration] table): pass max_acceleration=...")
+    return AccelerationTable.model_validate(table)
+
+
+def _declared_acceleration(robot: Robot) -> NDArray[np.float64]:
+    """The sidecar's ``[acceleration]`` limits per velocity coordinate."""
+    table = _declared(robot)
+    limit = np.full(robot.nv, np.nan)
+    for joint, value in table.joints.items():
+        if joint not in robot.joint_names:
+            raise InvalidInputError(f"[acceleration] joints: {joint!r} is not a joint of '{robot.name}'")
+        joint_model = robot.model.joints[robot.model.getJointId(joint)]
+        limit[joint_model.idx_v:joint_model.idx_v + joint_model.nv] = value
+    if robot.base.is_mobile:
+        x, y, yaw = robot.base.indices
+        limit[[x, y]] = np.nan if table.base_linear is None else table.base_linear
+        limit[yaw] = np.nan if table.base_yaw is None else table.base_yaw
+    missing = [robot.joint_names[i] if robot.nv == len(robot.joint_names) else str(i)
+               for i in np.flatnonzero(np.isnan(limit))]
+    if missing:
+        raise InvalidInputError(f"AccelerationLimits: robot '{robot.name}' declares no acceleration limit for "
+                                f"{', '.join(missing)} (sidecar [acceleration]): pass max_acceleration=...")
+    return limit
+
+
+class AccelerationLimitsData(ConstraintData):
+    """:class:`AccelerationLimits` in one controller: the resolved limits, the channels' history
+    (``w_prev``, ``w_prev2``) and the viability indices, all preallocated."""
+
+    has_bounds = True
+
+    def __init__(self, limits: AccelerationLimits, robot: Robot) -> None:
+        super().__init__(limits)
+        nv, base = robot.nv, robot.base
+        given = limits._max_acceleration
+        accel = _declared_acceleration(robot) if given is None else _per_coordinate(given, robot, "max_acceleration")
+        jerk = (np.full(nv, np.inf) if limits._max_jerk is None
+                else _per_coordinate(limits._max_jerk, robot, "max_jerk"))
+        speed = robot.velocity_limit
+        self._joints = np.arange(nv)
+        self._base_rows = base.is_mobile and bool(np.isfinite(accel[list(base.indices[:2])]).any())
+        if base.is_mobile:
+            self._x, self._y, self._yaw = base.indices
+            self._joints = np.setdiff1d(self._joints, [self._x, self._y])  # the base-frame rows bound them
+        wheel_accel = limits._max_wheel_acceleration
+        if wheel_accel is None and base.wheels is not None and "acceleration" in robot.parameters:
+            wheel_accel = _declared(robot).wheels
+        wheels = base.wheels if wheel_accel is not None else None
+        self._H0 = np.zeros((0, 3)) if wheels is None else wheels.inverse_matrix()  # no rows without a limit
+        n_joints = len(self._joints)
+        n_wheels = self._H0.shape[0]
+        self.n_wheels = n_wheels
+        self.n_inequalities = (4 if self._base_rows else 0) + 2 * n_wheels
+        # channels: joints, then (v_x, v_y) of the base if it has rows, then the wheels
+        base_channels = 2 if (self._base_rows or n_wheels) else 0
+        n = n_joints + base_channels + n_wheels
+        self._n_joints, self._n_base = n_joints, base_channels
+        self._accel, self._jerk, self._speed = np.empty(n), np.full(n, np.inf), np.full(n, np.inf)
+        self._accel[:n_joints], self._jerk[:n_joints] = accel[self._joints], jerk[self._joints]
+        self._speed[:n_joints] = speed[self._joints]
+        if base_channels:
+            self._accel[n_joints:n_joints + 2] = accel[[self._x, self._y]]
+            self._speed[n_joints:n_joints + 2] = speed[[self._x, self._y]]
+        if n_wheels:
+            self._accel[n_joints + 2:] = wheel_accel
+            assert wheels is not None
+            self._speed[n_joints + 2:] = wheels.max_speed
+        self._neg_speed = -self._speed
+        self._prev, self._prev2 = np.zeros(n), np.zeros(n)  # w_prev, w_prev2: from rest
+        self._lower, self._upper = np.empty(n), np.empty(n)
+        self._jerk_lower, self._jerk_upper = np.empty(n), np.empty(n)
+        self._jerk_step, self._center = np.empty(n), np.empty(n)
+        self._twist = np.zeros(3)  # (v_x, v_y, omega) of the reference velocity
+        if base.is_mobile:
+            self._twist_speed = speed[[self._x, self._y, self._yaw]].copy()
+            self._yaw_channel = int(np.flatnonzero(self._joints == self._yaw)[0])
+            self._wheel_speed = np.inf if base.wheels is None else base.wheels.max_speed
+        self._zero = np.zeros(nv)
+        self._seen: object = None  # the context's previous command at the last compute (one shift per tick)
+        self._started = False  # computed once already
+        self._heading = 0.0  # the heading at the last compute: the previous command's heading
+        self._viability_channels(robot)
+        if self._base_rows or n_wheels:
+            cos_part = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
+            sin_part = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
+            if not self._base_rows:
+                cos_part, sin_part = cos_part[:0], sin_part[:0]
+            if n_wheels:
+                forward = self._H0[:, :2]
+                turned = forward @ np.array([[0.0, 1.0], [-1.0, 0.0]])
+                cos_part = np.vstack([cos_part, forward, -forward])
+                sin_part = np.vstack([sin_part, turned, -turned])
+            self._heading_rows = HeadingRows(cos_part, sin_part, self._yaw, self._x, self._y)
+
+    def _viability_channels(self, robot: Robot) -> None:
+        """The joint channels with finite position limits and acceleration (1-DOF joints)."""
+        channel, q_index, lower, upper = [], [], [], []
+        position = {joint.idx_v: joint.idx_q for joint in robot.model.joints[1:] if joint.nq == 1 and joint.nv == 1}
+        for k, v_index in enumerate(self._joints):
+            i = position.get(int(v_index))
+            if i is not None and np.isfinite(self._accel[k]) and (np.isfinite(robot.lower[i])
+                                                                  or np.isfinite(robot.upper[i])):
+                channel.append(k)
+                q_index.append(i)
+                lower.append(robot.lower[i])
+                upper.append(robot.upper[i])
+        self._viable = np.array(channel, dtype=int)
+        self._viable_q = np.array(q_index, dtype=int)
+        self._position_lower, self._position_upper = np.array(lower), np.array(upper)
+        k = len(channel)
+        self._distance, self._braking, self._q = np.empty(k), np.empty(k), np.empty(k)
+        self._viable_accel = self._accel[self._viable].copy()
+
+    def use_context(self, context: TickContext) -> None:
+        self.context = context
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        if self.n_inequalities:
+            n, offset = self.n_wheels, 4 if self._base_rows else 0
+            if n:
+                rows.G[offset:offset + n, self._yaw] = self._H0[:, 2]
+                rows.G[offset + n:, self._yaw] = -self._H0[:, 2]
+
+    def _shift_history(self, q: NDArray[np.float64]) -> None:
+        """``w_prev2 <- w_prev``, ``w_prev <-`` the channels of the reference velocity (the measured
+        one, else the previous command, else rest), clipped into the speed limits."""
+        context = self.context
+        previous, measured = context.previous, context.measured
+        if previous is not self._seen:  # a new tick (the context holds a new array each tick)
+            self._prev2[:] = self._prev
+            self._seen = previous
+        if measured is not None:
+            v, heading = measured, q[self._yaw] if self._n_base else 0.0
+        elif previous is not None:
+            v, heading = previous, self._heading
+        else:
+            v, heading = self._zero, 0.0
+        prev, n_joints = self._prev, self._n_joints
+        np.take(v, self._joints, out=prev[:n_joints])
+        if self._n_base:
+            self._base_reference(v, heading, prev)
+            self._heading = q[self._yaw]
+        np.clip(prev, -self._speed, self._speed, out=prev)
+        if not self._started:
+            self._started = True
+            if previous is not None:  # a copy or pickle of a running controller: no earlier command known,
+                self._prev2[:] = prev  # take the last acceleration as zero (not as a jump from rest)
+
+    def _base_reference(self, v: NDArray[np.float64], heading: float, prev: NDArray[np.float64]) -> None:
+        """The base channels' reference: the twist ``(v_x, v_y, omega)`` of ``v`` at ``heading``,
+        scaled as a whole into the base and wheel speed limits (so that it satisfies all of them
+        at once: a command equal to it meets every box and every speed row), and its wheel speeds."""
+        c, s = math.cos(heading), math.sin(heading)
+        twist, n_joints = self._twist, self._n_joints
+        twist[0], twist[1], twist[2] = c * v[self._x] + s * v[self._y], -s * v[self._x] + c * v[self._y], v[self._yaw]
+        scale = 1.0
+        for k in range(3):
+            if abs(twist[k]) > self._twist_speed[k]:
+                scale = min(scale, self._twist_speed[k] / abs(twist[k]))
+        wheels = prev[n_joints + 2:]
+        if self.n_wheels:
+            np.matmul(self._H0, twist, out=wheels)
+            fastest = np.abs(wheels).max()
+            if fastest > self._wheel_speed:
+                scale = min(scale, self._wheel_speed / fastest)
+        if scale < 1.0:
+            twist *= scale
+            wheels *= scale
+        prev[n_joints:n_joints + 2] = twist[:2]
+        prev[self._yaw_channel] = twist[2]
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        self._shift_history(kin.q)
+        lower, upper, prev = self._lower, self._upper, self._prev
+        # the acceleration box
+        np.multiply(self._accel, dt, out=upper)
+        np.subtract(prev, upper, out=lower)
+        np.add(prev, upper, out=upper)
+        np.maximum(lower, self._neg_speed, out=lower)  # meets the speed limits: prev is inside them
+        np.minimum(upper, self._speed, out=upper)
+        # viability, clipped into the box
+        if self._viable.size:
+            np.take(kin.q, self._viable_q, out=self._q)
+            channels, distance, braking = self._viable, self._distance, self._braking
+            np.subtract(self._position_upper, self._q, out=distance)
+            braking_speed(distance, self._viable_accel, dt, braking)
+            upper[channels] = np.minimum(upper[channels], np.maximum(braking, lower[channels]))
+            np.subtract(self._q, self._position_lower, out=distance)
+            braking_speed(distance, self._viable_accel, dt, braking)
+            np.negative(braking, out=braking)
+            lower[channels] = np.maximum(lower[channels], np.minimum(braking, upper[channels]))
+        # the jerk box 2 w_prev - w_prev2 +- j dt^2, clipped into the rest
+        jerk_lower, jerk_upper = self._jerk_lower, self._jerk_upper
+        jerk_step, center = self._jerk_step, self._center
+        np.multiply(self._jerk, dt * dt, out=jerk_step)
+        np.multiply(prev, 2.0, out=center)
+        np.subtract(center, self._prev2, out=center)
+        np.add(center, jerk_step, out=jerk_upper)
+        np.subtract(center, jerk_step, out=jerk_lower)
+        np.minimum(np.maximum(jerk_lower, lower, out=jerk_lower), upper, out=jerk_lower)
+        np.maximum(np.minimum(jerk_upper, upper, out=jerk_upper), lower, out=jerk_upper)
+        self._write(rows, jerk_lower, jerk_upper, kin.q)
+
+    def _write(self, rows: ConstraintRows, lower: NDArray[np.float64], upper: NDArray[np.float64],
+               q: NDArray[np.float64]) -> None:
+        n_joints = self._n_joints
+        rows.lower[self._joints] = lower[:n_joints]
+        rows.upper[self._joints] = upper[:n_joints]
+        if not self.n_inequalities:
+            return
+        self._heading_rows.write(q, rows.G)
+        h, row = rows.h, 0
+        if self._base_rows:  # rows +v_x, -v_x, +v_y, -v_y
+            h[0], h[1] = upper[n_joints], -lower[n_joints]
+            h[2], h[3] = upper[n_joints + 1], -lower[n_joints + 1]
+            row = 4
+        n = self.n_wheels
+        if n:
+            wheels = slice(n_joints + 2, n_joints + 2 + n)
+            h[row:row + n] = upper[wheels]
+            np.negative(lower[wheels], out=h[row + n:row + 2 * n])
+
+    def row_labels(self) -> list[str]:
+        base = ["base a_x upper", "base a_x lower", "base a_y upper", "base a_y lower"] if self._base_rows else []
+        return base + [f"wheel {i} acceleration {side}" for side in ("forward", "backward")
+                       for i in range(self.n_wheels)]
