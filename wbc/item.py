@@ -55,6 +55,19 @@ class Item:
                 f"({self._own_robot.name!r}); create another {type(self).__name__} for {robot.name!r}")
         return self
 
+    def bind_as_own_data(self, robot: Robot, data: type, base: str, advice: str) -> Any:
+        """What :meth:`bind` of a Task / Constraint (``base``) does by default: the item itself if it
+        declares itself its own data (an instance of the ``data`` class), else InvalidInputError
+        naming the fix (``advice``: where its rows may come from)."""
+        if isinstance(self, data):
+            return Item.bind(self, robot)
+        name = type(self).__name__
+        if hasattr(self, "compute"):  # an item written for wbc <= 0.3, where every item was its own data
+            raise InvalidInputError(f"{name} defines compute() but is not a {data.__name__}: declare it "
+                                    f"`class {name}({base}, {data.__name__})` to be its own data, or move compute() "
+                                    f"into a {data.__name__} subclass returned by bind() (docs/extending.md)")
+        raise InvalidInputError(f"{name} computes no rows: {advice} (docs/extending.md)")
+
     @classmethod
     def settings(cls) -> list[str]:
         """Public attributes that may be assigned at any time (validated properties)."""

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.errors import InvalidInputError
 from ..item import Item
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -98,15 +97,9 @@ class Constraint(Item):
             InvalidInputError: the constraint says nothing about its rows (no data class of its
                 own, and it is not a :class:`ConstraintData` itself).
         """
-        if isinstance(self, ConstraintData):
-            return Item.bind(self, robot)
-        name = type(self).__name__
-        if hasattr(self, "compute"):  # a constraint written for wbc <= 0.3, where every Constraint was its own data
-            raise InvalidInputError(f"{name} defines compute() but is not a ConstraintData: declare it "
-                                    f"`class {name}(Constraint, ConstraintData)` to be its own data, or move compute() "
-                                    "into a ConstraintData subclass returned by bind() (docs/extending.md)")
-        raise InvalidInputError(f"{name} computes no rows: return a ConstraintData subclass from its bind() "
-                                "(docs/extending.md)")
+        data: ConstraintData = self.bind_as_own_data(robot, ConstraintData, "Constraint",
+                                                     "return a ConstraintData subclass from its bind()")
+        return data
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}()"

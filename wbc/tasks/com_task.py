@@ -6,7 +6,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.errors import InvalidInputError, ModelError
+from ..core.errors import ModelError
 from ..core.settings import Cost
 from ..core.validation import as_vector
 from ..model.kinematics import Kinematics
@@ -30,6 +30,8 @@ class CoMTask(ErrorTask):
     Raises (when a controller is built):
         ModelError: the robot has no mass (a model without inertias has no centre of mass).
     """
+
+    needs_target = True
 
     cost = Cost("_weights", slice(0, 3))
 
@@ -62,10 +64,6 @@ class CoMTask(ErrorTask):
     @property
     def target(self) -> NDArray[np.float64]:
         return self._target.copy()
-
-    def check_ready(self) -> None:
-        if not self._has_target:
-            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def bind(self, robot: Robot) -> CoMTaskData:
         return CoMTaskData(self, robot)

@@ -22,6 +22,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..core.errors import InvalidInputError
 from ..core.settings import Setting
 from ..core.validation import as_gain
 from ..model.kinematics import Kinematics
@@ -56,6 +57,15 @@ class ErrorTask(Task):
             self._weights = np.ones(dim)  # W = sqrt(cost), per row
             self._feedforward = np.zeros(dim)  # xi, unweighted
         self.gain = gain
+
+    #: the task needs a target before its first tick (``set_target`` sets ``_has_target``)
+    needs_target: ClassVar[bool] = False
+    _has_target = False
+
+    def check_ready(self) -> None:
+        """Raise InvalidInputError before the first target of a task that ``needs_target``."""
+        if self.needs_target and not self._has_target:
+            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def bind(self, robot: Robot) -> ErrorTaskData:
         raise NotImplementedError(f"{type(self).__name__}.bind must return its ErrorTaskData")

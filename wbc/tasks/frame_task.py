@@ -6,7 +6,6 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.errors import InvalidInputError
 from ..core.settings import Cost, Operand
 from ..core.validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
 from ..model.kinematics import Kinematics, frame_in_joint
@@ -50,6 +49,8 @@ class FrameTask(ErrorTask):
         max_speed: [m/s] bound on the linear feedback velocity; ``None`` = unbounded.
         max_angular_speed: [rad/s] bound on the angular feedback velocity; ``None`` = unbounded.
     """
+
+    needs_target = True
 
     #: settings that may be changed between ticks (validated; they live in the compiled operands)
     gain = Operand("_settings", kernels.FRAME_GAIN, as_gain)
@@ -114,10 +115,6 @@ class FrameTask(ErrorTask):
 
     def bind(self, robot: Robot) -> FrameTaskData:
         return FrameTaskData(self, robot)
-
-    def check_ready(self) -> None:
-        if not self._has_target:
-            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def __repr__(self) -> str:
         return (f"FrameTask(frame={self.frame!r}, position_cost={self.position_cost.tolist()}, "

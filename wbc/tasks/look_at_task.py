@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.errors import InvalidInputError
 from ..core.settings import Cost
 from ..core.validation import as_vector
 from ..model.kinematics import Kinematics
@@ -50,6 +49,8 @@ class LookAtTask(ErrorTask):
         target: the world point [m] to look at (or later, :meth:`set_target`).
     """
 
+    needs_target = True
+
     cost = Cost("_weights", slice(0, 3))
 
     def __init__(self, frame: str, axis: ArrayLike = (0.0, 0.0, 1.0), cost: ArrayLike = 1.0, gain: float = 1.0,
@@ -80,10 +81,6 @@ class LookAtTask(ErrorTask):
     def target(self) -> NDArray[np.float64]:
         """The world point looked at [m] (a copy)."""
         return self._target.copy()
-
-    def check_ready(self) -> None:
-        if not self._has_target:
-            raise InvalidInputError(f"{self.name}: no target set; call set_target(point) before stepping")
 
     def bind(self, robot: Robot) -> LookAtTaskData:
         return LookAtTaskData(self, robot)

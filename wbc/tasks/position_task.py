@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.errors import InvalidInputError
 from ..core.settings import Cost, Operand
 from ..core.validation import as_gain, as_speed_limit, as_vector
 from ..model.kinematics import Kinematics, frame_in_joint
@@ -32,6 +31,8 @@ class PositionTask(ErrorTask):
         gain: fraction of the error removed per tick, in (0, 1].
         max_speed: [m/s] bound on the feedback velocity; ``None`` = unbounded.
     """
+
+    needs_target = True
 
     #: settings that may be changed between ticks (validated; they live in the compiled operands)
     gain = Operand("_settings", kernels.POSITION_GAIN, as_gain)
@@ -73,10 +74,6 @@ class PositionTask(ErrorTask):
 
     def bind(self, robot: Robot) -> PositionTaskData:
         return PositionTaskData(self, robot)
-
-    def check_ready(self) -> None:
-        if not self._has_target:
-            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def __repr__(self) -> str:
         return (f"PositionTask(frame={self.frame!r}, cost={self.cost.tolist()}, gain={self.gain}, "

@@ -46,6 +46,8 @@ class RelativeFrameTask(ErrorTask):
         gain: fraction of the error removed per tick, in (0, 1].
     """
 
+    needs_target = True
+
     position_cost = Cost("_weights", slice(0, 3))
     orientation_cost = Cost("_weights", slice(3, 6))
 
@@ -85,10 +87,6 @@ class RelativeFrameTask(ErrorTask):
     @property
     def target(self) -> NDArray[np.float64]:
         return self._target.copy()
-
-    def check_ready(self) -> None:
-        if not self._has_target:
-            raise InvalidInputError(f"{self.name}: no target set; call set_target() before stepping")
 
     def bind(self, robot: Robot) -> RelativeFrameTaskData:
         return RelativeFrameTaskData(self, robot)

@@ -18,7 +18,6 @@ import math
 
 import numpy as np
 
-from ..core.errors import InvalidInputError
 from ..item import Item
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -118,15 +117,10 @@ class Task(Item):
             InvalidInputError: the task says nothing about its rows (no data class of its own,
                 and it is not a :class:`TaskData` itself).
         """
-        if isinstance(self, TaskData):
-            return Item.bind(self, robot)
-        name = type(self).__name__
-        if hasattr(self, "compute"):  # a task written for wbc <= 0.3, where every Task was its own data
-            raise InvalidInputError(f"{name} defines compute() but is not a TaskData: declare it "
-                                    f"`class {name}(Task, TaskData)` to be its own data, or move compute() into a "
-                                    "TaskData subclass returned by bind() (docs/extending.md)")
-        raise InvalidInputError(f"{name} computes no rows: return a TaskData subclass from its bind(), or subclass "
-                                "wbc.tasks.error_task.ErrorTask and say its error and Jacobian (docs/extending.md)")
+        data: TaskData = self.bind_as_own_data(robot, TaskData, "Task", "return a TaskData subclass from its "
+                                               "bind(), or subclass wbc.tasks.error_task.ErrorTask and say its error "
+                                               "and Jacobian")
+        return data
 
     def check_ready(self) -> None:
         """Raise InvalidInputError if the task cannot be evaluated yet (e.g. no target)."""
