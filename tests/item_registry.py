@@ -73,6 +73,14 @@ def _sphere_near_the_gripper(robot: wbc.Robot, q: np.ndarray) -> Constraint:
                                   detection_distance=0.4)
 
 
+def _points_around_the_base(robot: wbc.Robot, q: np.ndarray) -> Constraint:
+    c, s = np.cos(q[2]), np.sin(q[2])
+    local = np.array([[0.55, 0.05], [-0.1, 0.45], [-0.5, -0.3], [0.2, -0.4]])  # 0.2-0.26 m from the footprint
+    points = q[:2] + local @ np.array([[c, s], [-s, c]])
+    return wbc.BaseFootprintAvoidance([[-0.29, -0.19], [0.29, -0.19], [0.29, 0.19], [-0.29, 0.19]], points=points,
+                                      gain=0.4)
+
+
 CASES = [
     Case("FrameTask", "youbot", _frame_task, 0.4),
     Case("PositionTask", "youbot", _position_task, 0.4),
@@ -90,4 +98,5 @@ CASES = [
     Case("ManipulabilityBarrier", "youbot",
          lambda robot, q: wbc.ManipulabilityBarrier("ee", 0.5 * wbc.manipulability(robot, q, "ee"), gain=0.4), 0.4),
     Case("CollisionAvoidance", "youbot", _sphere_near_the_gripper, 0.4),
+    Case("BaseFootprintAvoidance", "youbot", _points_around_the_base, 0.4),
 ]

@@ -255,3 +255,56 @@ def test_bad_points_and_settings_are_refused_and_the_last_scan_stays(youbot):
 def test_a_fixed_base_is_refused():
     with pytest.raises(wbc.InvalidInputError, match="fixed base"):
         wbc.Controller(wbc.load_robot("puma560"), [wbc.PostureTask(1.0)], [wbc.BaseFootprintAvoidance(RECTANGLE)])
+
+
+# ----------------------------------------------------------------------------- scenario
+def test_youbot_obstacle_drives_along_the_scanned_wall_and_past_the_crate():
+    from conftest import TASKS
+    from wbc.app import closed_loop
+    from wbc.app.scenario import load_scenario
+
+    scenario = load_scenario(TASKS / "youbot_obstacle.toml")
+    footprint = next(c for c in scenario.constraints if isinstance(c, wbc.BaseFootprintAvoidance))
+    wall = footprint.points
+    assert len(wall) > 100 and np.allclose(wall[:, 1], 0.27)
+    crate = np.array([[0.6, -0.45], [0.8, -0.45], [0.8, -0.25], [0.6, -0.25]])
+    result = closed_loop.run(scenario)
+    platform = [[-0.29, -0.19], [0.29, -0.19], [0.29, 0.19], [-0.29, 0.19]]
+    to_wall = np.array([footprint_clearance(platform, q, wall) for q in result.q])
+    # the crate's edges against the footprint's corners, and the footprint's edges against the crate's corners
+    to_crate = np.array([min(footprint_clearance(platform, q, crate),
+                             polygon_distance(crate, _corners(platform, q)).min()) for q in result.q])
+    assert to_wall.min() >= 0.05 - 1e-3 and to_crate.min() >= 0.05 - 0.005  # polygons: sampled every 1 cm
+    assert to_wall.min() < 0.1 and to_crate.min() < 0.1, "the base passed close to both"
+    assert np.ptp(result.q[:, 0]) > 0.3, "the base drove along the wall"
+
+
+def _corners(polygon, q):
+    c, s = np.cos(q[2]), np.sin(q[2])
+    return q[:2] + np.asarray(polygon) @ np.array([[c, s], [-s, c]])
+
+
+@pytest.mark.parametrize(("walls", "message"), [
+    ('[{ start = [0, 1], end = [1, 1], spacing = -0.1 }]', "spacing"),
+    ('[{ start = [0, 1] }]', "keys start, end"),
+    ('"wall"', "array of tables"),
+    ('[{ start = [0, 1, 2], end = [1, 1] }]', "walls\\[0\\]"),
+])
+def test_bad_wall_tables_name_the_entry(tmp_path, walls, message):
+    from wbc.app.scenario import load_scenario
+
+    text = f"""name = "w"
+[robot]
+name = "youbot"
+[[tasks]]
+type = "PostureTask"
+cost = 1.0
+[[constraints]]
+type = "BaseFootprintAvoidance"
+footprint = [[-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2]]
+walls = {walls}
+"""
+    path = tmp_path / "w.toml"
+    path.write_text(text)
+    with pytest.raises(wbc.ScenarioError, match=message):
+        load_scenario(path)
