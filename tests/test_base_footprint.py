@@ -158,6 +158,21 @@ def test_far_points_give_inert_rows_and_each_side_gets_its_own_row(youbot):
     assert np.all(rows.G == 0.0) and np.all(rows.h == 1.0)
 
 
+@pytest.mark.parametrize("capacity", [1, 5, 8, 16])
+def test_each_angular_sector_gets_the_row_of_its_closest_point(youbot, capacity):
+    """Two points per sector (angles -pi + 2 pi (k + 1/4 or 3/4) / capacity about the centroid, the
+    first one closer): one row per sector, the closer point's."""
+    angles = -np.pi + 2 * np.pi * (np.arange(capacity)[:, None] + [0.25, 0.75]) / capacity
+    radii = np.array([0.5, 0.55])
+    points = np.stack([radii * np.cos(angles), radii * np.sin(angles)], axis=-1).reshape(-1, 2)
+    square = [[-0.1, -0.1], [0.1, -0.1], [0.1, 0.1], [-0.1, 0.1]]
+    avoidance = wbc.BaseFootprintAvoidance(square, points=points, detection_distance=1.0, capacity=capacity)
+    data, rows = bound_rows(avoidance, youbot)
+    data.compute(SimpleNamespace(q=youbot.neutral()), 0.01, rows)
+    np.testing.assert_allclose(data.closest[:, 0], polygon_distance(square, points[0::2]), atol=1e-12)
+    assert np.all(np.any(rows.G != 0.0, axis=1))
+
+
 def test_polygon_obstacles_are_kept_clear(youbot):
     box = [[0.5, -0.2], [0.7, -0.2], [0.7, 0.2], [0.5, 0.2]]
     avoidance = wbc.BaseFootprintAvoidance(RECTANGLE, polygons=[box], min_distance=0.05)

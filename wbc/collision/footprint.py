@@ -260,10 +260,14 @@ class BaseFootprintAvoidanceData(ConstraintData):
         #: the chassis turns with the heading (a synchro drive's does not: the heading steers its wheels)
         self._turns = 0.0 if robot.base.kind is BaseKind.SYNCHRO else 1.0
         vertices = avoidance.footprint
-        self._vertices = np.ascontiguousarray(vertices)
+        self._edges = np.zeros((len(vertices), kernels.EDGE_COLUMNS))
+        kernels.edge_table(np.ascontiguousarray(vertices), self._edges)
         centroid = vertices.mean(axis=0)
         self._shape = np.r_[centroid, np.max(np.linalg.norm(vertices - centroid, axis=1))]
         self._pose = np.zeros(3)
+        angles = -np.pi + 2 * np.pi * np.arange(self.n_inequalities) / self.n_inequalities
+        self._sectors = np.array([kernels.diamond_angle(np.cos(a), np.sin(a)) for a in angles])
+        self._sectors[0] = 0.0  # -pi exactly (cos(-pi), sin(-pi) = -1, -1.2e-16 would give ~4)
         self._settings = np.zeros(3)
         #: per sector: (d, n_b (2), p_b (2), point index) of the last tick's closest point (d = inf: none)
         self.closest = np.full((self.n_inequalities, kernels.BEST_COLUMNS), np.inf)
@@ -278,8 +282,8 @@ class BaseFootprintAvoidanceData(ConstraintData):
         pose[0], pose[1], pose[2] = kin.q[x], kin.q[y], kin.q[self._heading] * self._turns
         settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
         self._kernels.footprint_rows(avoidance._ordered, avoidance._cell_start, avoidance._meta, avoidance._n_points,
-                                     self._vertices, self._shape, pose, self._turns, settings, dt, self._columns,
-                                     self.closest, rows.G, rows.h)
+                                     self._edges, self._shape, pose, self._turns, settings, dt, self._columns,
+                                     self._sectors, self.closest, rows.G, rows.h)
 
     @property
     def min_distance(self) -> float:

@@ -89,28 +89,41 @@ def build_grid(fixed, scan, n_scan, cell, cell_of, cell_start, ordered, meta):
     return total
 
 
-@njit(cache=CACHE, nogil=True)
-def signed_distance(px, py, vertices):
-    """Signed distance of the point (px, py) to the simple polygon ``vertices`` (counter-clockwise;
-    < 0 inside), the closest boundary point and the unit normal ``grad d``:
-    ``(d, cx, cy, nx, ny)``."""
+#: columns of an edge of the footprint (:func:`edge_table`): start (2), direction (2), 1 / |direction|^2,
+#: direction x / direction y (the crossing test; 0 for a horizontal edge, which never crosses)
+EDGE_COLUMNS = 6
+
+
+@njit("void(float64[:, ::1], float64[:, ::1])", cache=CACHE, nogil=True)
+def edge_table(vertices, edges):
+    """``edges[i]`` of the edge from vertex i to vertex i + 1 (cyclic), see :data:`EDGE_COLUMNS`."""
     m = vertices.shape[0]
+    for i in range(m):
+        j = i + 1 if i + 1 < m else 0
+        ex, ey = vertices[j, 0] - vertices[i, 0], vertices[j, 1] - vertices[i, 1]
+        edges[i, 0], edges[i, 1], edges[i, 2], edges[i, 3] = vertices[i, 0], vertices[i, 1], ex, ey
+        edges[i, 4] = 1.0 / (ex * ex + ey * ey)
+        edges[i, 5] = ex / ey if ey != 0.0 else 0.0
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def signed_distance(px, py, edges):
+    """Signed distance of the point (px, py) to the simple polygon of ``edges`` (:func:`edge_table`
+    of its counter-clockwise vertices; < 0 inside), the closest boundary point and the unit normal
+    ``grad d``: ``(d, cx, cy, nx, ny)``."""
     best = math.inf
     cx = cy = 0.0
     edge = 0
     inside = False
-    for i in range(m):
-        ax, ay = vertices[i, 0], vertices[i, 1]
-        j = i + 1 if i + 1 < m else 0
-        bx, by = vertices[j, 0], vertices[j, 1]
-        ex, ey = bx - ax, by - ay
-        t = ((px - ax) * ex + (py - ay) * ey) / (ex * ex + ey * ey)
+    for i in range(edges.shape[0]):
+        ax, ay, ex, ey = edges[i, 0], edges[i, 1], edges[i, 2], edges[i, 3]
+        t = ((px - ax) * ex + (py - ay) * ey) * edges[i, 4]
         t = 0.0 if t < 0.0 else (1.0 if t > 1.0 else t)
         qx, qy = ax + t * ex, ay + t * ey
         dist2 = (px - qx) * (px - qx) + (py - qy) * (py - qy)
         if dist2 < best:
             best, cx, cy, edge = dist2, qx, qy, i
-        if (ay > py) != (by > py) and px < ax + (py - ay) * ex / ey:
+        if (ay > py) != (ay + ey > py) and px < ax + (py - ay) * edges[i, 5]:
             inside = not inside
     dist = math.sqrt(best)
     if dist > 1e-12:
@@ -118,20 +131,32 @@ def signed_distance(px, py, vertices):
         if inside:
             return -dist, cx, cy, -nx, -ny
         return dist, cx, cy, nx, ny
-    j = edge + 1 if edge + 1 < m else 0  # on the boundary: the edge's outward normal
-    ex, ey = vertices[j, 0] - vertices[edge, 0], vertices[j, 1] - vertices[edge, 1]
-    length = math.sqrt(ex * ex + ey * ey)
-    return 0.0, cx, cy, ey / length, -ex / length
+    length = math.sqrt(edges[edge, 2] * edges[edge, 2] + edges[edge, 3] * edges[edge, 3])
+    return 0.0, cx, cy, edges[edge, 3] / length, -edges[edge, 2] / length  # on the boundary: the edge's normal
+
+
+def diamond_angle(x: float, y: float) -> float:
+    """A monotone stand-in for the angle of (x, y) from -pi, in [0, 4): the angle of (-x, -y) in
+    [0, 2 pi) mapped onto the diamond |x| + |y| = 1 (no trigonometry)."""
+    x, y = -x, -y
+    if y >= 0.0:
+        return y / (x + y) if x >= 0.0 else 1.0 - x / (y - x)
+    return 2.0 - y / (-x - y) if x < 0.0 else 3.0 + x / (x - y)
+
+
+diamond = njit(cache=CACHE, nogil=True, inline="always")(diamond_angle)
 
 
 @njit("int64(float64[:, ::1], int64[::1], float64[::1], int64, float64[:, ::1], float64[::1], float64[::1], float64, "
-      "float64[::1], float64, int64[::1], float64[:, ::1], float64[:, :], float64[:])", cache=CACHE, nogil=True)
-def footprint_rows(ordered, cell_start, meta, n_points, vertices, shape, pose, turns, settings, dt, columns, best, G,
-                   h):
+      "float64[::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, :], float64[:])", cache=CACHE,
+      nogil=True)
+def footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turns, settings, dt, columns, sectors,
+                   best, G, h):
     """This tick's rows (one per sector, see the module docstring); returns the number of sectors
-    with a point within the detection distance. ``shape = (centroid x, y, bounding radius about
+    with a point within the detection distance. ``edges``: the footprint's :func:`edge_table`; ``shape = (centroid x, y, bounding radius about
     it)`` of the footprint, ``pose = (x, y, theta)`` of the chassis, ``settings = (detection,
-    min_distance, gain)``, ``columns`` the velocity indices of (x, y, heading); ``best`` (capacity x
+    min_distance, gain)``, ``columns`` the velocity indices of (x, y, heading), ``sectors`` the diamond angles
+    (:func:`diamond_angle`) of the sector boundaries ``-pi + 2 pi k / capacity``; ``best`` (capacity x
     :data:`BEST_COLUMNS`) receives each sector's closest point."""
     detection, min_distance, gain = settings[0], settings[1], settings[2]
     capacity = best.shape[0]
@@ -157,11 +182,21 @@ def footprint_rows(ordered, cell_start, meta, n_points, vertices, shape, pose, t
                     if rx * rx + ry * ry > reach * reach:
                         continue
                     bx, by = c * wx + s * wy, -s * wx + c * wy  # p_b = R^T (p - (x, y))
-                    d, _, _, gx, gy = signed_distance(bx, by, vertices)
+                    d, _, _, gx, gy = signed_distance(bx, by, edges)
                     if d >= detection:
                         continue
-                    angle = math.atan2(by - shape[1], bx - shape[0])
-                    k = min(int((angle + math.pi) / (2.0 * math.pi) * capacity), capacity - 1)
+                    if bx == shape[0] and by == shape[1]:
+                        k = 0  # the centroid itself: any sector
+                    else:  # the sector of the angle: sectors[k] <= its diamond angle < sectors[k + 1]
+                        angle = diamond(bx - shape[0], by - shape[1])
+                        low, high = 0, capacity
+                        while high - low > 1:
+                            middle = (low + high) // 2
+                            if sectors[middle] <= angle:
+                                low = middle
+                            else:
+                                high = middle
+                        k = low
                     if d < best[k, 0]:
                         best[k, 0], best[k, 1], best[k, 2], best[k, 3], best[k, 4] = d, gx, gy, bx, by
                         best[k, 5] = i
