@@ -30,11 +30,10 @@ from pathlib import Path
 from numba import njit
 
 from ..runtime.kernels import _cache
+from .avoidance import INERT  # the h of an inert row
 
 CACHE = _cache.prepare(Path(__file__).parent, ("kernels", "footprint_kernels"), cold=("footprint_kernels",)) is not None
 
-#: ``h`` of an inert row (equal to :data:`wbc.collision.avoidance.INERT`)
-INERT = 1.0
 #: columns of one sector's record: distance, normal (2), point in the base frame (2), point index
 BEST_COLUMNS = 6
 
@@ -153,11 +152,12 @@ diamond = njit(cache=CACHE, nogil=True, inline="always")(diamond_angle)
 def footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turns, settings, dt, columns, sectors,
                    best, G, h):
     """This tick's rows (one per sector, see the module docstring); returns the number of sectors
-    with a point within the detection distance. ``edges``: the footprint's :func:`edge_table`; ``shape = (centroid x, y, bounding radius about
-    it)`` of the footprint, ``pose = (x, y, theta)`` of the chassis, ``settings = (detection,
-    min_distance, gain)``, ``columns`` the velocity indices of (x, y, heading), ``sectors`` the diamond angles
-    (:func:`diamond_angle`) of the sector boundaries ``-pi + 2 pi k / capacity``; ``best`` (capacity x
-    :data:`BEST_COLUMNS`) receives each sector's closest point."""
+    with a point within the detection distance. ``edges``: the footprint's :func:`edge_table`;
+    ``shape = (centroid x, y, bounding radius about it)`` of the footprint; ``pose = (x, y, theta)``
+    of the chassis; ``settings = (detection, min_distance, gain)``; ``columns`` the velocity indices
+    of (x, y, heading); ``sectors`` the diamond angles (:func:`diamond_angle`) of the sector
+    boundaries ``-pi + 2 pi k / capacity``; ``best`` (capacity x :data:`BEST_COLUMNS`) receives each
+    sector's closest point."""
     detection, min_distance, gain = settings[0], settings[1], settings[2]
     capacity = best.shape[0]
     for k in range(capacity):
