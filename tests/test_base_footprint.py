@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import test_mobile_bases
 import wbc
-from test_mobile_bases import UNICYCLE_TOML, UNICYCLE_URDF
 from wbc.constraints.constraint import ConstraintRows
 
 HALF_X, HALF_Y = 0.3, 0.2  # a rectangular footprint, half extents [m]
@@ -60,12 +60,7 @@ def one_point_row(robot, polygon, q, point, gain=0.5, min_distance=0.05, dt=0.01
     return rows.h[0] * dt / gain + min_distance, rows.G[0].copy()
 
 
-@pytest.fixture(scope="module")
-def unicycle(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("unicycle")
-    (folder / "diffdrive_arm.urdf").write_text(UNICYCLE_URDF)
-    (folder / "diffdrive_arm.toml").write_text(UNICYCLE_TOML)
-    return wbc.load_robot(folder / "diffdrive_arm.urdf")
+unicycle = test_mobile_bases.unicycle  # the differential-drive robot carrying an arm (a fixture)
 
 
 @pytest.fixture(scope="module")

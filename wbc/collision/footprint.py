@@ -11,11 +11,11 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Setting
-from ..core.validation import as_gain, as_nonnegative, as_positive
+from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
-from .avoidance import INERT
+from .avoidance import INERT, DistanceMargins
 
 #: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
 #: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
@@ -86,7 +86,7 @@ def wall_points(start: ArrayLike, end: ArrayLike, spacing: float = 0.02) -> NDAr
     return a + np.outer(np.linspace(0.0, 1.0, count + 1), b - a)
 
 
-class BaseFootprintAvoidance(Constraint):
+class BaseFootprintAvoidance(DistanceMargins, Constraint):
     """Keep the mobile base's footprint at least ``min_distance`` from 2-D obstacles in the world
     frame: points (a laser scan: :meth:`set_points`, every tick if need be) and polygons.
 
@@ -138,9 +138,7 @@ class BaseFootprintAvoidance(Constraint):
                  name: str | None = None) -> None:
         super().__init__(name)
         self.footprint = as_polygon(footprint, "footprint")
-        self._min_distance = as_nonnegative(min_distance, "min_distance")
-        self._detection_distance = as_positive(detection_distance, "detection_distance")
-        _check_margins(self._min_distance, self._detection_distance)
+        self._set_margins(min_distance, detection_distance)
         self.gain = gain
         if isinstance(capacity, bool) or not isinstance(capacity, int | np.integer) or capacity < 1:
             raise InvalidInputError(f"capacity must be an int >= 1 (rows, one per angular sector), got {capacity!r}")
@@ -203,28 +201,6 @@ class BaseFootprintAvoidance(Constraint):
         view.flags.writeable = False
         return view
 
-    @property
-    def min_distance(self) -> float:
-        """[m] the clearance kept; below :attr:`detection_distance`."""
-        return self._min_distance
-
-    @min_distance.setter
-    def min_distance(self, value: float) -> None:
-        value = as_nonnegative(value, "min_distance")
-        _check_margins(value, self._detection_distance)
-        self._min_distance = value
-
-    @property
-    def detection_distance(self) -> float:
-        """[m] farther points get no row; above :attr:`min_distance`."""
-        return self._detection_distance
-
-    @detection_distance.setter
-    def detection_distance(self, value: float) -> None:
-        value = as_positive(value, "detection_distance")
-        _check_margins(self._min_distance, value)
-        self._detection_distance = value
-
     def bind(self, robot: Robot) -> BaseFootprintAvoidanceData:
         return BaseFootprintAvoidanceData(self, robot)
 
@@ -232,12 +208,6 @@ class BaseFootprintAvoidance(Constraint):
         return (f"BaseFootprintAvoidance(footprint={self.footprint.tolist()}, points=<{self._n_scan} points>, "
                 f"polygons=<{len(self.polygons)}>, min_distance={self.min_distance}, "
                 f"detection_distance={self.detection_distance}, gain={self.gain}, capacity={self.capacity})")
-
-
-def _check_margins(min_distance: float, detection_distance: float) -> None:
-    if not min_distance < detection_distance:
-        raise InvalidInputError(f"min_distance ({min_distance} m) must be below detection_distance "
-                                f"({detection_distance} m): a point must get its row before it reaches the margin")
 
 
 class BaseFootprintAvoidanceData(ConstraintData):
