@@ -88,7 +88,8 @@ def wall_points(start: ArrayLike, end: ArrayLike, spacing: float = 0.02) -> NDAr
 
 class BaseFootprintAvoidance(DistanceMargins, Constraint):
     """Keep the mobile base's footprint at least ``min_distance`` from 2-D obstacles in the world
-    frame: points (a laser scan: :meth:`set_points`, every tick if need be) and polygons.
+    frame: points (a laser scan, replaced every tick if need be by
+    :meth:`~wbc.collision.footprint.BaseFootprintAvoidance.set_points`) and polygons.
 
     For an obstacle point p and the chassis pose (x, y, theta): ``p_b = R(theta)^T (p - (x, y))``,
     d its signed distance to the footprint polygon (< 0 inside), n the unit normal at the

@@ -88,8 +88,8 @@ def build_grid(fixed, scan, n_scan, cell, cell_of, cell_start, ordered, meta):
     return total
 
 
-#: columns of an edge of the footprint (:func:`edge_table`): start (2), direction (2), 1 / |direction|^2,
-#: direction x / direction y (the crossing test; 0 for a horizontal edge, which never crosses)
+#: columns of an edge of the footprint (:func:`edge_table`): start (2), direction e (2), 1 / (e . e),
+#: e_x / e_y (the crossing test; 0 for a horizontal edge, which never crosses)
 EDGE_COLUMNS = 6
 
 
