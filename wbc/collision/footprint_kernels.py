@@ -136,7 +136,7 @@ def signed_distance(px, py, edges):
 
 def diamond_angle(x: float, y: float) -> float:
     """A monotone stand-in for the angle of (x, y) from -pi, in [0, 4): the angle of (-x, -y) in
-    [0, 2 pi) mapped onto the diamond |x| + |y| = 1 (no trigonometry)."""
+    [0, 2 pi) mapped onto the diamond ``|x| + |y| = 1`` (no trigonometry)."""
     x, y = -x, -y
     if y >= 0.0:
         return y / (x + y) if x >= 0.0 else 1.0 - x / (y - x)
