@@ -99,6 +99,14 @@ def _support_polygon(robot: wbc.Robot, q: np.ndarray) -> Constraint:
     return wbc.SupportPolygon([[-0.1, -0.1], [0.07, -0.1], [0.07, 0.1], [-0.1, 0.1]], frame="base_link",
                               margin=0.01, gain=0.4)
 
+def _points_around_the_base(robot: wbc.Robot, q: np.ndarray) -> Constraint:
+    c, s = np.cos(q[2]), np.sin(q[2])
+    local = np.array([[0.55, 0.05], [-0.1, 0.45], [-0.5, -0.3], [0.2, -0.4]])  # 0.2-0.26 m from the footprint
+    points = q[:2] + local @ np.array([[c, s], [-s, c]])
+    return wbc.BaseFootprintAvoidance([[-0.29, -0.19], [0.29, -0.19], [0.29, 0.19], [-0.29, 0.19]], points=points,
+                                      gain=0.4)
+
+
 CASES = [
     Case("FrameTask", "youbot", _frame_task, 0.4),
     Case("PositionTask", "youbot", _position_task, 0.4),
@@ -131,4 +139,5 @@ CASES = [
     Case("SupportPolygon", "youbot", _support_polygon, 0.4),
     Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,
          "constant bounds v_j = 0"),
+    Case("BaseFootprintAvoidance", "youbot", _points_around_the_base, 0.4),
 ]

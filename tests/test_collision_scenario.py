@@ -55,7 +55,7 @@ def test_bad_obstacle_tables_name_the_entry(tmp_path, obstacle, message):
     end = text.index("]\n\n[reference]")
     path = tmp_path / "bad.toml"
     path.write_text(text[:start] + f"obstacles = [{obstacle}" + text[end:])
-    with pytest.raises(wbc.ScenarioError, match=r"\[\[constraints\]\] #4 \(CollisionAvoidance\).*obstacles\[0\]"):
+    with pytest.raises(wbc.ScenarioError, match=r"\[\[constraints\]\] #5 \(CollisionAvoidance\).*obstacles\[0\]"):
         load_scenario(path)
     with pytest.raises(wbc.ScenarioError, match=message):
         load_scenario(path)

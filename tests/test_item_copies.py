@@ -88,6 +88,13 @@ def _toward_ball() -> wbc.PositionTask:
     return task
 
 
+def _point_ahead_of_the_base() -> wbc.BaseFootprintAvoidance:
+    """A scan point 5.2 cm ahead of the youBot's footprint at Q_YOUBOT (its rows bind at 0.1 m/s)."""
+    c, s = np.cos(Q_YOUBOT[2]), np.sin(Q_YOUBOT[2])
+    point = Q_YOUBOT[:2] + np.array([[c, -s], [s, c]]) @ [0.29 + 0.052, 0.0]
+    return wbc.BaseFootprintAvoidance([[-0.29, -0.19], [0.29, -0.19], [0.29, 0.19], [-0.29, 0.19]], points=[point])
+
+
 def _base_velocity_task() -> wbc.BaseVelocityTask:
     task = wbc.BaseVelocityTask(cost=1e-2)
     task.set_target([0.2, -0.1, 0.3])
@@ -243,6 +250,11 @@ EXAMPLES: dict[type, Example] = {
     }, stack=lambda: [_reach_forward(), _still_base(), wbc.PostureTask(1e-3)]),
     wbc.DofFreezing: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DofFreezing(["arm_joint_2"]), {},
                              stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
+    wbc.BaseFootprintAvoidance: Example(YOUBOT, Q_YOUBOT, _point_ahead_of_the_base, {
+        "gain": lambda c: setattr(c, "gain", 0.1),
+        "min_distance": lambda c: setattr(c, "min_distance", 0.051),
+        "detection_distance": lambda c: setattr(c, "detection_distance", 0.051),  # the point (0.052 m) leaves
+    }, stack=lambda: [_base_velocity_task(), wbc.PostureTask(1e-3)]),
     wbc.NonholonomicBase: Example(DELUCA, Q_DELUCA, wbc.NonholonomicBase, {},
                                   stack=lambda: [_position_task(DELUCA, Q_DELUCA), wbc.PostureTask(1e-3)]),
 }

@@ -9,7 +9,7 @@ Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wb
 (base pose and base-frame twists).
 """
 
-from .collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
+from .collision import BaseFootprintAvoidance, Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     AccelerationLimits,
     Constraint,
@@ -64,7 +64,7 @@ __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
     "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing", "AccelerationLimits",
-    "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane",
+    "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane", "BaseFootprintAvoidance",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
     "InvalidInputError", "ModelError", "ModelWarning", "PlanningError", "ScenarioError", "SolverError",

@@ -18,7 +18,10 @@ wrong types (``dt = "0.01"``, ``reduced = "false"``) and out-of-range values are
                       must be 0, 1, ... without gaps
     [[constraints]]   type = a name in CONSTRAINT_TYPES; likewise; ``CollisionAvoidance`` takes
                       ``obstacles = [{ type = "Sphere", center = [...], radius = ... }, ...]``
-                      (:func:`wbc.collision.obstacles.obstacle_from_table`)
+                      (:func:`wbc.collision.obstacles.obstacle_from_table`); ``BaseFootprintAvoidance``
+                      takes ``footprint = [[x, y], ...]``, ``points = [[x, y], ...]``, ``polygons =
+                      [[[x, y], ...], ...]`` and ``walls = [{ start = [x, y], end = [x, y], spacing =
+                      0.02 }, ...]``: scan points along each wall, added to ``points`` (world frame [m])
                       (``target = "initial"`` in a PostureTask means initial_configuration)
     [reference]       type = "circle" (radius, period [s], normal, start_axis, ramp_time [s])
                       | "pose" | "line" (speed [m/s], ramp_time [s]) for the first FrameTask,
@@ -51,7 +54,8 @@ from pydantic import ConfigDict, Field, TypeAdapter, ValidationError, model_vali
 
 from .. import constraints as constraint_module
 from .. import tasks as task_module
-from ..collision import CollisionAvoidance
+from ..collision import BaseFootprintAvoidance, CollisionAvoidance
+from ..collision.footprint import wall_points
 from ..collision.obstacles import obstacle_from_table
 from ..constraints import Constraint
 from ..control.controller import DEFAULT_LM_DAMPING, Controller
@@ -68,6 +72,10 @@ CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module
                                                  for name in constraint_module.__all__
                                                  if name not in ("Constraint", "ConstraintRows")}
 CONSTRAINT_TYPES["CollisionAvoidance"] = CollisionAvoidance
+CONSTRAINT_TYPES["BaseFootprintAvoidance"] = BaseFootprintAvoidance
+#: keys whose values the constructor checks itself (arrays of points and polygons, obstacle tables)
+_CHECKED_BY_CONSTRUCTOR = {CollisionAvoidance: ("obstacles",),
+                           BaseFootprintAvoidance: ("footprint", "points", "polygons")}
 MAX_TICKS = 10**7  #: longest run a scenario may ask for (duration / dt)
 _Item = TypeVar("_Item", Task, Constraint)
 
@@ -326,7 +334,10 @@ def _instantiate(entry: Entry, registry: dict[str, type[_Item]], label: str, rob
                             f"(known: {', '.join(sorted(registry))})")
     cls, label = registry[entry.type], f"{label} ({entry.type})"
     arguments = dict(entry.model_extra or {})
+    walls = arguments.pop("walls", None) if cls is BaseFootprintAvoidance else None
     _check_arguments(cls, arguments, label)
+    if walls is not None:
+        arguments["points"] = _scan_with_walls(arguments.get("points"), walls, label)
     if cls is CollisionAvoidance:  # obstacles are tables: { type = "Sphere", center = [...], radius = ... }
         arguments["obstacles"] = _obstacles(arguments.get("obstacles", []), label)
     if cls is PostureTask and arguments.get("target") == "initial":
@@ -349,6 +360,27 @@ def _obstacles(tables: object, label: str) -> list[Any]:
         raise ScenarioError(f"{label}: {exc}") from exc
 
 
+def _scan_with_walls(points: object, walls: object, label: str) -> NDArray[np.float64]:
+    """``points`` with the points along each wall table ``{ start = [x, y], end = [x, y], spacing = s }``."""
+    example = "walls = [{ start = [1.0, -1.0], end = [1.0, 1.0], spacing = 0.02 }]"
+    if not isinstance(walls, list) or not all(isinstance(wall, dict) for wall in walls):
+        raise ScenarioError(f"{label} walls: expected an array of tables, e.g. {example}, got {walls!r}")
+    try:
+        pieces = [np.asarray(points, dtype=np.float64).reshape(-1, 2)] if points is not None else []
+    except (TypeError, ValueError):
+        raise ScenarioError(f"{label} points: expected an array of [x, y] pairs, got {points!r}") from None
+    for k, wall in enumerate(walls):
+        unknown = set(wall) - {"start", "end", "spacing"}
+        if unknown or not {"start", "end"} <= set(wall):
+            raise ScenarioError(f"{label} walls[{k}]: keys start, end (and spacing) expected, e.g. {example}; "
+                                f"got {sorted(wall)}")
+        try:
+            pieces.append(wall_points(wall["start"], wall["end"], wall.get("spacing", 0.02)))
+        except (WbcError, TypeError, ValueError) as exc:
+            raise ScenarioError(f"{label} walls[{k}]: {exc}") from exc
+    return np.concatenate(pieces) if pieces else np.zeros((0, 2))
+
+
 def _check_arguments(cls: type[Any], arguments: dict[str, Any], label: str) -> None:
     """Keys must be constructor parameters, values must fit their type hints (strictly)."""
     parameters = {name: p for name, p in inspect.signature(cls).parameters.items()
@@ -362,8 +394,8 @@ def _check_arguments(cls: type[Any], arguments: dict[str, Any], label: str) -> N
         raise ScenarioError(f"{label}: required key {missing[0]!r} missing; add `{missing[0]} = ...`")
     hints = typing.get_type_hints(cls.__init__)
     for key, value in arguments.items():
-        if cls is CollisionAvoidance and key == "obstacles":
-            continue  # tables, checked by _obstacles
+        if key in _CHECKED_BY_CONSTRUCTOR.get(cls, ()):
+            continue  # tables and arrays, checked by _obstacles and the constructor
         hint = _toml_hint(hints[key]) if key in hints else _Numbers
         if cls is PostureTask and key == "target":
             hint = Literal["initial"] | hint

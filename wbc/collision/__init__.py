@@ -9,6 +9,8 @@ gradient rows.
   a detection distance, its signed distance, witness points and row ``grad d(q)^T``.
 * :mod:`~wbc.collision.avoidance` -- :class:`CollisionAvoidance`: the constraint of the control
   QP, a velocity damper per pair.
+* :mod:`~wbc.collision.footprint` -- :class:`BaseFootprintAvoidance`: the mobile base's 2-D
+  footprint kept clear of obstacle points (a laser scan) and polygons.
 
 Only the compiled kernels (:mod:`~wbc.collision.kernels`) import numba, when a :class:`Distances`
 is first built.
@@ -16,8 +18,10 @@ is first built.
 
 from .avoidance import CollisionAvoidance, CollisionAvoidanceData
 from .distances import Distances, PairBuffers
+from .footprint import BaseFootprintAvoidance, BaseFootprintAvoidanceData
 from .geometry import ExcludedPair, RobotGeometry
 from .obstacles import Box, Capsule, Obstacle, Plane, Sphere
 
-__all__ = ["CollisionAvoidance", "CollisionAvoidanceData", "RobotGeometry", "ExcludedPair", "Obstacle", "Sphere",
+__all__ = ["CollisionAvoidance", "CollisionAvoidanceData", "BaseFootprintAvoidance", "BaseFootprintAvoidanceData",
+           "RobotGeometry", "ExcludedPair", "Obstacle", "Sphere",
            "Box", "Capsule", "Plane", "Distances", "PairBuffers"]

@@ -23,7 +23,42 @@ from .obstacles import Obstacle
 INERT = 1.0
 
 
-class CollisionAvoidance(Constraint):
+class DistanceMargins:
+    """The settings ``min_distance`` [m] >= 0 and ``detection_distance`` [m] > ``min_distance`` of an
+    avoidance constraint, validated together (set both first with :meth:`_set_margins`)."""
+
+    _min_distance: float
+    _detection_distance: float
+
+    def _set_margins(self, min_distance: float, detection_distance: float) -> None:
+        self._min_distance = as_nonnegative(min_distance, "min_distance")
+        self._detection_distance = as_positive(detection_distance, "detection_distance")
+        _check_margins(self._min_distance, self._detection_distance)
+
+    @property
+    def min_distance(self) -> float:
+        """[m] the distance kept; below :attr:`detection_distance`."""
+        return self._min_distance
+
+    @min_distance.setter
+    def min_distance(self, value: float) -> None:
+        value = as_nonnegative(value, "min_distance")
+        _check_margins(value, self._detection_distance)
+        self._min_distance = value
+
+    @property
+    def detection_distance(self) -> float:
+        """[m] what is farther gets no row; above :attr:`min_distance`."""
+        return self._detection_distance
+
+    @detection_distance.setter
+    def detection_distance(self, value: float) -> None:
+        value = as_positive(value, "detection_distance")
+        _check_margins(self._min_distance, value)
+        self._detection_distance = value
+
+
+class CollisionAvoidance(DistanceMargins, Constraint):
     """Keep every pair of collision shapes at least ``min_distance`` apart: the robot's own
     shapes (``self_collision``) and the robot against ``obstacles`` (world frame, movable
     between ticks). One inequality row per pair closer than ``detection_distance``, the
@@ -75,36 +110,12 @@ class CollisionAvoidance(Constraint):
         self.obstacles = as_items(list(obstacles) if isinstance(obstacles, tuple) else obstacles, Obstacle,
                                   "obstacles")
         self.self_collision = as_flag(self_collision, "self_collision")
-        self._min_distance = as_nonnegative(min_distance, "min_distance")
-        self._detection_distance = as_positive(detection_distance, "detection_distance")
-        _check_margins(self._min_distance, self._detection_distance)
+        self._set_margins(min_distance, detection_distance)
         self.gain = gain
         if capacity is not None and (isinstance(capacity, bool) or not isinstance(capacity, int) or capacity < 1):
             raise InvalidInputError(f"capacity must be None or an int >= 1, got {capacity!r}")
         self.capacity = capacity
         self.srdf = srdf
-
-    @property
-    def min_distance(self) -> float:
-        """[m] the distance every pair keeps; below :attr:`detection_distance`."""
-        return self._min_distance
-
-    @min_distance.setter
-    def min_distance(self, value: float) -> None:
-        value = as_nonnegative(value, "min_distance")
-        _check_margins(value, self._detection_distance)
-        self._min_distance = value
-
-    @property
-    def detection_distance(self) -> float:
-        """[m] pairs farther apart get no row; above :attr:`min_distance`."""
-        return self._detection_distance
-
-    @detection_distance.setter
-    def detection_distance(self, value: float) -> None:
-        value = as_positive(value, "detection_distance")
-        _check_margins(self._min_distance, value)
-        self._detection_distance = value
 
     def bind(self, robot: Robot) -> CollisionAvoidanceData:
         return CollisionAvoidanceData(self, robot)
@@ -117,7 +128,7 @@ class CollisionAvoidance(Constraint):
 def _check_margins(min_distance: float, detection_distance: float) -> None:
     if not min_distance < detection_distance:
         raise InvalidInputError(f"min_distance ({min_distance} m) must be below detection_distance "
-                                f"({detection_distance} m): a pair must get its row before it reaches the margin")
+                                f"({detection_distance} m): an obstacle must get its row before it reaches the margin")
 
 
 class CollisionAvoidanceData(ConstraintData):

@@ -54,7 +54,7 @@ from .layout import (
     RADIUS,
 )
 
-CACHE = _cache.prepare(Path(__file__).parent, ("kernels",)) is not None
+CACHE = _cache.prepare(Path(__file__).parent, ("kernels", "footprint_kernels"), cold=("kernels",)) is not None
 
 _HX, _BC = HALF_EXTENTS.start, BOUND_CENTER.start
 #: columns of a shape's world pose: rotation row-major (9), translation (3), bounding-sphere centre (3)

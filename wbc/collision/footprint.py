@@ -1,0 +1,268 @@
+"""A mobile base that keeps its footprint clear of 2-D obstacles: points (a laser scan, replaced
+every tick) and polygons in the world frame; velocity-damper rows on the base velocity only."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
+from ..core.errors import InvalidInputError
+from ..core.settings import Setting
+from ..core.validation import as_gain, as_positive
+from ..model.kinematics import Kinematics
+from ..model.mobile_base import BaseKind
+from ..model.robot import Robot
+from .avoidance import INERT, DistanceMargins
+
+#: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
+#: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
+POLYGON_SPACING = 0.01
+_MIN_CELLS = 1024  # grid cells allocated at least (grown with the points: 4 per point)
+
+
+def as_polygon(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as a simple polygon, an (m, 2) float array with m >= 3 vertices [m], returned
+    counter-clockwise (a clockwise one is reversed).
+
+    Raises:
+        InvalidInputError: not an (m, 2) finite array, fewer than 3 vertices, zero area, repeated
+            vertices or crossing edges (not a simple polygon).
+    """
+    try:
+        polygon = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InvalidInputError(f"{name} must be an (m, 2) array of vertices [m], got {value!r}") from None
+    if polygon.ndim != 2 or polygon.shape[1] != 2 or polygon.shape[0] < 3:
+        raise InvalidInputError(f"{name} must be an (m, 2) array of m >= 3 vertices (x, y) [m], got shape "
+                                f"{polygon.shape}")
+    if not np.all(np.isfinite(polygon)):
+        raise InvalidInputError(f"{name} contains NaN or inf")
+    following = np.roll(polygon, -1, axis=0)
+    edges = following - polygon
+    if np.any(np.hypot(edges[:, 0], edges[:, 1]) <= 1e-9):
+        raise InvalidInputError(f"{name}: two consecutive vertices coincide; give each corner once")
+    m = len(polygon)
+    for i in range(m):
+        for j in range(i + 2, m):
+            if i == 0 and j == m - 1:
+                continue  # adjacent through the closing edge
+            if _segments_cross(polygon[i], following[i], polygon[j], following[j]):
+                raise InvalidInputError(f"{name} is not a simple polygon: edge {i} crosses edge {j}; give the "
+                                        "vertices in order around the boundary")
+    area = 0.5 * float(np.sum(polygon[:, 0] * following[:, 1] - following[:, 0] * polygon[:, 1]))
+    if abs(area) <= 1e-12:
+        raise InvalidInputError(f"{name} has zero area: give the corners of a polygon, not points on a line")
+    return polygon if area > 0 else polygon[::-1].copy()
+
+
+def _segments_cross(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[np.float64],
+                    d: NDArray[np.float64]) -> bool:
+    def side(p: NDArray[np.float64], q: NDArray[np.float64], r: NDArray[np.float64]) -> float:
+        return float((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]))
+    return side(a, b, c) * side(a, b, d) <= 0.0 and side(c, d, a) * side(c, d, b) <= 0.0
+
+
+def polygon_boundary_points(polygon: NDArray[np.float64], spacing: float = POLYGON_SPACING) -> NDArray[np.float64]:
+    """Points along the edges of ``polygon`` at most ``spacing`` apart, its vertices included."""
+    pieces = []
+    for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
+        count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+        pieces.append(a + np.outer(np.arange(count) / count, b - a))
+    return np.concatenate(pieces)
+
+
+def wall_points(start: ArrayLike, end: ArrayLike, spacing: float = 0.02) -> NDArray[np.float64]:
+    """Points every ``spacing`` [m] (at most) from ``start`` to ``end`` (both included), e.g. a wall
+    as a laser scan sees it."""
+    a = np.asarray(start, dtype=np.float64)
+    b = np.asarray(end, dtype=np.float64)
+    if a.shape != (2,) or b.shape != (2,) or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise InvalidInputError(f"a wall's start and end must be finite points (x, y) [m], got {start!r}, {end!r}")
+    spacing = as_positive(spacing, "spacing")
+    count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+    return a + np.outer(np.linspace(0.0, 1.0, count + 1), b - a)
+
+
+class BaseFootprintAvoidance(DistanceMargins, Constraint):
+    """Keep the mobile base's footprint at least ``min_distance`` from 2-D obstacles in the world
+    frame: points (a laser scan, replaced every tick if need be by
+    :meth:`~wbc.collision.footprint.BaseFootprintAvoidance.set_points`) and polygons.
+
+    For an obstacle point p and the chassis pose (x, y, theta): ``p_b = R(theta)^T (p - (x, y))``,
+    d its signed distance to the footprint polygon (< 0 inside), n the unit normal at the
+    closest footprint point (``n = grad_{p_b} d``). With ``J = [[0, -1], [1, 0]]``::
+
+        d_dot = -n . R^T (xdot, ydot) - omega n . (J p_b)
+
+    and the velocity damper ``-d_dot <= gain (d - min_distance) / dt`` on the base columns of v
+    (``robot.base.indices``; the reduced form of a nonholonomic base maps the rows through its
+    input map like any row). To first order the margin ``d - min_distance`` shrinks at most by the
+    fraction ``gain`` per tick; from ``d < min_distance`` the base is pushed out at that rate. A
+    synchro drive's chassis does not turn with its heading (the steering angle): its footprint
+    stays aligned with the world axes (theta = 0, no omega column).
+
+    **Rows.** ``capacity`` rows, one per angular sector about the footprint's centroid: the closest
+    point of each sector within ``detection_distance`` gets its sector's row (a wall and a box on
+    two sides both get rows), the other rows are inert (``G = 0``, ``h = 1``). Soft
+    (``hard = False``) like :class:`~wbc.CollisionAvoidance`.
+
+    **Cost.** The points are bucketed into a uniform grid when they are set (``O(N)``); a tick
+    visits only the cells within ``detection_distance`` of the footprint's bounding circle
+    (docs/collision.md gives measured costs).
+
+    Args:
+        footprint: the footprint polygon in the base frame [m], (m, 2) vertices around the boundary
+            (counter-clockwise; a clockwise one is reversed), convex or simple.
+        points: initial obstacle points, an (N, 2) array in the world frame [m] (None: none).
+        polygons: fixed obstacle polygons in the world frame [m]; their edges are sampled every
+            :data:`POLYGON_SPACING` m, so the footprint keeps ``min_distance - POLYGON_SPACING / 2``
+            from the edges.
+        min_distance: [m] >= 0, the clearance kept.
+        detection_distance: [m] > ``min_distance``: farther points get no row.
+        gain: fraction (0, 1] of the margin one tick may consume.
+        capacity: number of rows (angular sectors), >= 1.
+
+    Raises:
+        InvalidInputError: a footprint or polygon that is not a simple polygon, points that are not
+            a finite (N, 2) array, a distance or gain out of range (named); at bind, a fixed base.
+    """
+
+    gain = Setting(as_gain)
+    hard = False
+
+    def __init__(self, footprint: ArrayLike, points: ArrayLike | None = None,
+                 polygons: Sequence[ArrayLike] | None = None, min_distance: float = 0.05,
+                 detection_distance: float = 0.5, gain: float = 0.5, capacity: int = 16,
+                 name: str | None = None) -> None:
+        super().__init__(name)
+        self.footprint = as_polygon(footprint, "footprint")
+        self._set_margins(min_distance, detection_distance)
+        self.gain = gain
+        if isinstance(capacity, bool) or not isinstance(capacity, int | np.integer) or capacity < 1:
+            raise InvalidInputError(f"capacity must be an int >= 1 (rows, one per angular sector), got {capacity!r}")
+        self.capacity = int(capacity)
+        if polygons is not None and not isinstance(polygons, list | tuple):
+            raise InvalidInputError(f"polygons must be a list of (m, 2) vertex arrays, got {polygons!r}")
+        self.polygons = [as_polygon(p, f"polygons[{k}]") for k, p in enumerate(polygons or [])]
+        self._fixed = (np.concatenate([polygon_boundary_points(p) for p in self.polygons]) if self.polygons
+                       else np.zeros((0, 2)))
+        self._cell = 0.5 * self._detection_distance  # grid cell side [m]
+        self._scan = np.zeros((0, 2))  # the current scan, copied (grown when a larger one comes)
+        self._n_scan = 0
+        self._cell_of = np.zeros(0, dtype=np.int64)
+        self._cell_start = np.zeros(_MIN_CELLS + 1, dtype=np.int64)
+        self._ordered = np.zeros((0, 2))  # fixed and scan points in grid order
+        self._meta = np.zeros(5)  # grid (x0, y0, cell, nx, ny)
+        self._n_points = 0
+        self.set_points(np.zeros((0, 2)) if points is None else points)
+
+    def set_points(self, points: ArrayLike) -> None:
+        """Replace the obstacle points (the scan): an (N, 2) array in the world frame [m]; N = 0
+        means none (the polygons remain). Copied, and bucketed into the grid (``O(N)``; no
+        allocation unless N exceeds every earlier scan).
+
+        Raises:
+            InvalidInputError: not an (N, 2) array, or a NaN/inf point (its index is named): the
+                previous points stay in force.
+        """
+        try:
+            scan = np.ascontiguousarray(points, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"points must be an (N, 2) array of (x, y) [m], got {points!r}") from None
+        if scan.size == 0:
+            scan = scan.reshape(0, 2)
+        if scan.ndim != 2 or scan.shape[1] != 2:
+            raise InvalidInputError(f"points must be an (N, 2) array of (x, y) [m], got shape {scan.shape}")
+        from . import footprint_kernels as kernels  # compiled on first use, never by ``import wbc``
+
+        n, total = scan.shape[0], self._fixed.shape[0] + scan.shape[0]
+        ordered, cell_of, cell_start = self._ordered, self._cell_of, self._cell_start
+        if total > ordered.shape[0]:  # grown (kept only when the scan is valid)
+            ordered, cell_of = np.zeros((total, 2)), np.zeros(total, dtype=np.int64)
+            cell_start = np.zeros(max(4 * total, _MIN_CELLS) + 1, dtype=np.int64)
+        built = kernels.build_grid(self._fixed, scan, n, self._cell, cell_of, cell_start, ordered,
+                                   self._meta)  # checks every point before it writes anything
+        if built < 0:
+            raise InvalidInputError(f"points[{-built - 1}] is {scan[-built - 1]} (NaN or inf): a scan must be "
+                                    "finite; drop invalid returns (e.g. out-of-range readings) before set_points "
+                                    "(the previous points stay in force)")
+        if n > self._scan.shape[0]:
+            self._scan = np.zeros((n, 2))
+        self._scan[:n] = scan
+        self._ordered, self._cell_of, self._cell_start = ordered, cell_of, cell_start
+        self._n_scan, self._n_points = n, built
+
+    @property
+    def points(self) -> NDArray[np.float64]:
+        """The current scan points (a read-only view), (N, 2) [m]."""
+        view = self._scan[:self._n_scan]
+        view.flags.writeable = False
+        return view
+
+    def bind(self, robot: Robot) -> BaseFootprintAvoidanceData:
+        return BaseFootprintAvoidanceData(self, robot)
+
+    def __repr__(self) -> str:
+        return (f"BaseFootprintAvoidance(footprint={self.footprint.tolist()}, points=<{self._n_scan} points>, "
+                f"polygons=<{len(self.polygons)}>, min_distance={self.min_distance}, "
+                f"detection_distance={self.detection_distance}, gain={self.gain}, capacity={self.capacity})")
+
+
+class BaseFootprintAvoidanceData(ConstraintData):
+    """:class:`BaseFootprintAvoidance` in one controller: the base's columns, and each sector's
+    closest point of the last tick (:attr:`closest`)."""
+
+    constraint: BaseFootprintAvoidance
+
+    def __init__(self, avoidance: BaseFootprintAvoidance, robot: Robot) -> None:
+        super().__init__(avoidance)
+        if not robot.base.is_mobile:
+            raise InvalidInputError(f"{avoidance.name}: robot '{robot.name}' has a fixed base; BaseFootprintAvoidance "
+                                    "keeps a mobile base clear (use CollisionAvoidance for a fixed arm)")
+        from . import footprint_kernels as kernels
+
+        self._kernels = kernels
+        self.n_inequalities = avoidance.capacity
+        self._columns = np.array(robot.base.indices, dtype=np.int64)
+        self._heading = robot.base.indices[2]
+        #: the chassis turns with the heading (a synchro drive's does not: the heading steers its wheels)
+        self._turns = 0.0 if robot.base.kind is BaseKind.SYNCHRO else 1.0
+        vertices = avoidance.footprint
+        self._edges = np.zeros((len(vertices), kernels.EDGE_COLUMNS))
+        kernels.edge_table(np.ascontiguousarray(vertices), self._edges)
+        centroid = vertices.mean(axis=0)
+        self._shape = np.r_[centroid, np.max(np.linalg.norm(vertices - centroid, axis=1))]
+        self._pose = np.zeros(3)
+        angles = -np.pi + 2 * np.pi * np.arange(self.n_inequalities) / self.n_inequalities
+        self._sectors = np.array([kernels.diamond_angle(np.cos(a), np.sin(a)) for a in angles])
+        self._sectors[0] = 0.0  # -pi exactly (cos(-pi), sin(-pi) = -1, -1.2e-16 would give ~4)
+        self._settings = np.zeros(3)
+        #: per sector: (d, n_b (2), p_b (2), point index) of the last tick's closest point (d = inf: none)
+        self.closest = np.full((self.n_inequalities, kernels.BEST_COLUMNS), np.inf)
+
+    def write_static(self, rows: ConstraintRows) -> None:
+        rows.G[:] = 0.0
+        rows.h[:] = INERT
+
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        avoidance, pose, settings = self.constraint, self._pose, self._settings
+        x, y, _ = self._columns
+        pose[0], pose[1], pose[2] = kin.q[x], kin.q[y], kin.q[self._heading] * self._turns
+        settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
+        self._kernels.footprint_rows(avoidance._ordered, avoidance._cell_start, avoidance._meta, avoidance._n_points,
+                                     self._edges, self._shape, pose, self._turns, settings, dt, self._columns,
+                                     self._sectors, self.closest, rows.G, rows.h)
+
+    @property
+    def min_distance(self) -> float:
+        """The smallest signed distance [m] of the last tick's points to the footprint (inf when
+        none was within the detection distance)."""
+        return float(self.closest[:, 0].min())
+
+    def row_labels(self) -> list[str]:
+        """``"sector k"`` of each row (its closest point's distance when it has one)."""
+        return [f"sector {k} (d = {d:.3f} m)" if np.isfinite(d) else f"sector {k} (no point)"
+                for k, d in enumerate(self.closest[:, 0].tolist())]
