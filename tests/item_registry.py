@@ -86,7 +86,6 @@ def _sphere_near_the_gripper(robot: wbc.Robot, q: np.ndarray) -> Constraint:
                                   detection_distance=0.4)
 
 
-
 def _com_task(robot: wbc.Robot, q: np.ndarray) -> Task:
     task = wbc.CoMTask(cost=[1.0, 2.0, 0.5], gain=0.4)
     task.set_target_from_configuration(robot, q)
@@ -98,6 +97,7 @@ def _support_polygon(robot: wbc.Robot, q: np.ndarray) -> Constraint:
     centre of mass (5.5-5.8 cm ahead at q0 and q1) meets when the arm reaches out."""
     return wbc.SupportPolygon([[-0.1, -0.1], [0.07, -0.1], [0.07, 0.1], [-0.1, 0.1]], frame="base_link",
                               margin=0.01, gain=0.4)
+
 
 def _points_around_the_base(robot: wbc.Robot, q: np.ndarray) -> Constraint:
     c, s = np.cos(q[2]), np.sin(q[2])
