@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import wbc
-from tests.test_mobile_bases import UNICYCLE_TOML, UNICYCLE_URDF
+from test_mobile_bases import UNICYCLE_TOML, UNICYCLE_URDF
 from wbc.app.closed_loop import run
 from wbc.app.scenario import load_scenario
 from wbc.constraints.acceleration_limits import braking_speed

@@ -7,7 +7,7 @@ import pytest
 
 import wbc
 from conftest import ROOT
-from tests.test_look_at_task import rows
+from test_look_at_task import rows
 from wbc.qp import lifting
 
 DT = 0.01

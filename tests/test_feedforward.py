@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from tests.test_kernels import _python_only
+from test_kernels import _python_only
 
 DT = 0.01
 Q = np.array([0.1, -0.2, 0.3, 0.2, 0.9, 0.8, 1.0, 0.4])

@@ -8,7 +8,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from tests.item_registry import CASES, CONFIGURATIONS, Case
+from item_registry import CASES, CONFIGURATIONS, Case
 from wbc.constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from wbc.model.kinematics import Kinematics
 from wbc.tasks.task import Task, TaskData

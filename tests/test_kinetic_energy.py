@@ -7,8 +7,8 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from tests.conftest import random_youbot_configurations
-from tests.test_look_at_task import rows
+from conftest import random_youbot_configurations
+from test_look_at_task import rows
 
 DT = 0.01
 

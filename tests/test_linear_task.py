@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import wbc
-from tests.test_look_at_task import rows
+from test_look_at_task import rows
 
 DT = 0.01
 Q = np.array([0.1, -0.2, 0.3, 0.2, 0.9, -0.8, 1.0, 0.4])

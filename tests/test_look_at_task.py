@@ -7,7 +7,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from tests.conftest import random_youbot_configurations
+from conftest import random_youbot_configurations
 from wbc.model.kinematics import Kinematics
 
 DT = 0.01
