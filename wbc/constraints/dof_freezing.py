@@ -4,11 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
-
-from ..core.errors import InvalidInputError
-from ..model.declared_base import joint_index
+from ..model.declared_base import joint_columns
 from ..model.kinematics import Kinematics
+from ..model.manipulability import check_joint_names
 from ..model.robot import Robot
 from ..runtime.program import TickProgram
 from .constraint import Constraint, ConstraintData, ConstraintRows
@@ -30,10 +28,7 @@ class DofFreezing(Constraint):
 
     def __init__(self, joints: Sequence[str], name: str | None = None) -> None:
         super().__init__(name)
-        if isinstance(joints, str) or not all(isinstance(joint, str) for joint in joints) or not joints:
-            raise InvalidInputError(f"joints must be a non-empty list of joint names, got {joints!r}"
-                                    + (f"; write joints=[{joints!r}]" if isinstance(joints, str) else ""))
-        self.joints = tuple(joints)
+        self.joints = tuple(check_joint_names(joints))
 
     def bind(self, robot: Robot) -> DofFreezingData:
         return DofFreezingData(self, robot)
@@ -49,14 +44,7 @@ class DofFreezingData(ConstraintData):
 
     def __init__(self, freezing: DofFreezing, robot: Robot) -> None:
         super().__init__(freezing)
-        model = robot.model
-        columns: list[int] = []
-        for name in freezing.joints:
-            joint = model.joints[joint_index(model, name, "joints", freezing.name)]
-            columns += range(joint.idx_v, joint.idx_v + joint.nv)
-        if len(set(columns)) != len(columns):
-            raise InvalidInputError(f"{freezing.name}: a joint is named twice in {list(freezing.joints)}")
-        self.columns = np.array(columns, dtype=int)  #: the frozen coordinates of v
+        self.columns = joint_columns(robot.model, freezing.joints, freezing.name)  #: the frozen coordinates of v
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.lower[self.columns] = 0.0

@@ -28,13 +28,15 @@ from __future__ import annotations
 import difflib
 import math
 import xml.etree.ElementTree as ElementTree
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from numpy.typing import NDArray
 
-from ..core.errors import ModelError
+from ..core.errors import InvalidInputError, ModelError
 from .bases.interface import LAYOUT_TOLERANCE, WheelMount, Wheels, kind_class
 from .mobile_base import BaseKind, MobileBase
 
@@ -256,6 +258,21 @@ def joint_index(model: pin.Model, name: str, key: str, where: str) -> int:
         hint = f"; did you mean {', '.join(map(repr, close))}?" if close else ""
         raise ModelError(f"{where}: {key}: {name!r} is not a joint of the model{hint}")
     return int(model.getJointId(name))
+
+
+def joint_columns(model: pin.Model, joints: Sequence[str], where: str) -> NDArray[np.intp]:
+    """The velocity coordinates of ``joints`` (every coordinate of each, in their order).
+
+    Raises:
+        ModelError: an unknown joint (with close names, :func:`joint_index`).
+        InvalidInputError: a joint named twice.
+    """
+    ids = [joint_index(model, name, "joints", where) for name in joints]
+    repeated = sorted({name for name in joints if list(joints).count(name) > 1})
+    if repeated:
+        raise InvalidInputError(f"{where}: joints {repeated} named twice; name each joint once")
+    return np.array([i for j in ids for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)],
+                    dtype=np.intp)
 
 
 def _check_distinct(model: pin.Model, ids: list[int], where: str) -> None:

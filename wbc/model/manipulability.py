@@ -42,7 +42,7 @@ from scipy.linalg.lapack import dgesvd, dposv
 
 from ..core.errors import InvalidInputError
 from ..runtime import kernels
-from .declared_base import joint_index
+from .declared_base import joint_columns
 from .kinematics import Kinematics, frame_in_joint
 from .robot import Robot
 
@@ -186,18 +186,14 @@ def chain_columns(robot: Robot, frame_id: int, joints: Sequence[str]) -> NDArray
     """
     check_joint_names(joints)
     model = robot.model
+    frame = model.frames[frame_id].name
+    columns = joint_columns(model, joints, f"manipulability of '{frame}'")
     support = set(model.supports[model.frames[frame_id].parentJoint])
-    columns: list[int] = []
     for name in joints:
-        joint_id = joint_index(model, name, "joints", f"manipulability of '{model.frames[frame_id].name}'")
-        if joint_id not in support:
-            raise InvalidInputError(f"joint {name!r} does not move frame '{model.frames[frame_id].name}' (it is not "
-                                    "on the frame's path from the root): its measure would be 0")
-        joint = model.joints[joint_id]
-        columns += range(joint.idx_v, joint.idx_v + joint.nv)
-    if len(set(columns)) != len(columns):
-        raise InvalidInputError(f"a joint is named twice in {list(joints)}")
-    return np.array(columns, dtype=np.intp)
+        if model.getJointId(name) not in support:
+            raise InvalidInputError(f"joint {name!r} does not move frame '{frame}' (it is not on the frame's path "
+                                    "from the root): its measure would be 0")
+    return columns
 
 
 def manipulability(robot: Robot, q: ArrayLike, frame: str, rows: Rows = "all",

@@ -9,7 +9,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.errors import InvalidInputError
 from ..core.validation import as_weights
-from ..model.declared_base import joint_index
+from ..model.declared_base import joint_columns
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .error_task import ErrorTask, ErrorTaskData
@@ -110,14 +110,6 @@ class DampingTaskData(ErrorTaskData):
         """Nothing changes: ``e = 0`` and the selection ``J`` were written once."""
 
 
-def _velocity_indices(robot: Robot, joints: tuple[str, ...] | None, where: str) -> NDArray[np.int64]:
+def _velocity_indices(robot: Robot, joints: tuple[str, ...] | None, where: str) -> NDArray[np.intp]:
     """The velocity coordinates of ``joints``, in their order (every coordinate of v for None)."""
-    if joints is None:
-        return np.arange(robot.nv)
-    ids = [joint_index(robot.model, name, "joints", where) for name in joints]
-    repeated = sorted({name for name in joints if joints.count(name) > 1})
-    if repeated:
-        raise InvalidInputError(f"{where}: joints {repeated} named twice; name each joint once")
-    model = robot.model
-    return np.array([i for j in ids for i in range(model.joints[j].idx_v, model.joints[j].idx_v + model.joints[j].nv)],
-                    dtype=np.int64)
+    return np.arange(robot.nv) if joints is None else joint_columns(robot.model, joints, where)
