@@ -86,8 +86,10 @@ def test_contacts_are_off_whatever_the_mjcf_says(tmp_path, monkeypatch):
 
     from wbc.model.robot import model_path
 
-    text = model_path("youbot", "mjcf").read_text().replace('contype="0" conaffinity="0"', 'contype="1" conaffinity="1"')
-    text = text.replace('<geom name="floor"', '<geom name="ball" type="sphere" pos="0.15 0 0.2" size="0.1"/><geom name="floor"')
+    text = model_path("youbot", "mjcf").read_text()
+    text = text.replace('contype="0" conaffinity="0"', 'contype="1" conaffinity="1"')
+    ball = '<geom name="ball" type="sphere" pos="0.15 0 0.2" size="0.1"/>'
+    text = text.replace('<geom name="floor"', ball + '<geom name="floor"')
     colliding = tmp_path / "youbot.xml"
     colliding.write_text(text)
     model = mujoco.MjModel.from_xml_path(str(colliding))
