@@ -122,6 +122,10 @@ CASES = [
     Case("LinearTask", "youbot", lambda robot, q: wbc.LinearTask(
         [[0, 0, 0, 1, -1, 0, 0, 0], [0.5, 0, 0.2, 0, 0, 1, 0, 0]], b=[0.1, -0.2], cost=[1.0, 2.0]), None,
          "a reference, not an error: A v = b in closed loop (tests/test_linear_task.py)"),
+    Case("LinearCost", "youbot", lambda robot, q: wbc.LinearCost([1e-4, -2e-4, 3e-4, 0, 1e-4, 0, -1e-4, 2e-4]), None,
+         "no error: c^T v, the damped optimum -c / damping (tests/test_linear_cost.py)"),
+    Case("ManipulabilityGradient", "youbot", lambda robot, q: wbc.ManipulabilityGradient("ee", 1e-5), None,
+         "no error: c = -cost grad ln m (finite differences: tests/test_linear_cost.py)"),
     Case("BaseVelocityTask", "youbot", _base_velocity_task, None, "a velocity reference: J v = r in closed loop"),
     Case("SteeringTask", "deluca_mm", lambda robot, q: wbc.SteeringTask(1e-2, gain=1.0, speed_scale=0.5), None,
          "steers toward the holonomic preview: tests/test_mobile_bases.py (parking)"),

@@ -48,8 +48,10 @@ from .tasks import (
     DampingTask,
     FrameTask,
     KineticEnergyRegularization,
+    LinearCost,
     LinearTask,
     LookAtTask,
+    ManipulabilityGradient,
     ManipulabilityTask,
     PositionTask,
     PostureTask,
@@ -72,5 +74,5 @@ __all__ = [
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
     "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization", "LookAtTask", "AxisAlignTask",
-    "LinearTask",
+    "LinearTask", "LinearCost", "ManipulabilityGradient",
 ]

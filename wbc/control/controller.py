@@ -308,6 +308,7 @@ class Controller:
         self._task_stack = stack = TaskStack(self._task_data, nv)
         self._stack_t, self._damping_rows = stack.stack_t, stack.damping_rows
         self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
+        self._linear_blocks = stack.linear_blocks
         self.damping = self.damping  # writes sqrt(damping) I into its rows
 
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
@@ -398,7 +399,7 @@ class Controller:
         """Append the ops of the compiled items to ``program``; the items left to Python. Items
         whose subclass overrides compute keep their own rows: no inherited ops for them."""
         kin, stack = self.kinematics, self._stack_t
-        tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
+        tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks + self._linear_blocks
                  if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                        if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
@@ -416,6 +417,7 @@ class Controller:
             return [], program, self._lifted_ops(program)
         program.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=0, last=self._n_plain,
                     reset=1, Hc=qp.Hc)
+        self._task_stack.add_linear_op(program, qp)
         python_preview, rest = self._preview_ops(program)
         self._bound_policy.add_op(rest, qp)
         rest.add(kernels.NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
@@ -429,7 +431,7 @@ class Controller:
     def _lifting(self) -> LiftedQP | None:
         """The lifted QP (the dense task rows as variables, :mod:`wbc.qp.lifting`) when it pays:
         high DOF, native DAQP, plain form, no preview; None otherwise."""
-        if self.reduced or self._preview_blocks or not getattr(self.solver, "native", False):
+        if self.reduced or self._preview_blocks or self._linear_blocks or not getattr(self.solver, "native", False):
             return None
         diagonal = dense_rows(self._task_stack, self.robot.nv)
         return LiftedQP(self._qp_v, diagonal) if worth_lifting(self.robot.nv, diagonal) else None
@@ -456,7 +458,7 @@ class Controller:
                                   and task.add_preview_ops(program, kin, stack, start, self._preview))]
         rest = TickProgram() if python_preview else program  # runs after the Python preview tasks
         rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=self._n_plain,
-                 last=stack.shape[1], reset=0, Hc=self._qp_v.Hc)
+                 last=self._task_stack.n_quadratic, reset=0, Hc=self._qp_v.Hc)
         return python_preview, rest
 
     def _finish_program(self, program: TickProgram, rest: TickProgram, solve: BackendSolve) -> None:
