@@ -32,6 +32,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import warnings
 from collections.abc import Iterator
 from contextlib import redirect_stdout
 from dataclasses import dataclass
@@ -226,6 +227,16 @@ def test_toml_blocks_are_valid(block, tmp_path):
         from wbc.ros.config import parse_config  # a configuration of `wbc ros` (docs/ros.md): its schema
 
         parse_config(data, block.label)
+        return
+    if "urdf" in data:  # a sidecar of a third-party robot (docs/ros.md: TIAGo's), loaded on the installed URDF
+        from test_declared_base import tiago_urdf
+
+        assert data["urdf"].endswith("tiago_description/robots/tiago.urdf"), f"{block.label}: which robot?"
+        sidecar = tmp_path / "robot.toml"
+        sidecar.write_text(block.code.replace(data["urdf"], str(tiago_urdf())))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", wbc.ModelWarning)  # (the hand's mimic joints)
+            assert wbc.load_robot(sidecar).base.kind is wbc.BaseKind.UNICYCLE
         return
     if "base" in data:
         sidecars = [tomllib.loads((ROOT / "models" / name / f"{name}.toml").read_text())
