@@ -198,6 +198,12 @@ EXAMPLES: dict[type, Example] = {
         "cost": lambda t: setattr(t, "cost", 1e-2),
         "set_target": lambda t: t.set_target([-0.2]),
     }, stack=lambda: [_position_task()]),
+    wbc.LinearCost: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LinearCost(np.full(8, 1e-3)), {
+        "c": lambda t: setattr(t, "c", [0.0, 2e-3, 0.0, -1e-3, 0.0, 0.0, 1e-3, 0.0]),
+    }, stack=lambda: [_position_task()]),
+    wbc.ManipulabilityGradient: Example(YOUBOT, Q_YOUBOT, lambda: wbc.ManipulabilityGradient("ee", 1e-3), {
+        "cost": lambda t: setattr(t, "cost", 1e-2),
+    }, stack=lambda: [_position_task()]),
     wbc.PostureTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.PostureTask(1e-2, gain=0.1), {
         "gain": lambda t: setattr(t, "gain", 0.5),
         "set_target": lambda t: t.set_target(Q_YOUBOT + 0.2),
