@@ -114,8 +114,13 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     if summary["position_error_rms_m"] != pytest.approx(in_process["position_error_rms_m"], rel=1e-6):
         step = 2 * math.pi * 0.2 / 8.0 * DT  # [m] the circle's (radius 0.2 m, period 8 s) advance in one tick
         late = max(summary["repeated_state_ticks"], 1) / summary["control_ticks"]  # up to 3 steps off then
-        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
-        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 3 * step
+        # a state older than a period (measured: its writer's timestamp to the tick) puts the robot that many
+        # ticks further behind the target (seen on a machine loaded by other jobs: 4.9 mm against 4.7 mm)
+        behind = max(1, math.ceil(summary["state_age_max_us"] * 1e-6 / DT - 1e-9))
+        print(f"oldest state taken: {summary['state_age_max_us'] * 1e-3:.1f} ms ({behind} periods)")
+        bound = 3 * step * behind
+        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + bound * math.sqrt(late)
+        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + bound
     else:  # the same loop
         assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
     robot = loop["robot"]
