@@ -32,11 +32,13 @@ from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFr
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
 from . import shipped
+from .bases.floating import free_flyer_root
 from .bases.interface import kind_class
 from .declared_base import (
     BaseDeclaration,
     base_kind,
     declare_base,
+    declare_floating,
     joint_index,
     mimic_joints,
     planar_root_joints,
@@ -202,10 +204,11 @@ class Robot:
         return pin.neutral(self.model)
 
     def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> NDArray[np.float64]:
-        """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``."""
+        """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``;
+        quaternions (a floating base) and the ``(cos, sin)`` of continuous joints normalised."""
         low = np.where(np.isfinite(self.lower), self.lower, -base_range)
         high = np.where(np.isfinite(self.upper), self.upper, base_range)
-        return rng.uniform(low, high)
+        return pin.normalize(self.model, rng.uniform(low, high))  # unit quaternions, (cos, sin) pairs
 
     def within_limits(self, q: ArrayLike, tol: float = 0.0) -> bool:
         q = self.check_configuration(q)
@@ -371,7 +374,8 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
 
     Args:
         base: ``"planar"`` (holonomic, no wheel model), ``"mecanum"``, ``"differential"``,
-            ``"synchro"`` or ``"fixed"``; for a URDF without a sidecar (a sidecar declares its
+            ``"synchro"``, ``"floating"`` (a free-flyer root joint, :mod:`wbc.model.bases.floating`;
+            a URDF ``floating`` root joint is recognised without it) or ``"fixed"``; for a URDF without a sidecar (a sidecar declares its
             base in its ``[base]`` table, with the same keys).
         wheels: the driven wheel joints (differential: 2, mecanum: 4, any order): held at 0 in
             the model (their speeds follow from the base's motion) and read for the wheel model
@@ -379,8 +383,10 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
         wheel_radius: [m] when the URDF does not give it.
         lock: more joints held at their neutral position (casters, passive wheels).
         replace: the root joints the base joints replace (default: a ``planar`` root joint).
-        max_linear_speed: [m/s] ``|v_x|, |v_y|`` limit (default: the replaced joints', else none).
-        max_yaw_rate: [rad/s] ``|omega|`` limit (default as for ``max_linear_speed``).
+        max_linear_speed: [m/s] ``|v_x|, |v_y|`` limit (default: the replaced joints', else none;
+            a floating base: each base-frame linear component).
+        max_yaw_rate: [rad/s] ``|omega|`` limit (default as for ``max_linear_speed``; a floating
+            base: each base-frame angular component).
         max_wheel_speed: [rad/s] (default: the wheel joints' URDF velocity limit).
 
     Returns:
@@ -414,12 +420,14 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     where = str(path)
     if declared:
         if base is None:  # limits or joints to hold, for the base the model has: planar if it has one
-            base = "planar" if planar_root_joints(model) else "fixed"
+            base = "planar" if planar_root_joints(model) else "floating" if free_flyer_root(model) else "fixed"
         declaration = BaseDeclaration(base_kind(base), tuple(wheels), wheel_radius,
                                       tuple(lock), tuple(replace), max_linear_speed, max_yaw_rate, max_wheel_speed)
         model, mobile_base = _declared(model, path, declaration, where)
     elif planar_root_joints(model):
         model, mobile_base = declare_base(model, path, BaseDeclaration(BaseKind.PLANAR), where)
+    elif free_flyer_root(model) is not None:  # a URDF 'floating' root joint
+        model, mobile_base = declare_floating(model, path, BaseDeclaration(BaseKind.FLOATING), where)
     else:
         mobile_base = _detect_planar_base(model)
     _warn_unhandled(model, mobile_base, path)
@@ -428,6 +436,8 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
 
 def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where: str) -> tuple[pin.Model, MobileBase]:
     """The model and base of a declaration (a fixed one only locks joints)."""
+    if declaration.kind is BaseKind.FLOATING:
+        return declare_floating(model, urdf, declaration, where)
     if declaration.kind is not BaseKind.FIXED:
         return declare_base(model, urdf, declaration, where)
     if declaration.wheels or declaration.replace:
@@ -440,7 +450,8 @@ def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where:
                          "one; declare its base (base='planar' | 'mecanum' | 'differential' | 'synchro')")
     held = sorted(joint_index(model, name, "lock", where) for name in declaration.lock)
     planar = planar_root_joints(model)  # a planar root joint held: the robot stands at the origin
-    locked = sorted(set(held + planar))
+    free_flyer = free_flyer_root(model)  # the same for a free-flyer root joint
+    locked = sorted(set(held + planar + ([free_flyer] if free_flyer else [])))
     return (pin.buildReducedModel(model, locked, pin.neutral(model)) if locked else model), FIXED_BASE
 
 
@@ -453,7 +464,7 @@ def _no_declaration(declared: bool, where: str | Path) -> None:
 def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> None:
     """Say what wbc does not model: a mobile robot loaded as fixed, mimic joints."""
     wheels = wheel_like_joints(model)
-    if wheels and not mobile_base.is_mobile:
+    if wheels and mobile_base.kind is BaseKind.FIXED:
         warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels, but the robot is loaded with a fixed "
                       "base (its base will not move); declare it: load_robot(path, base='differential' | "
                       "'mecanum' | 'planar', wheels=[...])", ModelWarning, stacklevel=3)
@@ -487,6 +498,13 @@ class DifferentialWheelsTable(Table):
 class FixedBaseTable(Table):
     kind: Literal["fixed"]
     lock: list[str] = []
+
+
+class FloatingBaseTable(Table):
+    kind: Literal["floating"]
+    lock: list[str] = []
+    max_linear_speed: Positive | None = None  # each base-frame linear component [m/s]
+    max_yaw_rate: Positive | None = None  # each base-frame angular component [rad/s]
 
 
 class MobileBaseTable(Table):
@@ -528,7 +546,7 @@ class Sidecar(Table):
     urdf: str | None = None
     mjcf: str | None = None
     end_effector: str | None = None
-    base: Annotated[FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
+    base: Annotated[FixedBaseTable | FloatingBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
                     Field(discriminator="kind")] = FixedBaseTable(kind="fixed")
     geometry: dict[str, float] = {}
     acceleration: AccelerationTable | None = None
@@ -563,13 +581,17 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
                  parameters=params, source=urdf)
 
 
-BaseTable = FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
+BaseTable = FixedBaseTable | FloatingBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
 
 
 def _base_from_spec(model: pin.Model, urdf: Path, spec: BaseTable) -> tuple[pin.Model, MobileBase]:
     """The model and base a sidecar's ``[base]`` table describes."""
     if isinstance(spec, FixedBaseTable):
         return _declared(model, urdf, BaseDeclaration(BaseKind.FIXED, lock=tuple(spec.lock)), "[base]")
+    if isinstance(spec, FloatingBaseTable):
+        return declare_floating(model, urdf, BaseDeclaration(BaseKind.FLOATING, lock=tuple(spec.lock),
+                                                             max_linear_speed=spec.max_linear_speed,
+                                                             max_yaw_rate=spec.max_yaw_rate), "[base]")
     wheels = getattr(spec, "wheels", None)
     if spec.joints is None or spec.lock or spec.replace or (wheels is not None and wheels.joints):
         return _declared_from_table(model, urdf, spec, wheels)
