@@ -339,5 +339,5 @@ def mimic_joints(urdf: Path | None) -> list[str]:
     return [str(joint.get("name")) for joint in root.iterfind("joint") if joint.find("mimic") is not None]
 
 
-__all__ = ["BaseDeclaration", "declare_base", "declare_floating", "base_kind", "planar_root_joints", "root_chain", "wheel_like_joints",
-           "joint_index", "mimic_joints", "BASE_JOINT_NAMES", "KIND_NAMES"]
+__all__ = ["BaseDeclaration", "declare_base", "declare_floating", "base_kind", "planar_root_joints", "root_chain",
+           "wheel_like_joints", "joint_index", "mimic_joints", "BASE_JOINT_NAMES", "KIND_NAMES"]

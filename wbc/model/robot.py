@@ -375,8 +375,8 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     Args:
         base: ``"planar"`` (holonomic, no wheel model), ``"mecanum"``, ``"differential"``,
             ``"synchro"``, ``"floating"`` (a free-flyer root joint, :mod:`wbc.model.bases.floating`;
-            a URDF ``floating`` root joint is recognised without it) or ``"fixed"``; for a URDF without a sidecar (a sidecar declares its
-            base in its ``[base]`` table, with the same keys).
+            a URDF ``floating`` root joint is recognised without it) or ``"fixed"``; for a URDF
+            without a sidecar (a sidecar declares its base in its ``[base]`` table, with the same keys).
         wheels: the driven wheel joints (differential: 2, mecanum: 4, any order): held at 0 in
             the model (their speeds follow from the base's motion) and read for the wheel model
             (positions, axes, URDF velocity limit, radius of the link's collision cylinder).
