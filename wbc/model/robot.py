@@ -237,12 +237,13 @@ class Robot:
         return S.copy() if out is None else S
 
     def base_twist(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
-        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``.
+        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``
+        (a floating base: ``(v_x, v_y, v_z, omega_x, omega_y, omega_z)``).
 
         Raises:
             InvalidInputError: a fixed base, or a malformed ``q`` or ``v``.
         """
-        if not self.base.is_mobile:
+        if self.base.kind is BaseKind.FIXED:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
         return self.base.twist(self.check_configuration(q), self.check_velocity(v))
 
