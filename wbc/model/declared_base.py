@@ -331,13 +331,5 @@ def wheel_like_joints(model: pin.Model) -> list[str]:
             if model.joints[j].shortname().startswith("JointModelRUB") and "wheel" in model.names[j].lower()]
 
 
-def mimic_joints(urdf: Path | None) -> list[str]:
-    """Joints a URDF declares as ``<mimic>`` of another (loaded as independent joints)."""
-    if urdf is None or urdf.suffix.lower() != ".urdf":
-        return []
-    root = ElementTree.parse(urdf).getroot()
-    return [str(joint.get("name")) for joint in root.iterfind("joint") if joint.find("mimic") is not None]
-
-
 __all__ = ["BaseDeclaration", "declare_base", "declare_floating", "base_kind", "planar_root_joints", "root_chain",
-           "wheel_like_joints", "joint_index", "mimic_joints", "BASE_JOINT_NAMES", "KIND_NAMES"]
+           "wheel_like_joints", "joint_index", "BASE_JOINT_NAMES", "KIND_NAMES"]

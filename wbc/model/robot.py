@@ -34,13 +34,13 @@ from ..core.validation import as_positive, as_vector
 from . import shipped
 from .bases.floating import free_flyer_root
 from .bases.interface import kind_class
+from .couplings import JointCoupling, check_couplings, coupled_joints
 from .declared_base import (
     BaseDeclaration,
     base_kind,
     declare_base,
     declare_floating,
     joint_index,
-    mimic_joints,
     planar_root_joints,
     wheel_like_joints,
 )
@@ -80,7 +80,9 @@ class Robot:
     * ``base`` -- the :class:`~wbc.model.mobile_base.MobileBase`;
     * ``lower``, ``upper`` -- position limits (size nq, ``+-inf`` where unbounded);
     * ``velocity_limit`` -- symmetric speed limits (size nv) [rad/s or m/s]; for a
-      mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``.
+      mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``;
+    * ``couplings`` -- joints that follow others (URDF ``<mimic>``, :mod:`wbc.model.couplings`),
+      held by :class:`wbc.MimicJoints`, which every controller of the robot adds.
     """
 
     name: str
@@ -89,10 +91,13 @@ class Robot:
     end_effector: str | None = None
     parameters: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
+    couplings: tuple[JointCoupling, ...] = ()
 
     def __post_init__(self) -> None:
         model = self.model
         self._check_size()
+        self.couplings = tuple(self.couplings)
+        check_couplings(model, self.couplings, str(self.source or self.name))
         self._data = model.createData()
         self._check_joints()
         self.lower: NDArray[np.float64] = np.array(model.lowerPositionLimit, dtype=np.float64)
@@ -401,7 +406,7 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
 
     Warns:
         ModelWarning: a robot loaded with a fixed base whose ``continuous`` joints are named
-            wheels (declare its base), or a URDF ``<mimic>`` joint (moved independently).
+            wheels (declare its base).
     """
     declared = base is not None or any((wheels, wheel_radius, lock, replace, max_linear_speed, max_yaw_rate,
                                         max_wheel_speed))
@@ -432,7 +437,8 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     else:
         mobile_base = _detect_planar_base(model)
     _warn_unhandled(model, mobile_base, path)
-    return Robot(name=model.name or path.stem, model=model, base=mobile_base, source=path)
+    return Robot(name=model.name or path.stem, model=model, base=mobile_base, source=path,
+                 couplings=coupled_joints(path, model))
 
 
 def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where: str) -> tuple[pin.Model, MobileBase]:
@@ -463,7 +469,7 @@ def _no_declaration(declared: bool, where: str | Path) -> None:
 
 
 def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> None:
-    """Say what wbc does not model: a mobile robot loaded as fixed, mimic joints."""
+    """Say what wbc does not model: a mobile robot loaded as fixed, wheels left free."""
     wheels = wheel_like_joints(model)
     if wheels and mobile_base.kind is BaseKind.FIXED:
         warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels, but the robot is loaded with a fixed "
@@ -473,11 +479,6 @@ def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> No
         warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels but stay free joints of the model (the "
                       "controller would spin them as it likes); name the driven ones in wheels=[...] and the "
                       "others in lock=[...]", ModelWarning, stacklevel=3)
-    mimics = mimic_joints(urdf)
-    if mimics:
-        warnings.warn(f"{urdf}: joints {mimics} are URDF <mimic> joints; wbc moves them as independent joints "
-                      "(couplings are not modelled yet): hold them with lock=[...] or leave them out of the "
-                      "tasks", ModelWarning, stacklevel=3)
 
 
 # ------------------------------------------------------------------ sidecar schema
@@ -579,7 +580,7 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
         raise ModelError(f"{sidecar}: {exc}") from exc
     _warn_unhandled(model, base, urdf)
     return Robot(name=spec.name or sidecar.stem, model=model, base=base, end_effector=spec.end_effector,
-                 parameters=params, source=urdf)
+                 parameters=params, source=urdf, couplings=coupled_joints(urdf, model))
 
 
 BaseTable = FixedBaseTable | FloatingBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
