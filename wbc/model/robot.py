@@ -44,6 +44,7 @@ from .declared_base import (
     planar_root_joints,
     wheel_like_joints,
 )
+from .mjcf import load_mjcf
 from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -369,12 +370,15 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
                wheel_radius: float | None = None, lock: Sequence[str] = (), replace: Sequence[str] = (),
                max_linear_speed: float | None = None, max_yaw_rate: float | None = None,
                max_wheel_speed: float | None = None) -> Robot:
-    """Load a shipped robot by name (``"youbot"``) or any URDF by path.
+    """Load a shipped robot by name (``"youbot"``) or any URDF or MJCF (``.xml``, Pinocchio's MJCF
+    parser, :mod:`wbc.model.mjcf`) by path.
 
     A URDF may sit next to a ``<stem>.toml`` sidecar (see ``models/youbot/youbot.toml``)
-    that declares the base. Without one, a chain of root joints prismatic-x, prismatic-y,
-    revolute-z, or a URDF ``planar`` root joint, is recognised as a holonomic planar base;
-    anything else is a fixed-base robot, unless ``base`` declares one
+    that declares the base (an MJCF next to one is read with that sidecar's base). Without one,
+    a chain of root joints prismatic-x, prismatic-y, revolute-z, or a URDF ``planar`` root joint,
+    is recognised as a holonomic planar base, a free-flyer root joint (a URDF ``floating`` joint,
+    an MJCF ``<freejoint/>``) as a floating base; anything else is a fixed-base robot, unless
+    ``base`` declares one
     (:mod:`wbc.model.declared_base`: the base joints ``base_x``, ``base_y``, ``base_heading`` are
     put at the root of the model, replacing a ``planar`` root joint):
 
@@ -421,7 +425,7 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     sidecar = path if path.suffix == ".toml" else path.with_suffix(".toml")
     if sidecar.is_file():
         _no_declaration(declared, sidecar)
-        return _load_from_sidecar(sidecar)
+        return _load_from_sidecar(sidecar, path if path.suffix.lower() == ".xml" else None)
     model = _build_model(path)
     where = str(path)
     if declared:
@@ -564,15 +568,18 @@ def _read_sidecar(path: Path) -> tuple[Sidecar, dict[str, Any]]:
 
 
 def _build_model(urdf: Path) -> pin.Model:
+    if urdf.suffix.lower() == ".xml":
+        return load_mjcf(urdf)
     try:
         return pin.buildModelFromUrdf(str(urdf))
     except (ValueError, RuntimeError) as exc:
         raise ModelError(f"cannot parse URDF {urdf}: {exc}") from exc
 
 
-def _load_from_sidecar(sidecar: Path) -> Robot:
+def _load_from_sidecar(sidecar: Path, model_file: Path | None = None) -> Robot:
+    """The robot a sidecar describes, from its URDF (or ``model_file``: the MJCF asked for)."""
     spec, params = _read_sidecar(sidecar)
-    urdf = sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
+    urdf = model_file or sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
     model = _build_model(urdf)
     try:
         model, base = _base_from_spec(model, urdf, spec.base)
