@@ -4,8 +4,9 @@ parallel gripper).
 A coupling ``q_joint = multiplier q_leader + offset`` holds at every configuration on the path
 when it holds at the start and the velocities obey ``v_joint = multiplier v_leader``, which
 :class:`wbc.MimicJoints` makes an equality row of the control QP (every controller of a robot
-with couplings adds it). Pinocchio 3.4 can build mimic joints into the model itself; wbc
-supports Pinocchio 3.3, so it keeps the joints and couples their velocities.
+with couplings adds it). Recent Pinocchio releases (pin 4.1) can build mimic joints into the
+model itself; wbc keeps the joints and couples their velocities, the same with every supported
+Pinocchio (down to 3.3.1).
 """
 
 from __future__ import annotations
