@@ -256,6 +256,8 @@ EXAMPLES: dict[type, Example] = {
     }, stack=lambda: [_reach_forward(), _still_base(), wbc.PostureTask(1e-3)]),
     wbc.DofFreezing: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DofFreezing(["arm_joint_2"]), {},
                              stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
+    wbc.MimicJoints: Example(YOUBOT, Q_YOUBOT, lambda: wbc.MimicJoints([("arm_joint_4", "arm_joint_3", 0.5)]), {},
+                             stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
     wbc.BaseFootprintAvoidance: Example(YOUBOT, Q_YOUBOT, _point_ahead_of_the_base, {
         "gain": lambda c: setattr(c, "gain", 0.1),
         "min_distance": lambda c: setattr(c, "min_distance", 0.051),

@@ -18,6 +18,7 @@ from .constraints import (
     JointVelocityLimits,
     ManipulabilityBarrier,
     MecanumWheelLimits,
+    MimicJoints,
     NonholonomicBase,
     SupportPolygon,
     WheelSpeedLimits,
@@ -65,7 +66,7 @@ __version__ = "0.3.0"
 __all__ = [
     "BaseKind", "DifferentialWheels", "MecanumWheels", "MobileBase",
     "Constraint", "JointPositionLimits", "JointVelocityLimits", "ManipulabilityBarrier", "MecanumWheelLimits",
-    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing", "AccelerationLimits",
+    "NonholonomicBase", "WheelSpeedLimits", "SupportPolygon", "DofFreezing", "AccelerationLimits", "MimicJoints",
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane", "BaseFootprintAvoidance",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",

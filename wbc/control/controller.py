@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..constraints.constraint import Constraint, ConstraintData
+from ..constraints.mimic_joints import MimicJoints
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
 from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
@@ -567,8 +568,11 @@ def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | Constrai
 
 
 def _base_constraints(robot: Robot, constraints: list[Constraint], reduced: bool) -> list[Constraint]:
-    """``constraints`` for ``robot``'s base: without the rows the input map satisfies in the
-    reduced form; with them (checked) for a nonholonomic base in plain form."""
+    """``constraints`` for ``robot``'s model: with :class:`MimicJoints` for its coupled joints (added
+    unless given); without the rows the input map satisfies in the reduced form; with them
+    (checked) for a nonholonomic base in plain form."""
+    if robot.couplings and not any(type(c) is MimicJoints and c.couplings is None for c in constraints):
+        constraints = [*constraints, MimicJoints()]
     if reduced:
         return [c for c in constraints if not c.satisfied_by_input_map]
     if robot.base.is_nonholonomic and not any(c.satisfied_by_input_map for c in constraints):
