@@ -31,6 +31,7 @@ from pydantic import Field, ValidationError
 from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFrameError
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
+from ..runtime import kernels
 from . import shipped
 from .bases.floating import free_flyer_root
 from .bases.interface import kind_class
@@ -48,6 +49,11 @@ from .mjcf import load_mjcf
 from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+#: Pinocchio joints whose coordinates form a vector space (``pinocchio.integrate`` is ``q + v``):
+#: 1-DOF revolute (bounded: not the continuous kinds, nq = 2) and prismatic joints
+VECTOR_SPACE_JOINTS = frozenset({"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+                                 "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned"})
 
 #: largest number of velocity DOF a Robot accepts: Pinocchio's Data allocates O(nv^3) memory
 #: (second-order derivative tensors; measured with pin 4.1: 69 MB at nv = 100, 0.5 GB at 200,
@@ -109,6 +115,11 @@ class Robot:
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
+        #: q + v dt integrates every coordinate (decided once: vector-space joints and a base that
+        #: keeps the joints' own integration); else the base's integrate (SE(2), SE(3), ...)
+        self._vector_space = (all(joint.shortname() in VECTOR_SPACE_JOINTS for joint in model.joints[1:])
+                              and type(self.base).integrate is MobileBase.integrate)
+        self._nq = model.nq
         self._input_map = self.base.allocate_input_map(self.nv)
         self._input_map_varies = self.base.is_nonholonomic  # S depends on q (else S = I)
         self._frame_ids: dict[str, int] = {}
@@ -302,11 +313,20 @@ class Robot:
 
         Returns:
             ``pinocchio.integrate(model, q, v * dt)`` (unless the base integrates its coordinates
-            otherwise: :meth:`MobileBase.integrate`), a new array of size :attr:`nq`.
+            otherwise: :meth:`MobileBase.integrate`), a new array of size :attr:`nq`. On a robot
+            whose coordinates all form a vector space (1-DOF revolute and prismatic joints, every
+            shipped robot) that is ``q + v dt``, computed and checked in one compiled call.
 
         Raises:
             InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
         """
+        if self._vector_space and type(dt) is float:  # the control loop's fast path
+            reached = np.empty(self._nq)
+            try:
+                if kernels.integrate_vector_space(q, v, dt, reached):  # finite: so were q, v and dt
+                    return reached
+            except TypeError:  # not float64 vectors (a list, another dtype, a strided view): checked below
+                pass
         q = self.check_configuration(q)
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
