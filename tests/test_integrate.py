@@ -133,3 +133,17 @@ def test_set_target_checks_shape_and_pose_in_its_one_compiled_call():
         np.testing.assert_array_equal(task.target, pose)
     task.set_target(pose.astype(np.float32))
     np.testing.assert_allclose(task.target, pose, atol=1e-7)
+
+
+def test_a_read_only_pose_or_twist_is_a_target():
+    """Regression: a read-only array (e.g. a pose kept in a frozen record) reached the compiled
+    setter, whose signature takes writable arrays: a raw numba TypeError instead of the target."""
+    task = wbc.FrameTask("ee")
+    pose = np.eye(4)
+    pose[:3, 3] = [0.3, 0.2, 0.1]
+    twist = np.arange(6.0)
+    pose.flags.writeable = twist.flags.writeable = False
+    task.set_target(pose)
+    np.testing.assert_array_equal(task.target, pose)
+    task.set_target(pose, twist=twist)
+    np.testing.assert_array_equal(task._feedforward, twist)

@@ -98,11 +98,12 @@ class FrameTask(ErrorTask):
                 defect = kernels.set_frame_pose(pose, self._settings, ROTATION_TOLERANCE)
             except TypeError:  # not a 2-D float64 array
                 defect = _POSE_SHAPE
-            if defect != _POSE_OK:  # convert, or raise saying what is wrong
-                kernels.set_frame_pose(as_pose(pose, "target pose"), self._settings, ROTATION_TOLERANCE)
+            if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
+                kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings, ROTATION_TOLERANCE)
         else:
-            twist = as_vector(twist, 6, "target twist")
-            kernels.set_frame_target(as_pose(pose, "target pose"), twist, self._settings, ROTATION_TOLERANCE)
+            twist = np.array(as_vector(twist, 6, "target twist"))
+            kernels.set_frame_target(np.array(as_pose(pose, "target pose")), twist, self._settings,
+                                     ROTATION_TOLERANCE)
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
             self._has_target = True
 
