@@ -20,3 +20,4 @@ def test_the_benchmark_runs(capsys):
     assert collision.main(["--repeats", "2", "--ticks", "20", "--warmup", "5", "--mink"]) == 0
     out = capsys.readouterr().out
     assert "median ratio collision / today" in out and "median ratio mink collision / mink" in out
+    assert "median ratio mink collision / wbc collision" in out
