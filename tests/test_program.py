@@ -287,3 +287,32 @@ def test_a_new_op_is_its_kernel_file_alone(tmp_path):
                                                "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
     assert result.returncode == 0, result.stderr
     assert result.stdout.split("\n")[-2] == str([0.0, 0.5 / 0.1 * -1.0, 0.5 / 0.1 * -2.0, 0.0])
+
+
+def _kinematics_rows(controller) -> int:
+    code = kernels.FORWARD_KINEMATICS.code
+    return sum(row[0] == code for row in controller._program._rows)
+
+
+def test_the_kinematics_are_computed_once_per_tick_when_python_items_read_them():
+    """A Python item (here CollisionAvoidance without pairs: one inert row) makes
+    Kinematics.update compute the kinematics before the program: the program then has no
+    forward-kinematics op of its own (it had one, computing them a second time every tick);
+    without Python items it keeps it."""
+    import wbc
+
+    robot = wbc.load_robot("youbot")
+    q = robot.neutral()
+    posture = wbc.PostureTask(cost=1.0, target=q)
+    compiled = wbc.Controller(robot, [posture], [wbc.JointVelocityLimits()])
+    guarded = wbc.Controller(robot, [posture],
+                             [wbc.JointVelocityLimits(), wbc.CollisionAvoidance(self_collision=False)])
+    assert _kinematics_rows(compiled) == 1
+    assert _kinematics_rows(guarded) == 0
+    target = q.copy()
+    target[-2] += 0.3  # a posture error, so the command depends on this tick's Jacobians
+    posture.set_target(target)
+    bent = q.copy()
+    bent[-3] += 0.4
+    for configuration in (q, bent):  # fresh kinematics every tick: the same command as the compiled stack
+        np.testing.assert_allclose(guarded.step(configuration), compiled.step(configuration), atol=1e-9)

@@ -385,7 +385,10 @@ class Controller:
         kin = self.kinematics
         program = TickProgram()
         program.add(kernels.HAS_NAN, data=kin.q, size=kin.q.size, infinite=1)  # q's finiteness (see step)
-        kin.add_op(program)  # the compiled forward kinematics (native chains), before every item
+        # the compiled forward kinematics (native chains), before every item; dropped again in
+        # _finish_program when Python items make the kinematics be computed before the program
+        row = len(program)
+        self._kinematics_op = row if kin.add_op(program) else None  #: its row in the program
         self._python_tasks, self._python_constraints = self._item_ops(program)
         self._lifted = None
         solve: BackendSolve
@@ -469,6 +472,8 @@ class Controller:
         self._solve, self.qp = solve, solve.qp  #: qp: what the solver sees (the last level's with priorities)
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
+        if not self._q_screened and self._kinematics_op is not None:  # Kinematics.update computes them already
+            program.drop(self._kinematics_op)
         split = self._program_after_preview is not None
         self._assembly = Assembly(self._context, self.robot, self._buffers, self._task_data, self._python_tasks,
                                   self._python_constraints, program, self._q_screened, self._q_weights,

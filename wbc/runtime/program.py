@@ -119,6 +119,12 @@ class TickProgram:
                                  *(value for row in rows for value in row), *self._address_list], dtype=np.int64)
         self._program = self._packed[PROGRAM_HEADER:PROGRAM_HEADER + len(rows) * width].reshape(-1, width)
 
+    def drop(self, index: int) -> None:
+        """Remove row ``index`` (its arrays stay registered and alive); before :meth:`runner`,
+        whose callable runs the rows packed when it was made."""
+        del self._rows[index]
+        self._pack()
+
     def __len__(self) -> int:
         return len(self._rows)
 
