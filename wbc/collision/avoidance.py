@@ -18,6 +18,11 @@ from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
+#: [m/s] a corner of a pair gets no row (:func:`wbc.collision.kernels.corner_rows`) when its gap exceeds
+#: the witness's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
+#: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
+#: allows approaching faster than this (the row would never bind)
+CORNER_SPEED = 5.0
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
 INERT = 1.0
@@ -75,11 +80,21 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
+    **Corners.** Where a pair's closest points are not unique -- a capsule parallel to a box's
+    edge or face, a box face parallel to a plane -- d is the minimum of smooth pieces and one
+    witness row is not its first-order model: the QP turns the witness corner away while another
+    approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter creeps
+    into the margin. So every capsule end, box vertex and cylinder rim point whose gap to the
+    separating plane is within :data:`CORNER_SPEED` ``* dt`` of d gets a damper of its own
+    (:func:`~wbc.collision.kernels.corner_rows` derives it; the rows are the exact first-order
+    model of d at a tie).
+
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
-    = ``capacity`` (default: every candidate pair, so no pair within ``detection_distance`` is
-    ever left out); each tick the pairs within ``detection_distance`` fill the first rows and the
-    others are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and
-    nothing is allocated. With a smaller ``capacity``, the closest pairs get the rows.
+    = 2 ``capacity`` (``capacity`` default: every candidate pair, so no pair within
+    ``detection_distance`` is ever left out); each tick the pairs within ``detection_distance``
+    fill the first rows, their corner rows the next (at most ``capacity`` of them), and the others
+    are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and nothing is
+    allocated. With a smaller ``capacity``, the closest pairs get the rows.
 
     Args:
         obstacles: :class:`~wbc.Sphere`, :class:`~wbc.Box`, :class:`~wbc.Capsule`,
@@ -142,7 +157,12 @@ class CollisionAvoidanceData(ConstraintData):
         geometry = RobotGeometry(robot, srdf=avoidance.srdf)
         self.distances = Distances(robot, avoidance.obstacles, avoidance.self_collision,
                                    avoidance.detection_distance, avoidance.capacity, geometry)
-        self.n_inequalities = self.distances.capacity
+        capacity = self.distances.capacity
+        #: rows: one per pair, then as many for the corners that tie with a pair's witness
+        self.n_inequalities = 2 * capacity
+        #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
+        self.corner_pair = np.zeros(capacity, dtype=np.int64)
+        self.corners = 0
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
         #: (detection_distance, min_distance, gain), copied from the constraint every tick
@@ -177,6 +197,10 @@ class CollisionAvoidanceData(ConstraintData):
             kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
         else:
             pairs.count = packed
+        self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
+                                           jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
+                                           pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
+                                           self.corner_pair)
         if G is not rows.G:
             rows.G[:] = G
 
@@ -192,7 +216,8 @@ class CollisionAvoidanceData(ConstraintData):
         return [self.distances.labels[k] for k in self.pairs.pair[:self.pairs.count].tolist()]
 
     def row_labels(self) -> list[str]:
-        """This tick's pair of each row (``"link↔sphere0"``), then ``"row i (no pair)"`` for the
-        inert rows of the capacity."""
+        """This tick's pair of each row (``"link↔sphere0"``), then the corner rows (``"link↔sphere0
+        corner"``), then ``"row i (no pair)"`` for the inert rows of the capacity."""
         active = self.active_labels()
+        active += [f"{active[i]} corner" for i in self.corner_pair[:self.corners].tolist()]
         return active + [f"row {i} (no pair)" for i in range(len(active), self.n_inequalities)]

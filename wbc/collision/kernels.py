@@ -507,6 +507,126 @@ def damper_rows(count, distance, rows, G, h, settings, dt):
     _damper_rows(count, distance, rows, G, h, settings, dt)
 
 
+@njit(cache=CACHE, nogil=True, inline="always")
+def _corner_row(i, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G):
+    """``G[i] = -normal . (J_b(p) - J_a(p))``: the rate of the gap along ``normal`` at the point p
+    taken as a point of each body (the half-space row of :func:`corner_rows`)."""
+    cx, cy, cz = py * nz - pz * ny, pz * nx - px * nz, px * ny - py * nx  # p x n
+    for k in range(G.shape[1]):
+        on_a, on_b = support[joint_a, k], support[joint_b, k]
+        value = 0.0
+        if on_a != on_b:  # a coordinate moving both bodies moves p on both alike: no change of the gap
+            value = (nx * jacobians_t[k, 0] + ny * jacobians_t[k, 1] + nz * jacobians_t[k, 2]
+                     + jacobians_t[k, 3] * cx + jacobians_t[k, 4] * cy + jacobians_t[k, 5] * cz)
+            if on_a != 0.0:
+                value = -value
+        G[i, k] = -value
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
+      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[::1], float64[::1], float64, float64, int64[::1])", cache=CACHE, nogil=True)
+def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
+                normal, G, h, settings, dt, speed, corner_slot):
+    """The dampers of the corners (capsule ends, box vertices) that nearly tie with a pair's witness,
+    in rows ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of
+    each in ``corner_slot``); returns how many.
+
+    Why: where a pair's closest points are not unique (a capsule parallel to a box edge or face,
+    a box face parallel to a plane) its distance is the minimum of smooth pieces, one per corner,
+    and its first-order change is the minimum over the corners (Danskin), not the change at the
+    one witness the distance routine returned. A single row lets the QP turn the witness corner
+    away while another corner approaches; the next tick the witness jumps to that corner and the
+    command reverses: a full-speed two-tick chatter that creeps into the margin. Each corner p of
+    a (b) near the tie (below) gets the damper of its gap to the separating plane through the witness of
+    b (a), normal n, attached to that body::
+
+        s_p = n . (w_b - p) - r_a   (p on a)      s_p = n . (p - w_a) - r_b   (p on b)
+        s_p_dot = n . (J_b(p) - J_a(p)) v  >=  -gain (s_p - d_min) / dt
+
+    (with the plane moving with its body, the point on it across from p lies on p's normal line, so
+    the rate is that of p itself). The shapes are convex, so the plane separates them and s_p is at
+    most p's true distance, and s_p >= d: each row is a valid damper, looser than the pair's own
+    the farther its corner is, and the witness row with them is the exact first-order change of d
+    at a tie. ``speed`` [m/s]: a corner with ``s_p - d > speed dt`` cannot overtake the witness
+    within a tick, one with ``gain (s_p - d_min) / dt > speed`` has a row that never binds: neither
+    gets a row; the closest pairs get theirs first. Penetrating pairs (d <= 0) get none: no separating plane. Corners: a
+    capsule's segment ends, a box's 8 vertices, and for a cylinder (measured by coal) the point of
+    each cap's rim nearest the plane (none when a cap faces the plane squarely).
+    """
+    n_rows, scale, d_min = 0, settings[GAIN] / dt, settings[MIN_DISTANCE]
+    last, i = -np.inf, -1
+    for _ in range(count):  # the pairs in order of distance (ties by entry): the closest get the rows first
+        d, nxt = np.inf, -1
+        for m in range(count):
+            if (distance[m] > last or (distance[m] == last and m > i)) and distance[m] < d:
+                d, nxt = distance[m], m
+        if nxt < 0:
+            break
+        i, last = nxt, d
+        if not d > 0.0:
+            continue
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        ends = (pairs[slot_pair[i], PAIR_A], pairs[slot_pair[i], PAIR_B])
+        joint_a, joint_b = int(table[ends[0], JOINT]), int(table[ends[1], JOINT])
+        for side in range(2):
+            s = ends[side]
+            kind = table[s, KIND]
+            rim = 0.0  # a cylinder's (coal shape with a half length): its caps' rims
+            if kind == CAPSULE:
+                corners, radius = 2, table[s, RADIUS]
+            elif kind == BOX:
+                corners, radius = 8, 0.0
+            elif kind == COAL and table[s, HALF_LENGTH] > 0.0:
+                corners, radius, rim = 2, 0.0, table[s, RADIUS]
+            else:
+                continue
+            # the witness on this side and the plane point across: gap(p) = sign n . (plane - p) - r
+            if side == 0:
+                wx, wy, wz, ox, oy, oz, sign = (witness_a[i, 0], witness_a[i, 1], witness_a[i, 2],
+                                                witness_b[i, 0], witness_b[i, 1], witness_b[i, 2], 1.0)
+            else:
+                wx, wy, wz, ox, oy, oz, sign = (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2],
+                                                witness_a[i, 0], witness_a[i, 1], witness_a[i, 2], -1.0)
+            for c in range(corners):
+                if kind != BOX:
+                    half = table[s, HALF_LENGTH] * (1.0 if c == 0 else -1.0)
+                    ux, uy, uz = world[s, 2], world[s, 5], world[s, 8]
+                    px, py, pz = world[s, 9] + ux * half, world[s, 10] + uy * half, world[s, 11] + uz * half
+                    if rim > 0.0:  # the point of the cap's rim nearest the plane: along n across the axis
+                        along = nx * ux + ny * uy + nz * uz
+                        ex, ey, ez = nx - along * ux, ny - along * uy, nz - along * uz
+                        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+                        if norm <= 1e-9:  # a cap facing the plane: the disc ties as a whole
+                            continue
+                        step = sign * rim / norm
+                        px, py, pz = px + step * ex, py + step * ey, pz + step * ez
+                else:
+                    px, py, pz = world[s, 9], world[s, 10], world[s, 11]
+                    for axis in range(3):
+                        step = table[s, _HX + axis] * (1.0 if c >> axis & 1 else -1.0)
+                        px += world[s, axis] * step
+                        py += world[s, 3 + axis] * step
+                        pz += world[s, 6 + axis] * step
+                gap = sign * (nx * (ox - px) + ny * (oy - py) + nz * (oz - pz)) - radius
+                if gap - d > speed * dt or scale * (gap - d_min) > speed:
+                    continue
+                # the witness's own corner (the same row as the pair's): across the normal from it
+                ex, ey, ez = px - wx, py - wy, pz - wz
+                along = nx * ex + ny * ey + nz * ez
+                ex, ey, ez = ex - along * nx, ey - along * ny, ez - along * nz
+                if ex * ex + ey * ey + ez * ez <= 1e-18:
+                    continue
+                row = count + n_rows
+                if n_rows == corner_slot.size or row >= G.shape[0]:
+                    return n_rows
+                _corner_row(row, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G)
+                h[row] = scale * (gap - d_min)
+                corner_slot[n_rows] = i
+                n_rows += 1
+    return n_rows
+
+
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1], float64)",
