@@ -523,36 +523,70 @@ def _corner_row(i, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_
         G[i, k] = -value
 
 
+#: [m] a witness this close (across the normal) to a segment's end is at that end
+WITNESS_AT_END = 1e-6
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _across(ex, ey, ez, nx, ny, nz):
+    """The length of (ex, ey, ez) across the unit normal n."""
+    along = nx * ex + ny * ey + nz * ez
+    ex, ey, ez = ex - along * nx, ey - along * ny, ez - along * nz
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _end_corner(table, world, s, end, rim, sign, nx, ny, nz):
+    """The corner of capsule or cylinder ``s`` at the ``end`` (+-1) of its axis: the segment's end,
+    or for a cylinder (``rim`` > 0) the point of that cap's rim nearest the plane (toward ``sign n``);
+    NaN when the cap faces the plane squarely (no single nearest point)."""
+    half = table[s, HALF_LENGTH] * end
+    ux, uy, uz = world[s, 2], world[s, 5], world[s, 8]
+    px, py, pz = world[s, 9] + ux * half, world[s, 10] + uy * half, world[s, 11] + uz * half
+    if rim > 0.0:
+        along = nx * ux + ny * uy + nz * uz
+        ex, ey, ez = nx - along * ux, ny - along * uy, nz - along * uz
+        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
+        if norm <= 1e-9:
+            return np.nan, np.nan, np.nan
+        step = sign * rim / norm
+        px, py, pz = px + step * ex, py + step * ey, pz + step * ez
+    return px, py, pz
+
+
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[::1], float64[::1], float64, float64, int64[::1])", cache=CACHE, nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                 normal, G, h, settings, dt, speed, corner_slot):
-    """The dampers of the corners (capsule ends, box vertices) that nearly tie with a pair's witness,
+    """The dampers of the capsule and cylinder ends that nearly tie with a pair's witness end,
     in rows ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of
     each in ``corner_slot``); returns how many.
 
-    Why: where a pair's closest points are not unique (a capsule parallel to a box edge or face,
-    a box face parallel to a plane) its distance is the minimum of smooth pieces, one per corner,
-    and its first-order change is the minimum over the corners (Danskin), not the change at the
-    one witness the distance routine returned. A single row lets the QP turn the witness corner
-    away while another corner approaches; the next tick the witness jumps to that corner and the
-    command reverses: a full-speed two-tick chatter that creeps into the margin. Each corner p of
-    a (b) near the tie (below) gets the damper of its gap to the separating plane through the witness of
-    b (a), normal n, attached to that body::
+    Why: where a capsule (or cylinder) lies parallel to the other shape's face or edge, its closest
+    point ties between its two ends: d is the minimum of two smooth pieces, one per end, and its
+    first-order change is the minimum over both (Danskin), not the change at the one end the
+    distance routine returned. A single row lets the QP turn the witness end away while the other
+    approaches; the next tick the witness jumps to that end and the command reverses: a full-speed
+    two-tick chatter that creeps into the margin. So when the witness of a capsule or cylinder
+    side is at one end, the other end p gets the damper of its gap to the separating plane through
+    the other shape's witness, normal n, attached to that shape::
 
         s_p = n . (w_b - p) - r_a   (p on a)      s_p = n . (p - w_a) - r_b   (p on b)
         s_p_dot = n . (J_b(p) - J_a(p)) v  >=  -gain (s_p - d_min) / dt
 
     (with the plane moving with its body, the point on it across from p lies on p's normal line, so
-    the rate is that of p itself). The shapes are convex, so the plane separates them and s_p is at
-    most p's true distance, and s_p >= d: each row is a valid damper, looser than the pair's own
-    the farther its corner is, and the witness row with them is the exact first-order change of d
-    at a tie. ``speed`` [m/s]: a corner with ``s_p - d > speed dt`` cannot overtake the witness
-    within a tick, one with ``gain (s_p - d_min) / dt > speed`` has a row that never binds: neither
-    gets a row; the closest pairs get theirs first. Penetrating pairs (d <= 0) get none: no separating plane. Corners: a
-    capsule's segment ends, a box's 8 vertices, and for a cylinder (measured by coal) the point of
-    each cap's rim nearest the plane (none when a cap faces the plane squarely).
+    the rate is that of p itself). The shapes are convex, so the plane separates them, s_p is at
+    most p's true distance and s_p >= d: a valid damper, looser than the pair's own the farther the
+    end is; with the witness row it is the exact first-order model of d at the tie. An interior
+    witness is a smooth point (no row: it would make the pair's row a convex combination of the
+    ends', a degenerate active set). ``speed`` [m/s]: an end with ``s_p - d > speed dt`` cannot
+    overtake the witness within a tick, one with ``gain (s_p - d_min) / dt > speed`` has a row
+    that never binds: neither gets a row; the closest pairs get theirs first. Penetrating pairs
+    (d <= 0) get none: no separating plane. For a cylinder (measured by coal) the corner is the
+    point of each cap's rim nearest the plane (none when a cap faces the plane squarely). Box
+    vertices get no rows: four coplanar vertices' rows are linearly dependent, which the solvers
+    handle badly when a face lies parallel to another (an axis-aligned platform and crate).
     """
     n_rows, scale, d_min = 0, settings[GAIN] / dt, settings[MIN_DISTANCE]
     last, i = -np.inf, -1
@@ -572,13 +606,10 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
         for side in range(2):
             s = ends[side]
             kind = table[s, KIND]
-            rim = 0.0  # a cylinder's (coal shape with a half length): its caps' rims
             if kind == CAPSULE:
-                corners, radius = 2, table[s, RADIUS]
-            elif kind == BOX:
-                corners, radius = 8, 0.0
-            elif kind == COAL and table[s, HALF_LENGTH] > 0.0:
-                corners, radius, rim = 2, 0.0, table[s, RADIUS]
+                radius, rim = table[s, RADIUS], 0.0
+            elif kind == COAL and table[s, HALF_LENGTH] > 0.0:  # a cylinder: its caps' rims
+                radius, rim = 0.0, table[s, RADIUS]
             else:
                 continue
             # the witness on this side and the plane point across: gap(p) = sign n . (plane - p) - r
@@ -588,42 +619,26 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
             else:
                 wx, wy, wz, ox, oy, oz, sign = (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2],
                                                 witness_a[i, 0], witness_a[i, 1], witness_a[i, 2], -1.0)
-            for c in range(corners):
-                if kind != BOX:
-                    half = table[s, HALF_LENGTH] * (1.0 if c == 0 else -1.0)
-                    ux, uy, uz = world[s, 2], world[s, 5], world[s, 8]
-                    px, py, pz = world[s, 9] + ux * half, world[s, 10] + uy * half, world[s, 11] + uz * half
-                    if rim > 0.0:  # the point of the cap's rim nearest the plane: along n across the axis
-                        along = nx * ux + ny * uy + nz * uz
-                        ex, ey, ez = nx - along * ux, ny - along * uy, nz - along * uz
-                        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-                        if norm <= 1e-9:  # a cap facing the plane: the disc ties as a whole
-                            continue
-                        step = sign * rim / norm
-                        px, py, pz = px + step * ex, py + step * ey, pz + step * ez
-                else:
-                    px, py, pz = world[s, 9], world[s, 10], world[s, 11]
-                    for axis in range(3):
-                        step = table[s, _HX + axis] * (1.0 if c >> axis & 1 else -1.0)
-                        px += world[s, axis] * step
-                        py += world[s, 3 + axis] * step
-                        pz += world[s, 6 + axis] * step
-                gap = sign * (nx * (ox - px) + ny * (oy - py) + nz * (oz - pz)) - radius
-                if gap - d > speed * dt or scale * (gap - d_min) > speed:
-                    continue
-                # the witness's own corner (the same row as the pair's): across the normal from it
-                ex, ey, ez = px - wx, py - wy, pz - wz
-                along = nx * ex + ny * ey + nz * ez
-                ex, ey, ez = ex - along * nx, ey - along * ny, ez - along * nz
-                if ex * ex + ey * ey + ez * ez <= 1e-18:
-                    continue
-                row = count + n_rows
-                if n_rows == corner_slot.size or row >= G.shape[0]:
-                    return n_rows
-                _corner_row(row, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G)
-                h[row] = scale * (gap - d_min)
-                corner_slot[n_rows] = i
-                n_rows += 1
+            x0, y0, z0 = _end_corner(table, world, s, 1.0, rim, sign, nx, ny, nz)
+            x1, y1, z1 = _end_corner(table, world, s, -1.0, rim, sign, nx, ny, nz)
+            if _across(x0 - wx, y0 - wy, z0 - wz, nx, ny, nz) <= WITNESS_AT_END:
+                px, py, pz = x1, y1, z1
+            elif _across(x1 - wx, y1 - wy, z1 - wz, nx, ny, nz) <= WITNESS_AT_END:
+                px, py, pz = x0, y0, z0
+            else:  # an interior witness: the pieces meet there smoothly
+                continue
+            if not np.isfinite(px):  # a cap facing the plane squarely: its disc ties as a whole
+                continue
+            gap = sign * (nx * (ox - px) + ny * (oy - py) + nz * (oz - pz)) - radius
+            if gap - d > speed * dt or scale * (gap - d_min) > speed:
+                continue
+            row = count + n_rows
+            if n_rows == corner_slot.size or row >= G.shape[0]:
+                return n_rows
+            _corner_row(row, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G)
+            h[row] = scale * (gap - d_min)
+            corner_slot[n_rows] = i
+            n_rows += 1
     return n_rows
 
 
