@@ -5,12 +5,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
-from ..constraints.acceleration_limits import braking_speed
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Setting
@@ -18,21 +15,16 @@ from ..core.validation import as_flag, as_gain, as_items, as_nonnegative, as_pos
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from ..model.tick_context import TickContext
+from .braking import RowBraking
 from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
-
-if TYPE_CHECKING:
-    from ..model.tick_context import Braking
 
 #: [m/s] a corner of a pair gets no row (:func:`wbc.collision.kernels.corner_rows`) when its gap exceeds
 #: the witness's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
 #: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
 #: allows approaching faster than this (the row would never bind)
 CORNER_SPEED = 5.0
-#: the share of the deceleration the acceleration bounds can deliver along a row that its braking bound
-#: counts on: the rest absorbs the change of the row while braking and the speed limits' clipping
-BRAKING_SHARE = 0.5
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
 INERT = 1.0
@@ -174,9 +166,7 @@ class CollisionAvoidanceData(ConstraintData):
         self.corner_pair = np.zeros(capacity, dtype=np.int64)
         self.corners = 0
         self.context: TickContext | None = None
-        # the braking bound's buffers (with acceleration bounds in the stack)
-        self._deceleration, self._margin = np.zeros(self.n_inequalities), np.zeros(self.n_inequalities)
-        self._braking = np.zeros(self.n_inequalities)
+        self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
         #: (detection_distance, min_distance, gain), copied from the constraint every tick
@@ -220,33 +210,10 @@ class CollisionAvoidanceData(ConstraintData):
                                            self.corner_pair)
         braking = None if self.context is None else self.context.braking
         if braking is not None:
-            self._brake(braking, kin.q, G, h, pairs.count + self.corners, avoidance.gain, dt)
+            active = pairs.count + self.corners
+            self._braking.apply(braking, kin.q, G[:active], h[:active], avoidance.gain, dt)
         if G is not rows.G:
             rows.G[:] = G
-
-    def _brake(self, braking: Braking, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64],
-               n: int, gain: float, dt: float) -> None:
-        """With hard acceleration bounds in the stack, the braking (viability) bound on each active row::
-
-            d_dot >= -min(gain (d - d_min) / dt,  v_brake(d - d_min, a_d))
-
-        ``v_brake`` is :func:`~wbc.constraints.acceleration_limits.braking_speed`, the exact
-        discrete-time inverse of the distance covered while braking at ``a_d`` per tick that keeps
-        the joints off their position limits (Del Prete et al. 2018), here along the row: ``a_d`` =
-        :data:`BRAKING_SHARE` times the rate at which the bounds can change ``grad d . v``
-        (``braking.decelerations``: ``sum_j |g_j| a_j`` over the joints, the base's turning box).
-        The damper alone asks, one tick before the margin, for a stop from any approach speed; the
-        bound caps that speed where the bounds can still brake it (the bound is invariant:
-        braking at ``a_d`` from it meets it at the next tick), so the soft rows stay feasible with
-        the hard bounds. Rows inside the margin (push-out) keep the damper."""
-        gradients, deceleration, margin, speed = G[:n], self._deceleration[:n], self._margin[:n], self._braking[:n]
-        braking.decelerations(gradients, q, deceleration)
-        np.multiply(deceleration, BRAKING_SHARE, out=deceleration)
-        np.maximum(deceleration, 1e-12, out=deceleration)  # a row no bound can move: stop at once
-        np.multiply(h[:n], dt / gain, out=margin)  # d - d_min of each row
-        braking_speed(margin, deceleration, dt, speed)
-        np.maximum(speed, np.minimum(h[:n], 0.0), out=speed)  # inside the margin: the push-out
-        np.minimum(h[:n], speed, out=h[:n])
 
     @property
     def min_distance(self) -> float:
