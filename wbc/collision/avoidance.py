@@ -82,14 +82,15 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
-    **Corners.** Where a pair's closest points are not unique -- a capsule parallel to a box's
-    edge or face, a box face parallel to a plane -- d is the minimum of smooth pieces and one
-    witness row is not its first-order model: the QP turns the witness corner away while another
+    **Corners.** Where a capsule (or cylinder) lies parallel to the other shape's face or edge,
+    its closest point ties between its two ends: d is the minimum of two smooth pieces and one
+    witness row is not its first-order model: the QP turns the witness end away while the other
     approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter creeps
-    into the margin. So every capsule end, box vertex and cylinder rim point whose gap to the
-    separating plane is within :data:`CORNER_SPEED` ``* dt`` of d gets a damper of its own
-    (:func:`~wbc.collision.kernels.corner_rows` derives it; the rows are the exact first-order
-    model of d at a tie).
+    into the margin. So when the witness is at one end, the other end gets a damper of its own on
+    its gap to the separating plane, if within :data:`CORNER_SPEED` ``* dt`` of d
+    (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the exact
+    first-order model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
+    row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
 
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
     = 2 ``capacity`` (``capacity`` default: every candidate pair, so no pair within
