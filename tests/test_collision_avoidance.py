@@ -82,42 +82,41 @@ def test_rows_are_the_velocity_damper_of_each_close_pair():
     assert corners > 0  # the capsules' ends
     checked = 0
     for j, i in enumerate(data.corner_pair[:corners].tolist()):
-        # a corner's gap to the separating plane is at least the pair's distance, at most 5 m/s * dt more
+        # a capsule end's distance is at least the pair's, at most 5 m/s * dt more
         gap = rows.h[count + j] * dt / 0.4 + 0.02
         assert data.pairs.distance[i] - 1e-12 <= gap <= data.pairs.distance[i] + 5.0 * dt + 1e-12
-        checked += _check_corner_row(data, i, gap, rows.G[count + j], q)
+        checked += _check_corner_row(data, i, gap, rows.G[count + j], q, sphere)
     assert checked > 0
     end = count + corners
     assert np.all(rows.G[end:] == 0.0) and np.all(rows.h[end:] == 1.0)  # inert: 0 <= 1
 
 
-def _check_corner_row(data, i, gap, row, q) -> bool:
-    """The corner row against finite differences: the robot corner p (on link a, the obstacle b
-    still) is the point of the link at the gap from the plane through b's witness, normal n; its
-    gap n . (w_b - p(q)) - r_a changes at -row . v."""
+def _check_corner_row(data, i, gap, row, q, sphere) -> bool:
+    """A capsule end's row against finite differences of that end's distance to the sphere,
+    ``|p(q) - c| - R - r`` (p: the end of robot link a's capsule, the sphere still)."""
     pair = data.distances.pairs[data.pairs.pair[i]]
     table = data.distances.table
     if table[pair[1], 1] != 0:  # a self pair: both move; the sphere pairs suffice here
         return False
     import pinocchio as pin
     model, pdata = YOUBOT.model, YOUBOT.model.createData()
-    joint = int(table[pair[0], 1])
-    n, w_b = data.pairs.normal[i], data.pairs.witness_b[i]
-    radius = table[pair[0], 14] if table[pair[0], 0] == 2 else 0.0
+    joint, radius = int(table[pair[0], 1]), table[pair[0], 14]
     pin.forwardKinematics(model, pdata, q)
-    # the corner: the capsule end (world) at that gap, in the link's frame
     world = data.distances._world[pair[0]]
     axis, centre = world[[2, 5, 8]], world[9:12]
+
+    def distance(p):
+        return np.linalg.norm(p - sphere.center) - sphere.radius - radius
+
     ends = [centre + sign * table[pair[0], 15] * axis for sign in (1.0, -1.0)]
-    corner = min(ends, key=lambda e: abs(n @ (w_b - e) - radius - gap))
-    assert abs(n @ (w_b - corner) - radius - gap) < 1e-9
-    local = pdata.oMi[joint].actInv(corner)
+    end = min(ends, key=lambda e: abs(distance(e) - gap))
+    assert distance(end) == pytest.approx(gap, abs=1e-9)
+    local = pdata.oMi[joint].actInv(end)
     for k in range(YOUBOT.nv):
         step = np.zeros(YOUBOT.nv)
         step[k] = 1e-6
         pin.forwardKinematics(model, pdata, pin.integrate(model, q, step))
-        moved = pdata.oMi[joint].act(local)
-        rate = (n @ (w_b - moved) - n @ (w_b - corner)) / 1e-6
+        rate = (distance(pdata.oMi[joint].act(local)) - distance(end)) / 1e-6
         assert -row[k] == pytest.approx(rate, abs=1e-5)
     return True
 

@@ -20,8 +20,8 @@ from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
-#: [m/s] a corner of a pair gets no row (:func:`wbc.collision.kernels.corner_rows`) when its gap exceeds
-#: the witness's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
+#: [m/s] a capsule end gets no row (:func:`wbc.collision.kernels.corner_rows`) when its distance exceeds
+#: the pair's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
 #: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
 #: allows approaching faster than this (the row would never bind)
 CORNER_SPEED = 5.0
@@ -82,12 +82,12 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
-    **Corners.** Where a capsule (or cylinder) lies parallel to the other shape's face or edge,
-    its closest point ties between its two ends: d is the minimum of two smooth pieces and one
-    witness row is not its first-order model: the QP turns the witness end away while the other
-    approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter creeps
-    into the margin. So when the witness is at one end, the other end gets a damper of its own on
-    its gap to the separating plane, if within :data:`CORNER_SPEED` ``* dt`` of d
+    **Corners.** Where a capsule lies parallel to the other shape's face or edge, its closest
+    point ties between its two ends: d is the minimum of two smooth pieces (the ends' spheres' distances)
+    and one witness row is not its first-order model: the QP turns the witness end away while the
+    other approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter
+    creeps into the margin. So when the witness is at one end, the other end's distance gets a
+    damper of its own, if within :data:`CORNER_SPEED` ``* dt`` of d
     (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the exact
     first-order model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
     row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
@@ -208,7 +208,7 @@ class CollisionAvoidanceData(ConstraintData):
         self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
-                                           self.corner_pair)
+                                           self.corner_pair, distances._scratch)
         braking = None if self.context is None else self.context.braking
         if braking is not None:
             active = pairs.count + self.corners

@@ -231,8 +231,6 @@ def _row(obj: pin.GeometryObject) -> NDArray[np.float64]:
         row[layout.BOUND_RADIUS] = float(np.linalg.norm(geometry.halfSide))
     else:
         row[layout.KIND] = layout.COAL
-        if isinstance(geometry, coal.Cylinder):  # measured by coal; the size gives its corner rows
-            row[layout.RADIUS], row[layout.HALF_LENGTH] = geometry.radius, geometry.halfLength
         geometry.computeLocalAABB()
         low, high = np.asarray(geometry.aabb_local.min_), np.asarray(geometry.aabb_local.max_)
         row[layout.BOUND_CENTER] = (low + high) / 2.0

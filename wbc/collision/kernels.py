@@ -52,6 +52,7 @@ from .layout import (
     PAIR_B,
     PLANE,
     RADIUS,
+    SPHERE,
 )
 
 CACHE = _cache.prepare(Path(__file__).parent, ("kernels", "footprint_kernels"), cold=("kernels",)) is not None
@@ -507,22 +508,6 @@ def damper_rows(count, distance, rows, G, h, settings, dt):
     _damper_rows(count, distance, rows, G, h, settings, dt)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
-def _corner_row(i, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G):
-    """``G[i] = -normal . (J_b(p) - J_a(p))``: the rate of the gap along ``normal`` at the point p
-    taken as a point of each body (the half-space row of :func:`corner_rows`)."""
-    cx, cy, cz = py * nz - pz * ny, pz * nx - px * nz, px * ny - py * nx  # p x n
-    for k in range(G.shape[1]):
-        on_a, on_b = support[joint_a, k], support[joint_b, k]
-        value = 0.0
-        if on_a != on_b:  # a coordinate moving both bodies moves p on both alike: no change of the gap
-            value = (nx * jacobians_t[k, 0] + ny * jacobians_t[k, 1] + nz * jacobians_t[k, 2]
-                     + jacobians_t[k, 3] * cx + jacobians_t[k, 4] * cy + jacobians_t[k, 5] * cz)
-            if on_a != 0.0:
-                value = -value
-        G[i, k] = -value
-
-
 #: [m] a witness this close (across the normal) to a segment's end is at that end
 WITNESS_AT_END = 1e-6
 
@@ -536,57 +521,55 @@ def _across(ex, ey, ez, nx, ny, nz):
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
-def _end_corner(table, world, s, end, rim, sign, nx, ny, nz):
-    """The corner of capsule or cylinder ``s`` at the ``end`` (+-1) of its axis: the segment's end,
-    or for a cylinder (``rim`` > 0) the point of that cap's rim nearest the plane (toward ``sign n``);
-    NaN when the cap faces the plane squarely (no single nearest point)."""
-    half = table[s, HALF_LENGTH] * end
-    ux, uy, uz = world[s, 2], world[s, 5], world[s, 8]
-    px, py, pz = world[s, 9] + ux * half, world[s, 10] + uy * half, world[s, 11] + uz * half
-    if rim > 0.0:
-        along = nx * ux + ny * uy + nz * uz
-        ex, ey, ez = nx - along * ux, ny - along * uy, nz - along * uz
-        norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-        if norm <= 1e-9:
-            return np.nan, np.nan, np.nan
-        step = sign * rim / norm
-        px, py, pz = px + step * ex, py + step * ey, pz + step * ez
-    return px, py, pz
+def _end_distance(table, world, capsule, end, other, out, scratch):
+    """The distance of the sphere at the ``end`` (+-1) of ``capsule``'s segment to shape ``other``
+    into ``out`` as in :func:`segment_segment` (a: the sphere); False for a shape measured by coal."""
+    half = table[capsule, HALF_LENGTH] * end
+    px = world[capsule, 9] + world[capsule, 2] * half
+    py = world[capsule, 10] + world[capsule, 5] * half
+    pz = world[capsule, 11] + world[capsule, 8] * half
+    point, radius, kind = (px, py, pz, px, py, pz), table[capsule, RADIUS], table[other, KIND]
+    if kind == SPHERE or kind == CAPSULE:
+        segment_segment(point, radius, _segment(table, world, other), table[other, RADIUS], out)
+    elif kind == BOX:
+        box_segment(table, world, other, point, radius, out, scratch)
+        _flip(out)
+    elif kind == PLANE:
+        segment_plane(point, radius, world, other, out)
+    else:
+        return False
+    return True
 
 
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[::1], float64[::1], float64, float64, int64[::1])", cache=CACHE, nogil=True)
+      "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
-                normal, G, h, settings, dt, speed, corner_slot):
-    """The dampers of the capsule and cylinder ends that nearly tie with a pair's witness end,
-    in rows ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of
-    each in ``corner_slot``); returns how many.
+                normal, G, h, settings, dt, speed, corner_slot, scratch):
+    """The dampers of the capsule ends that nearly tie with a pair's witness end, in rows
+    ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
+    ``corner_slot``); returns how many. ``scratch``: >= 59 floats.
 
-    Why: where a capsule (or cylinder) lies parallel to the other shape's face or edge, its closest
-    point ties between its two ends: d is the minimum of two smooth pieces, one per end, and its
-    first-order change is the minimum over both (Danskin), not the change at the one end the
-    distance routine returned. A single row lets the QP turn the witness end away while the other
-    approaches; the next tick the witness jumps to that end and the command reverses: a full-speed
-    two-tick chatter that creeps into the margin. So when the witness of a capsule or cylinder
-    side is at one end, the other end p gets the damper of its gap to the separating plane through
-    the other shape's witness, normal n, attached to that shape::
+    Why: where a capsule lies parallel to the other shape's face or edge, its closest point ties
+    between its two ends. Its distance is ``d = min(d_0, d_1, d_inner)``, ``d_e`` the distance of
+    the sphere at end e (smooth where the shapes are apart), and its first-order change is the
+    minimum over the pieces that tie (Danskin), not the change at the one end the distance routine
+    returned. A single row lets the QP turn the witness end away while the other approaches; the
+    next tick the witness jumps to that end and the command reverses: a full-speed two-tick
+    chatter that creeps into the margin. So when the witness is at one end, the other end's piece
+    gets its own damper, with its own witness points and normal::
 
-        s_p = n . (w_b - p) - r_a   (p on a)      s_p = n . (p - w_a) - r_b   (p on b)
-        s_p_dot = n . (J_b(p) - J_a(p)) v  >=  -gain (s_p - d_min) / dt
+        d_e_dot = n_e . (J_b(w_b,e) - J_a(w_a,e)) v  >=  -gain (d_e - d_min) / dt
 
-    (with the plane moving with its body, the point on it across from p lies on p's normal line, so
-    the rate is that of p itself). The shapes are convex, so the plane separates them, s_p is at
-    most p's true distance and s_p >= d: a valid damper, looser than the pair's own the farther the
-    end is; with the witness row it is the exact first-order model of d at the tie. An interior
-    witness is a smooth point (no row: it would make the pair's row a convex combination of the
-    ends', a degenerate active set). ``speed`` [m/s]: an end with ``s_p - d > speed dt`` cannot
-    overtake the witness within a tick, one with ``gain (s_p - d_min) / dt > speed`` has a row
-    that never binds: neither gets a row; the closest pairs get theirs first. Penetrating pairs
-    (d <= 0) get none: no separating plane. For a cylinder (measured by coal) the corner is the
-    point of each cap's rim nearest the plane (none when a cap faces the plane squarely). Box
-    vertices get no rows: four coplanar vertices' rows are linearly dependent, which the solvers
-    handle badly when a face lies parallel to another (an axis-aligned platform and crate).
+    d_e >= d, so the row is looser than the pair's own the farther the end is; with the witness
+    row it is the exact first-order model of d at the tie. An interior witness is a smooth point
+    (no row: the pair's row would be a convex combination of the ends', a degenerate active set).
+    ``speed`` [m/s]: an end with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
+    one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
+    the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
+    measured by coal get none. Box vertices get no rows: four coplanar vertices' rows are linearly
+    dependent, which the solvers handle badly when a face lies parallel to another (an
+    axis-aligned platform and crate).
     """
     n_rows, scale, d_min = 0, settings[GAIN] / dt, settings[MIN_DISTANCE]
     last, i = -np.inf, -1
@@ -606,36 +589,38 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
         for side in range(2):
             s = ends[side]
             kind = table[s, KIND]
-            if kind == CAPSULE:
-                radius, rim = table[s, RADIUS], 0.0
-            elif kind == COAL and table[s, HALF_LENGTH] > 0.0:  # a cylinder: its caps' rims
-                radius, rim = 0.0, table[s, RADIUS]
-            else:
+            if kind != CAPSULE:
                 continue
-            # the witness on this side and the plane point across: gap(p) = sign n . (plane - p) - r
-            if side == 0:
-                wx, wy, wz, ox, oy, oz, sign = (witness_a[i, 0], witness_a[i, 1], witness_a[i, 2],
-                                                witness_b[i, 0], witness_b[i, 1], witness_b[i, 2], 1.0)
-            else:
-                wx, wy, wz, ox, oy, oz, sign = (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2],
-                                                witness_a[i, 0], witness_a[i, 1], witness_a[i, 2], -1.0)
-            x0, y0, z0 = _end_corner(table, world, s, 1.0, rim, sign, nx, ny, nz)
-            x1, y1, z1 = _end_corner(table, world, s, -1.0, rim, sign, nx, ny, nz)
-            if _across(x0 - wx, y0 - wy, z0 - wz, nx, ny, nz) <= WITNESS_AT_END:
-                px, py, pz = x1, y1, z1
-            elif _across(x1 - wx, y1 - wy, z1 - wz, nx, ny, nz) <= WITNESS_AT_END:
-                px, py, pz = x0, y0, z0
+            # which end the witness is at (across the normal: the radius lies along it)
+            wx, wy, wz = ((witness_a[i, 0], witness_a[i, 1], witness_a[i, 2]) if side == 0
+                          else (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2]))
+            half = table[s, HALF_LENGTH]
+            ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
+            cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
+            if _across(cx + ux, cy + uy, cz + uz, nx, ny, nz) <= WITNESS_AT_END:
+                end = -1.0  # the witness at the + end: the - end's row
+            elif _across(cx - ux, cy - uy, cz - uz, nx, ny, nz) <= WITNESS_AT_END:
+                end = 1.0
             else:  # an interior witness: the pieces meet there smoothly
                 continue
-            if not np.isfinite(px):  # a cap facing the plane squarely: its disc ties as a whole
+            out = scratch[40:50]
+            if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
                 continue
-            gap = sign * (nx * (ox - px) + ny * (oy - py) + nz * (oz - pz)) - radius
+            gap = out[0]
             if gap - d > speed * dt or scale * (gap - d_min) > speed:
                 continue
+            if side == 1:  # the capsule is b
+                _flip(out)
             row = count + n_rows
             if n_rows == corner_slot.size or row >= G.shape[0]:
                 return n_rows
-            _corner_row(row, joint_a, joint_b, px, py, pz, nx, ny, nz, support, jacobians_t, G)
+            points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
+            for m in range(3):
+                points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
+            gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
+                         G[row:row + 1])
+            for k in range(G.shape[1]):
+                G[row, k] = -G[row, k]
             h[row] = scale * (gap - d_min)
             corner_slot[n_rows] = i
             n_rows += 1
