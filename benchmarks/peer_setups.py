@@ -1,7 +1,8 @@
 """The same youBot task stack set up in wbc, Pink, mink, placo and by hand, for :mod:`benchmarks.peers`.
 
-Every setup exposes ``name``, ``set_target(pose)`` (4x4 world pose of the tool) and
-``step(q) -> v``. They are built from one :class:`StackSpec` so that gains, costs, dt,
+Every setup exposes ``name``, ``set_target(pose)`` (4x4 world pose of the tool),
+``step(q) -> v`` and ``integrate(q, v)`` (the configuration after one tick at ``v``, the
+library's own way). They are built from one :class:`StackSpec` so that gains, costs, dt,
 damping, limits and solver (DAQP) are the same. Convention mapping (derived from the
 peers' source, see benchmarks/README.md):
 
@@ -176,6 +177,9 @@ class WbcSetup:
     def step(self, q: np.ndarray) -> np.ndarray:
         return self.controller.step(q)
 
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.controller.robot.integrate(q, v, self.controller.dt)
+
 
 class HandRolledSetup:
     """The same QP written directly against Pinocchio and DAQP: a lower bound for a Python tick.
@@ -232,6 +236,9 @@ class HandRolledSetup:
             raise RuntimeError(f"daqp exitflag {exitflag}")
         return x
 
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return pin.integrate(self.model, q, v * self.dt)
+
 
 # ------------------------------------------------------------------------ peers
 class PinkSetup:
@@ -268,6 +275,9 @@ class PinkSetup:
         return self._solve_ik(self.configuration, self.tasks, self.dt, solver="daqp", damping=self.damping,
                               limits=self.limits, safety_break=False)
 
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.configuration.integrate(v, self.dt)
+
 
 class MinkSetup:
     """mink on ``models/youbot/youbot.xml`` (site ``ee``), DAQP through qpsolvers."""
@@ -303,6 +313,9 @@ class MinkSetup:
         self.configuration.update(q)
         return self._mink.solve_ik(self.configuration, self.tasks, self.dt, "daqp", damping=self.damping,
                                    limits=self.limits)
+
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.configuration.integrate(v, self.dt)
 
 
 def placo_gains(spec: StackSpec) -> StackSpec:

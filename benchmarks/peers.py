@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import subprocess
 import sys
@@ -164,6 +165,7 @@ def shared_q_pass(scenario, setups: list, ticks: int, record: bool = True) -> di
             setup.set_target(pose)
             start = clock()
             v = setup.step(q)
+            setup.integrate(q, v)  # each library integrates its own command (its result unused here)
             elapsed = clock() - start
             times[setup.name][k] = elapsed
             commands[setup.name][k] = v
@@ -203,21 +205,45 @@ def _pose_error(robot, q: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
             float(np.linalg.norm(pin.log3(pose[:3, :3] @ current[:3, :3].T))))
 
 
+def wbc_user_loop(setup: WbcSetup, q0: np.ndarray, ticks: int) -> tuple[np.ndarray, np.ndarray]:
+    """wbc's loop as the README teaches it, from ``q0``: the circle target of
+    :func:`benchmarks.placo_peer.user_loop` computed in the loop, ``set_target``, ``step``,
+    ``robot.integrate``. The wall time of each tick, and the configuration after it (untimed)."""
+    controller, task, robot, clock = setup.controller, setup.task, setup.controller.robot, time.perf_counter
+    dt = controller.dt
+    pose = robot.frame_pose(q0, task.frame)
+    cx, cy, radius = pose[0, 3], pose[1, 3] + placo_peer.CIRCLE_RADIUS, placo_peer.CIRCLE_RADIUS
+    angle_step, sin, cos = 2.0 * math.pi / placo_peer.CIRCLE_PERIOD * dt, math.sin, math.cos
+    times, configurations = np.zeros(ticks), np.zeros((ticks, q0.size))
+    q = q0.copy()
+    for k in range(ticks):
+        start = clock()
+        pose[0, 3] = cx + radius * sin(angle_step * k)
+        pose[1, 3] = cy - radius * cos(angle_step * k)
+        task.set_target(pose)
+        v = controller.step(q)
+        q = robot.integrate(q, v, dt)
+        times[k] = clock() - start
+        configurations[k] = q
+    return times, configurations
+
+
 def placo_input(spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
-                closed_loop: bool) -> dict:
+                closed_loop: bool, user_loop: int = 0) -> dict:
     """The input document of :mod:`benchmarks.placo_peer` (JSON-ready: lists, no arrays)."""
     return {"stack": placo_stack(spec),
             "run": {"configurations": configurations.tolist(), "targets": targets.tolist(), "warmup": warmup,
-                    "closed_loop": closed_loop}}
+                    "closed_loop": closed_loop, "user_loop": user_loop}}
 
 
 def run_placo(placo: Placo, spec: StackSpec, configurations: np.ndarray, targets: np.ndarray, warmup: int,
-              closed_loop: bool) -> dict:
+              closed_loop: bool, user_loop: int = 0) -> dict:
     """One placo run of :func:`benchmarks.placo_peer.run` (in this process or in placo's interpreter)."""
     if placo.in_process:
         return placo_peer.run(placo_stack(spec), {"configurations": configurations, "targets": targets,
-                                                  "warmup": warmup, "closed_loop": closed_loop})
-    document = placo_input(spec, configurations, targets, warmup, closed_loop)
+                                                  "warmup": warmup, "closed_loop": closed_loop,
+                                                  "user_loop": user_loop})
+    document = placo_input(spec, configurations, targets, warmup, closed_loop, user_loop)
     process = subprocess.run([placo.python, "-m", "benchmarks.placo_peer"], input=json.dumps(document),
                              capture_output=True, text=True, cwd=ROOT)
     if process.returncode != 0:
@@ -236,17 +262,29 @@ def placo_alternation(scenario, spec: StackSpec, placo: Placo, configurations: n
     warmup = min(warmup, len(targets))
     wbc_setups = [WbcSetup(spec, WBC), WbcSetup(placo_gains(spec), PLACO_QP)]
     runs: dict[str, list[np.ndarray]] = {WBC: [], PLACO_QP: [], PLACO: []}
-    out: dict = {"runs": runs}
+    loops: dict[str, list[np.ndarray]] = {WBC: [], PLACO_QP: [], PLACO: []}
+    out: dict = {"runs": runs, "user_loop": loops}
+    q0, ticks = configurations[0], len(configurations)
     for repeat in range(repeats):
         for setup in wbc_setups:
             placo_peer.timed_ticks(setup, configurations[:warmup], targets[:warmup])
             runs[setup.name].append(placo_peer.timed_ticks(setup, configurations, targets)[0])
+            wbc_user_loop(setup, q0, warmup)
+            times, loop_q = wbc_user_loop(setup, q0, ticks)
+            loops[setup.name].append(times)
+            if setup.name == PLACO_QP:
+                wbc_loop_q = loop_q
         try:
-            result = run_placo(placo, spec, configurations, targets, warmup, closed_loop=repeat == 0)
+            result = run_placo(placo, spec, configurations, targets, warmup, closed_loop=repeat == 0,
+                               user_loop=ticks)
         except Exception as exc:  # noqa: BLE001 - a failing peer is reported, not fatal
             out["failure"] = f"run {repeat + 1}: {type(exc).__name__}: {exc}"
             break
         runs[PLACO].append(np.asarray(result["times"]))
+        loops[PLACO].append(np.asarray(result["user_loop_times"]))
+        # the same work: wbc on placo's QP and placo follow the same configurations
+        difference = float(np.abs(np.asarray(result["user_loop_q"]) - wbc_loop_q).max())
+        out["user_loop_max_q_difference"] = max(out.get("user_loop_max_q_difference", 0.0), difference)
         if repeat == 0:
             out.update(commands=np.asarray(result["commands"]), versions=result["versions"],
                        closed_loop_q=result.get("closed_loop_q"))
@@ -401,9 +439,15 @@ def placo_summary(alternation: dict | None) -> dict | None:
     """Percentiles per run and over all runs, and the per-run ratios of wbc's medians and p99 to placo's."""
     if alternation is None:
         return None
-    runs = alternation["runs"]
     out = {"failure": alternation.get("failure"), "versions": alternation.get("versions", {}),
-           "runs": {name: [percentiles_us(times) for times in values] for name, values in runs.items()},
+           **_runs_summary(alternation["runs"])}
+    out["user_loop"] = _runs_summary(alternation["user_loop"])
+    out["user_loop"]["max_q_difference"] = alternation.get("user_loop_max_q_difference")
+    return out
+
+
+def _runs_summary(runs: dict[str, list[np.ndarray]]) -> dict:
+    out = {"runs": {name: [percentiles_us(times) for times in values] for name, values in runs.items()},
            "all": {name: percentiles_us(np.concatenate(values)) for name, values in runs.items() if values},
            "median_ratio_vs_placo": {}, "p99_ratio_vs_placo": {}}
     placo_runs = out["runs"][PLACO]
@@ -472,30 +516,48 @@ def _spread(values: list[float]) -> str:
 
 
 def report_placo(result: dict, summary: dict | None) -> list[str]:
-    """The alternating tight-loop table of wbc and placo, with the per-run ratios' spread."""
+    """The alternating runs of wbc and placo (the user's loop, then the tight loop on the shared
+    pass's q), with the per-run ratios' spread."""
     if summary is None:
         return []
-    runs, ticks = summary["runs"], result["scenario"].ticks
-    lines = ["### placo: alternating tight-loop runs", "",
-             f"{len(runs[PLACO])} runs of {ticks} ticks each (after a warm-up) on the shared pass's configurations "
-             f"and targets, order {WBC} → {PLACO_QP} → {PLACO}. Tick: wbc `set_target` + `step(q)` (kinematics, "
-             "QP, DAQP, answer check, diagnostics; no integration); placo `T_world_frame` + q in + "
-             "`update_kinematics()` + `solve(True)` (its QP with eiquadprog, then it integrates). "
-             f"`{PLACO_QP}` is wbc with placo's fixed gains (1): the same QP.", ""]
+    ticks, loop = result["scenario"].ticks, summary["user_loop"]
+    lines = ["### placo: the user's loop, alternating runs", "",
+             f"{len(loop['runs'][PLACO])} runs of {ticks} ticks each (after a warm-up), order {WBC} → {PLACO_QP} → "
+             f"{PLACO} (its own process). Each integrates its own command from the scenario's start, the target "
+             f"computed in the loop: a {placo_peer.CIRCLE_RADIUS} m horizontal circle (period "
+             f"{placo_peer.CIRCLE_PERIOD} s) from the tool's start pose. Tick: wbc `set_target(pose)` + "
+             "`v = step(q)` + `q = robot.integrate(q, v, dt)` (the README's loop); placo `T_world_frame = pose` + "
+             "`solve(True)` (which integrates) + `update_kinematics()`. "
+             f"`{PLACO_QP}` is wbc with placo's fixed gains (1): the same QP; the largest difference of its "
+             f"configurations to placo's over all runs: {_max_difference(loop['max_q_difference'])}.", ""]
+    lines += _runs_table(loop, summary["failure"])
+    lines += ["### placo: alternating tight-loop runs on the shared q", "",
+              "The same alternation on the shared pass's configurations and targets. Tick: `set_target` + "
+              "`step(q)` + the library's own integration (wbc `robot.integrate`; placo `T_world_frame` + q in + "
+              "`update_kinematics()` + `solve(True)`, which integrates).", ""]
+    return lines + _runs_table(summary, summary["failure"])
+
+
+def _max_difference(value: float | None) -> str:
+    return "-" if value is None else f"{value:.1e}"
+
+
+def _runs_table(summary: dict, failure: str | None) -> list[str]:
+    runs = summary["runs"]
     if not runs[PLACO]:
-        return lines + [f"placo failed: {summary['failure']}", ""]
+        return [f"placo failed: {failure}", ""]
     header = ["run"] + [f"{name} {key} µs" for name in (WBC, PLACO_QP, PLACO) for key in ("median", "p99")]
     rows = [[str(i + 1)] + [fmt(runs[name][i][key]) for name in (WBC, PLACO_QP, PLACO) for key in ("median", "p99")]
             for i in range(len(runs[PLACO]))]
     rows.append(["all"] + [fmt(summary["all"][name][key]) for name in (WBC, PLACO_QP, PLACO)
                            for key in ("median", "p99")])
-    lines += [markdown_table(header, rows), ""]
+    lines = [markdown_table(header, rows), ""]
     for name in (WBC, PLACO_QP):
         lines.append(f"- {name} / placo, median of the runs (min–max): median tick "
                      f"{_spread(summary['median_ratio_vs_placo'][name])}, p99 "
                      f"{_spread(summary['p99_ratio_vs_placo'][name])}")
-    if summary["failure"]:
-        lines.append(f"- placo failed at {summary['failure']}")
+    if failure:
+        lines.append(f"- placo failed at {failure}")
     return lines + [""]
 
 

@@ -12,12 +12,14 @@ environment with wbc's. The input (a file or standard input) is the JSON that
   ``dt``, ``velocity_limits`` (joint name -> value), ``joint_names`` (the order of
   q and v in the JSON);
 * ``run``: ``configurations`` (ticks x n) and ``targets`` (ticks x 4 x 4: world pose
-  of the frame), ``warmup`` (ticks run first and discarded), ``closed_loop`` (bool).
+  of the frame), ``warmup`` (ticks run first and discarded), ``closed_loop`` (bool),
+  ``user_loop`` (ticks of the user's loop from ``configurations[0]``, 0: none).
 
 Output: ``times`` (s per tick: set the target + q in + ``update_kinematics`` +
 ``solve(True)``, which integrates), ``commands`` (ticks x n, v = dq / dt), with
 ``closed_loop``: ``closed_loop_q`` (ticks x n: placo integrating its own solution from
-``configurations[0]``, the configuration at the start of each tick), and ``versions``.
+``configurations[0]``, the configuration at the start of each tick), with ``user_loop``:
+``user_loop_times`` and ``user_loop_q`` (:func:`user_loop`), and ``versions``.
 
 The QP (:class:`PlacoStack`; conventions in benchmarks/README.md): placo adds a floating
 base to every URDF; it is masked (``mask_fbase``), so the youBot's own planar joints
@@ -32,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -47,11 +50,14 @@ STACK_KEYS = ("urdf", "frame", "position_weight", "orientation_weight", "posture
 
 
 class Peer(Protocol):
-    """What a timed loop needs: a target setter and a step from q to v."""
+    """What a timed loop needs: a target setter, a step from q to v, and the library's own
+    integration of v (placo's ``solve(True)`` integrates within ``step``)."""
 
     def set_target(self, pose: np.ndarray) -> None: ...
 
     def step(self, q: np.ndarray) -> np.ndarray: ...
+
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> object: ...
 
 
 def read_input(text: str) -> tuple[dict, dict]:
@@ -79,7 +85,7 @@ def read_input(text: str) -> tuple[dict, dict]:
     if targets.shape != (ticks, 4, 4):
         raise ValueError(f"run.targets must be ({ticks}, 4, 4), got {targets.shape}")
     spec.update(configurations=configurations, targets=targets, warmup=int(spec.get("warmup", 0)),
-                closed_loop=bool(spec.get("closed_loop", False)))
+                closed_loop=bool(spec.get("closed_loop", False)), user_loop=int(spec.get("user_loop", 0)))
     return stack, spec
 
 
@@ -90,7 +96,7 @@ class PlacoStack:
     def __init__(self, stack: dict, name: str = "placo") -> None:
         import placo
 
-        self.name = name
+        self.name, self.frame = name, stack["frame"]
         self.robot = robot = placo.RobotWrapper(str(stack["urdf"]), placo.Flags.ignore_collisions)
         self.solver = solver = placo.KinematicsSolver(robot)
         solver.mask_fbase(True)
@@ -122,16 +128,21 @@ class PlacoStack:
         self.robot.update_kinematics()
         return self.solver.solve(True)[self.v_index] / self.dt
 
+    def integrate(self, q: np.ndarray, v: np.ndarray) -> None:
+        """Nothing: ``step``'s ``solve(True)`` integrated placo's own state already."""
+
 
 def timed_ticks(peer: Peer, configurations: np.ndarray, targets: np.ndarray,
                 clock: Callable[[], float] = time.perf_counter) -> tuple[np.ndarray, np.ndarray]:
-    """Wall time of ``set_target`` + ``step`` and the command, tick by tick, at the given q."""
+    """Wall time of ``set_target`` + ``step`` + ``integrate`` and the command, tick by tick, at the given q."""
     ticks = len(configurations)
     times, commands = np.zeros(ticks), np.zeros_like(configurations)
     for k in range(ticks):
         start = clock()
         peer.set_target(targets[k])
-        v = peer.step(configurations[k])
+        q = configurations[k]
+        v = peer.step(q)
+        peer.integrate(q, v)
         times[k] = clock() - start
         commands[k] = v
     return times, commands
@@ -150,6 +161,37 @@ def closed_loop(stack: PlacoStack, q0: np.ndarray, targets: np.ndarray) -> np.nd
     return configurations
 
 
+#: the user's loop's target: the tool's start pose moved on a horizontal circle of this radius [m]
+#: and period [s], which starts at the start pose, its centre CIRCLE_RADIUS along world +y
+CIRCLE_RADIUS, CIRCLE_PERIOD = 0.2, 8.0
+
+
+def user_loop(stack: PlacoStack, q0: np.ndarray, ticks: int,
+              clock: Callable[[], float] = time.perf_counter) -> tuple[np.ndarray, np.ndarray]:
+    """placo's loop as its user writes it, from ``q0``: the circle target computed in the loop
+    (:data:`CIRCLE_RADIUS`), set, ``solve(True)`` (which integrates), ``update_kinematics()``.
+    The wall time of each tick, and the configuration after it (recorded untimed).
+    :func:`benchmarks.peers.wbc_user_loop` is the same loop in wbc."""
+    robot, solver, task, index = stack.robot, stack.solver, stack.frame_task, stack.q_index
+    stack.q[index] = q0
+    robot.state.q = stack.q
+    robot.update_kinematics()
+    pose = np.array(robot.get_T_world_frame(stack.frame))
+    cx, cy, radius = pose[0, 3], pose[1, 3] + CIRCLE_RADIUS, CIRCLE_RADIUS
+    angle_step, sin, cos = 2.0 * math.pi / CIRCLE_PERIOD * stack.dt, math.sin, math.cos
+    times, configurations = np.zeros(ticks), np.zeros((ticks, q0.size))
+    for k in range(ticks):
+        start = clock()
+        pose[0, 3] = cx + radius * sin(angle_step * k)
+        pose[1, 3] = cy - radius * cos(angle_step * k)
+        task.T_world_frame = pose
+        solver.solve(True)
+        robot.update_kinematics()
+        times[k] = clock() - start
+        configurations[k] = robot.state.q[index]
+    return times, configurations
+
+
 def run(stack: dict, spec: dict) -> dict:
     """Warm-up, one timed pass over the configurations of ``spec`` (the input's ``run``), optionally
     the closed loop."""
@@ -162,6 +204,11 @@ def run(stack: dict, spec: dict) -> dict:
            "versions": package_versions(["placo", "pin", "numpy"])}
     if spec["closed_loop"]:
         out["closed_loop_q"] = closed_loop(PlacoStack(stack), configurations[0], targets).tolist()
+    if spec["user_loop"] > 0:
+        loop = PlacoStack(stack)
+        user_loop(loop, configurations[0], warmup)
+        times, loop_q = user_loop(loop, configurations[0], spec["user_loop"])
+        out.update(user_loop_times=times.tolist(), user_loop_q=loop_q.tolist())
     return out
 
 

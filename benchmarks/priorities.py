@@ -1,12 +1,14 @@
-"""Cost of strict priorities: the same youBot stack as one weighted level and as two levels.
+"""Cost of strict priorities: the same youBot stack as one weighted level and as two (or three) levels.
 
-    python -m benchmarks.priorities [tasks/youbot_circle.toml] [--repeats 5] [--ticks 2000]
+    python -m benchmarks.priorities [tasks/youbot_circle.toml] [--repeats 5] [--ticks 2000] [--levels 3]
 
 The scenario's reference task (the gripper's FrameTask) is level 0 of the strict controller and
-every other task is level 1; the weighted controller has the same tasks in one level. Both
-step the same closed loop (the weighted controller's q) tick by tick, in alternating order, so
-machine noise hits both alike; each repeat reports both medians and their ratio (the number
-to read), and the summary the median ratio over the repeats with its spread.
+every other task is level 1; the weighted controller has the same tasks in one level. With
+``--levels 3`` every controller also has a second ``PostureTask(1e-4)`` -- in its last level, which for
+the three-level controller is a level of its own. All step the same closed loop (the weighted
+controller's q) tick by tick, in alternating order, so machine noise hits them alike; each
+repeat reports the medians and their ratios to the one-level tick (the numbers to read), and
+the summary the median ratio over the repeats with its spread.
 """
 
 from __future__ import annotations
@@ -23,19 +25,24 @@ from wbc.app.scenario import Scenario, load_scenario
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def controllers(scenario: Scenario) -> dict[str, wbc.Controller]:
-    """The scenario's tasks as one weighted level, and as two (the reference task over the rest)."""
+def controllers(scenario: Scenario, levels: int = 2) -> dict[str, wbc.Controller]:
+    """The scenario's tasks as one weighted level, and as two (the reference task over the rest);
+    with ``levels = 3`` all three with a second PostureTask in their last level (its own level in the third)."""
     first = scenario.reference_task
     rest = [task for task in scenario.tasks if task is not first]
+    extra = [wbc.PostureTask(1e-4, gain=0.02)] if levels == 3 else []  # compiled, as the rest of the stack
     settings = dict(solver=scenario.solver, dt=scenario.dt, damping=scenario.damping, reduced=scenario.reduced)
-    return {"1 level (weighted)": wbc.Controller(scenario.robot, scenario.tasks, scenario.constraints, **settings),
-            "2 levels (strict)": wbc.Controller(scenario.robot, [[first], rest], scenario.constraints, **settings)}
+    robot, constraints = scenario.robot, scenario.constraints
+    stacks = {"1 level": scenario.tasks + extra, "2 levels": [[first], rest + extra]}
+    if levels == 3:
+        stacks["3 levels"] = [[first], rest, extra]
+    return {name: wbc.Controller(robot, tasks, constraints, **settings) for name, tasks in stacks.items()}
 
 
-def measure(scenario: Scenario, ticks: int) -> tuple[dict[str, np.ndarray], dict[str, int]]:
-    """Tick times [s] of both controllers along one closed loop of ``ticks`` ticks, and how many
+def measure(scenario: Scenario, ticks: int, levels: int = 2) -> tuple[dict[str, np.ndarray], dict[str, int]]:
+    """Tick times [s] of the controllers along one closed loop of ``ticks`` ticks, and how many
     of their ticks the fallback chain answered."""
-    pair = controllers(scenario)
+    pair = controllers(scenario, levels)
     names = list(pair)
     times = {name: np.zeros(ticks) for name in names}
     fallbacks = dict.fromkeys(names, 0)
@@ -60,21 +67,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=5, help="closed loops, each measuring both (default 5)")
     parser.add_argument("--ticks", type=int, default=2000, help="ticks per repeat (default 2000)")
     parser.add_argument("--warmup", type=int, default=200, help="first ticks of each repeat left out (default 200)")
+    parser.add_argument("--levels", type=int, choices=(2, 3), default=2, help="strict levels compared (default 2)")
     args = parser.parse_args(argv)
     scenario = load_scenario(args.scenario)
     print(f"{scenario.name}: {args.repeats} repeats x {args.ticks} ticks, first {args.warmup} left out; "
           f"solver {scenario.solver}")
-    print(f"{'repeat':>6s} {'1 level µs':>11s} {'2 levels µs':>12s} {'ratio':>7s} {'p99 1 / 2 µs':>16s} "
-          f"{'fallback ticks 1 / 2':>21s}")
-    ratios = []
+    ratios: dict[str, list[float]] = {}
     for repeat in range(args.repeats):
-        times, fallbacks = measure(scenario, args.ticks)
-        one, two = (values[args.warmup:] * 1e6 for values in times.values())
-        ratios.append(np.median(two) / np.median(one))
-        counts = " / ".join(map(str, fallbacks.values()))
-        print(f"{repeat + 1:6d} {np.median(one):11.2f} {np.median(two):12.2f} {ratios[-1]:7.2f} "
-              f"{np.percentile(one, 99):7.1f} / {np.percentile(two, 99):6.1f} {counts:>21s}")
-    print(f"median ratio 2 levels / 1 level: {np.median(ratios):.2f} (min {min(ratios):.2f}, max {max(ratios):.2f})")
+        times, fallbacks = measure(scenario, args.ticks, args.levels)
+        medians = {name: float(np.median(values[args.warmup:])) * 1e6 for name, values in times.items()}
+        p99 = {name: float(np.percentile(values[args.warmup:], 99)) * 1e6 for name, values in times.items()}
+        one = medians["1 level"]
+        for name in list(medians)[1:]:
+            ratios.setdefault(name, []).append(medians[name] / one)
+        print(f"repeat {repeat + 1}: " + ", ".join(f"{name} {medians[name]:.2f} µs (p99 {p99[name]:.1f})"
+                                                   for name in medians)
+              + "; ratios " + ", ".join(f"{ratios[name][-1]:.2f}" for name in ratios)
+              + "; fallback ticks " + " / ".join(map(str, fallbacks.values())))
+    for name, values in ratios.items():
+        print(f"median ratio {name} / 1 level: {np.median(values):.2f} (min {min(values):.2f}, max {max(values):.2f})")
     return 0
 
 

@@ -1,6 +1,6 @@
 """Tick cost vs number of DOF and vs number of tasks, on synthetic mobile manipulators.
 
-    python -m benchmarks.scaling [--dofs 8 16 24 32 48 64 128] [--tasks 1 2 4 8] [--ticks 1000]
+    python -m benchmarks.scaling [--dofs 8 16 24 32 48 64 128 256] [--tasks 1 2 4 8] [--ticks 1000]
                                  [--no-peers] [--out benchmarks/output/scaling]
 
 Robots: a planar base (prismatic x, prismatic y, revolute yaw; 0.8 m/s, 1 rad/s) carrying
@@ -19,7 +19,9 @@ matching MJCF are generated in a temporary folder.
 * **task sweep**: on the 24-DOF chain, k FrameTasks on frames spread along the chain
   (each on its own small circle) + PostureTask, k in ``--tasks``; wbc only.
 
-Latency is the whole ``step`` call; ``solve`` is DAQP's share as wbc reports it.
+Latency is the whole ``step`` call; ``solve`` is DAQP's share as wbc reports it. The growth
+exponent of each library is the slope of the least-squares line through (log DOF, log median
+tick) over the sweep, and over its sizes from 32 DOF on (the tick ~ DOF^exponent).
 Output: ``report.md``, ``results.json``, ``scaling.png`` in ``--out``.
 """
 
@@ -186,7 +188,7 @@ def run_interleaved(cases: list[Case], ticks: int, warmup: int, label: str, show
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.scaling", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--dofs", type=int, nargs="+", default=[8, 16, 24, 32, 48, 64, 128])
+    parser.add_argument("--dofs", type=int, nargs="+", default=[8, 16, 24, 32, 48, 64, 128, 256])
     parser.add_argument("--tasks", type=int, nargs="+", default=[1, 2, 4, 8])
     parser.add_argument("--ticks", type=int, default=1000, help="measured ticks per case (default 1000)")
     parser.add_argument("--warmup", type=int, default=50)
@@ -223,6 +225,10 @@ def main(argv: list[str] | None = None) -> int:
     dof_header = ["DOF", "wbc median µs", "wbc p99 µs", "solve median µs", "solve %", f"vs {args.dofs[0]} DOF"]
     if not args.no_peers:
         dof_header += ["Pink median µs", "mink median µs", "Pink / wbc", "mink / wbc"]
+    libraries = ["wbc"] + ([] if args.no_peers else ["Pink", "mink"])
+    growth = {name: growth_exponents(args.dofs, [stats[f"{name} {n}"]["median"] for n in args.dofs])
+              for name in libraries}
+    growth_rows = [[name, *(fmt_exponent(value) for value in growth[name])] for name in libraries]
     base_t = stats[f"{args.tasks[0]} tasks"]["median"]
     task_rows = [[n, 6 * n + 21, fmt(stats[f"{n} tasks"]["median"]), fmt(stats[f"{n} tasks"]["p99"]),
                   fmt(stats[f"{n} tasks"]["solve_median"]), f"{stats[f'{n} tasks']['median'] / base_t:.2f}"]
@@ -235,16 +241,40 @@ def main(argv: list[str] | None = None) -> int:
              "seeded); task sweep: the cases tick by tick in a random order.", "",
              "## Tick latency vs DOF (FrameTask + PostureTask + position and velocity limits)", "",
              markdown_table(dof_header, dof_rows), "",
+             "Growth exponent (slope of log median tick vs log DOF; the tick ~ DOF^exponent):", "",
+             markdown_table(["library", f"{args.dofs[0]}–{args.dofs[-1]} DOF", f"{LARGE}+ DOF"], growth_rows), "",
              "## Tick latency vs number of FrameTasks (24 DOF, + PostureTask)", "",
              markdown_table(["FrameTasks", "task rows", "median µs", "p99 µs", "solve median µs",
                              f"vs {args.tasks[0]} task"], task_rows), "", "![scaling](scaling.png)", ""]
     (args.out / "report.md").write_text("\n".join(lines))
     (args.out / "results.json").write_text(json.dumps({"machine": machine_note(), "command": command,
-                                                       "versions": versions, "stats": stats}, indent=2))
+                                                       "versions": versions, "stats": stats,
+                                                       "growth_exponents": growth}, indent=2))
     _plot(args, stats, args.out / "scaling.png")
     print("\n".join(lines[8:-2]))
     print(f"report written to {args.out / 'report.md'}")
     return 0
+
+
+#: the second growth exponent fits the sizes from this DOF on
+LARGE = 32
+
+
+def growth_exponents(dofs: list[int], medians: list[float]) -> tuple[float | None, float | None]:
+    """Slopes of least-squares lines through (log DOF, log median): over every size, and over the
+    sizes >= :data:`LARGE` (None where fewer than two sizes)."""
+    def slope(pairs: list[tuple[int, float]]) -> float | None:
+        if len(pairs) < 2:
+            return None
+        x, y = np.log([n for n, _ in pairs]), np.log([t for _, t in pairs])
+        return float(np.polyfit(x, y, 1)[0])
+
+    pairs = list(zip(dofs, medians, strict=True))
+    return slope(pairs), slope([(n, t) for n, t in pairs if n >= LARGE])
+
+
+def fmt_exponent(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
 
 
 def _plot(args, stats: dict, path: Path) -> None:

@@ -20,7 +20,23 @@ CONFIGURATIONS = {
     "youbot": (np.array([0.1, -0.2, 0.3, 0.2, 0.9, -0.8, 1.0, 0.4]),
                np.array([0.3, 0.1, 0.5, 0.5, 0.7, -0.5, 1.2, 0.1])),
     "deluca_mm": (np.array([0.0, 0.0, 0.0, 0.3, 0.4, 0.2]), np.array([0.4, 0.3, 0.6, 0.5, 0.2, 0.4])),
+    # the PUMA 560 on a free-flyer root: (position, unit quaternion (x, y, z, w), joints)
+    "floating_puma": (np.r_[0.1, -0.2, 0.3, np.array([0.1, -0.2, 0.1, 1.0]) / np.sqrt(1.06),
+                            0.2, -0.5, 0.3, 0.4, 0.6, -0.2],
+                      np.r_[0.2, 0.1, 0.5, np.array([-0.1, 0.1, 0.3, 1.0]) / np.sqrt(1.11),
+                            0.4, -0.3, 0.5, 0.2, 0.9, 0.1]),
 }
+
+
+def load(name: str) -> wbc.Robot:
+    """The robot of a case: a shipped one by name; ``floating_puma`` the PUMA 560 on a floating base."""
+    if name == "floating_puma":
+        import pinocchio as pin
+
+        from wbc.model.mobile_base import FloatingBase
+        model = pin.buildModelFromUrdf(str(wbc.model_path("puma560")), pin.JointModelFreeFlyer())
+        return wbc.Robot("floating_puma", model, base=FloatingBase())
+    return wbc.load_robot(name)
 
 
 @dataclass(frozen=True)
@@ -122,6 +138,10 @@ CASES = [
     Case("LinearTask", "youbot", lambda robot, q: wbc.LinearTask(
         [[0, 0, 0, 1, -1, 0, 0, 0], [0.5, 0, 0.2, 0, 0, 1, 0, 0]], b=[0.1, -0.2], cost=[1.0, 2.0]), None,
          "a reference, not an error: A v = b in closed loop (tests/test_linear_task.py)"),
+    Case("LinearCost", "youbot", lambda robot, q: wbc.LinearCost([1e-4, -2e-4, 3e-4, 0, 1e-4, 0, -1e-4, 2e-4]), None,
+         "no error: c^T v, the damped optimum -c / damping (tests/test_linear_cost.py)"),
+    Case("ManipulabilityGradient", "youbot", lambda robot, q: wbc.ManipulabilityGradient("ee", 1e-5), None,
+         "no error: c = -cost grad ln m (finite differences: tests/test_linear_cost.py)"),
     Case("BaseVelocityTask", "youbot", _base_velocity_task, None, "a velocity reference: J v = r in closed loop"),
     Case("SteeringTask", "deluca_mm", lambda robot, q: wbc.SteeringTask(1e-2, gain=1.0, speed_scale=0.5), None,
          "steers toward the holonomic preview: tests/test_mobile_bases.py (parking)"),
@@ -140,4 +160,11 @@ CASES = [
     Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,
          "constant bounds v_j = 0"),
     Case("BaseFootprintAvoidance", "youbot", _points_around_the_base, 0.4),
+    Case("MimicJoints", "youbot", lambda robot, q: wbc.MimicJoints([("arm_joint_5", "arm_joint_4", 0.5)]), None,
+         "constant equality rows v_j = m v_leader (tests/test_mimic_joints.py)"),
 ]
+
+#: items that read the whole velocity vector, again on a floating base (free-flyer coordinates)
+CASES += [Case(case.name, "floating_puma", case.make, case.feedback_gain, case.note) for case in CASES
+          if case.name in ("FrameTask", "PositionTask", "PostureTask", "LookAtTask",
+                           "AxisAlignTask", "ManipulabilityTask", "JointPositionLimits", "JointVelocityLimits")]

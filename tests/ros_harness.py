@@ -7,6 +7,7 @@ interface, multicast off, 127.0.0.1 the only peer): no DDS packet can leave the 
 It prints one JSON object (the case's observations) on stdout. Every wait has a deadline.
 
 Cases: ``loop`` (closed loop on youbot_circle), ``integration`` (the same without odometry),
+``tiago`` (closed loop on TIAGo's URDF, differential base, the shipped ``tiago`` configuration),
 ``watchdog`` (robot killed, restarted, then
 the node stopped by SIGINT), ``fuzz`` (malformed messages on every input topic).
 """
@@ -21,6 +22,7 @@ import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Annotated
 
 SCENARIO, CONFIG = "youbot_circle", "youbot"
@@ -48,12 +50,12 @@ def spawn(*args: str) -> subprocess.Popen[str]:
     return process
 
 
-def node(*extra: str, config: str = CONFIG) -> subprocess.Popen[str]:
-    return spawn("-m", "wbc", "ros", SCENARIO, "--config", config, "--json", *extra)
+def node(*extra: str, config: str = CONFIG, scenario: str = SCENARIO) -> subprocess.Popen[str]:
+    return spawn("-m", "wbc", "ros", scenario, "--config", config, "--json", *extra)
 
 
-def robot(config: str = CONFIG) -> subprocess.Popen[str]:
-    return spawn("-m", "wbc.ros.simulated", SCENARIO, "--config", config)
+def robot(config: str = CONFIG, scenario: str = SCENARIO) -> subprocess.Popen[str]:
+    return spawn("-m", "wbc.ros.simulated", scenario, "--config", config)
 
 
 def finish(process: subprocess.Popen[str], sig: int | None = signal.SIGTERM) -> dict[str, object]:
@@ -88,64 +90,78 @@ class Command:
 
 @dataclass
 class Observer:
-    """A participant reading every command the node writes and checking each against the limits
-    (a formula written out here: |v_i| <= limit of each arm joint; the base twist within the base
-    limits; each mecanum wheel's speed, u = W^-1 (vx, vy, wz), within its limit)."""
+    """A participant reading every command the node writes for ``scenario`` under ``config`` and
+    checking each against the robot's limits (formulas written out here: |v_i| <= limit of each
+    commanded joint; the base twist within the base's speed limits, and no lateral speed for a
+    differential base; each wheel's speed within its limit: mecanum u = W^-1 (vx, vy, wz),
+    differential u = (vx -+ half_track wz) / radius)."""
 
+    scenario: str = SCENARIO
+    config: str = CONFIG
     commands: list[Command] = field(default_factory=list)
     unsafe: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         import numpy as np
 
-        from wbc.model.robot import load_robot
+        from wbc.app.scenario import load_scenario
+        from wbc.ros.config import load_config
         from wbc.ros.dds import Participant
         from wbc.ros.messages import Float64MultiArray, Twist
 
+        scenario = load_scenario(self.scenario)
+        robot = scenario.robot
+        wiring = load_config(self.config, robot, scenario.tasks)
         self.participant = Participant()
-        self.arm_reader = self.participant.reader(ARM, Float64MultiArray)
-        self.base_reader = self.participant.reader(BASE, Twist)
-        robot = load_robot("youbot")
-        self.arm_limit = robot.velocity_limit[3:]
-        self.base_limit = robot.velocity_limit[:3]
-        wheels = robot.base.wheels
-        self.wheel_matrix, self.wheel_limit = wheels.inverse_matrix(), wheels.max_speed
-        self._arms: list[list[float]] = []  # arm commands not yet paired with their tick's base twist
+        self.readers = [self.participant.reader(c.topic, Float64MultiArray) for c in wiring.controllers]
+        self.base_reader = self.participant.reader(wiring.base.topic, Twist)
+        self.joint_limit = np.concatenate([robot.velocity_limit[c.v_indices] for c in wiring.controllers])
+        base = robot.base
+        self.base_limit = np.array([base.max_linear_speed, base.max_linear_speed, base.max_yaw_rate])
+        self.wheels, self.differential = base.wheels, base.kind.name in ("UNICYCLE", "DIFFERENTIAL")
+        self._pending: list[list[list[float]]] = [[] for _ in self.readers]  # per controller, not yet paired
         self._np = np
 
     def poll(self) -> None:
         from wbc.ros.dds import take_one
 
-        while True:
-            sample, more = take_one(self.arm_reader)
-            if not more:
-                break
-            if sample is not None:
-                self._arms.append(list(sample.data))
-        while self._arms:  # (each tick writes the arm's command, then the base's)
+        for reader, pending in zip(self.readers, self._pending, strict=True):
+            while True:
+                sample, more = take_one(reader)
+                if not more:
+                    break
+                if sample is not None:
+                    pending.append(list(sample.data))
+        while all(self._pending):  # (each tick writes every controller's command, then the base's)
             sample, more = take_one(self.base_reader)
             if not more:
                 break
             if sample is not None:
                 base = (sample.linear.x, sample.linear.y, sample.angular.z)
-                arm = self._arms.pop(0)
-                self._check(arm, base)
-                self.commands.append(Command(time.monotonic(), arm, base))
+                joints = [value for pending in self._pending for value in pending.pop(0)]
+                self._check(joints, base)
+                self.commands.append(Command(time.monotonic(), joints, base))
 
-    def _check(self, arm: list[float], base: tuple[float, float, float]) -> None:
+    def _check(self, joints: list[float], base: tuple[float, float, float]) -> None:
         np = self._np
-        values = np.array([*base, *arm])
+        values = np.array([*base, *joints])
         if not np.all(np.isfinite(values)):
             self.unsafe.append(f"non-finite command {values.tolist()}")
             return
         tolerance = 1 + 1e-9
-        if len(arm) != 5 or np.any(np.abs(arm) > self.arm_limit * tolerance):
-            self.unsafe.append(f"arm command {arm} beyond {self.arm_limit.tolist()}")
+        if len(joints) != self.joint_limit.size or np.any(np.abs(joints) > self.joint_limit * tolerance):
+            self.unsafe.append(f"joint command {joints} beyond {self.joint_limit.tolist()}")
         if np.any(np.abs(base) > self.base_limit * tolerance):
             self.unsafe.append(f"base twist {base} beyond {self.base_limit.tolist()}")
-        wheels = self.wheel_matrix @ np.array(base)
-        if np.any(np.abs(wheels) > self.wheel_limit * tolerance):
-            self.unsafe.append(f"wheel speeds {wheels.tolist()} beyond {self.wheel_limit}")
+        vx, vy, wz = base
+        if self.differential:
+            if vy != 0.0:
+                self.unsafe.append(f"a lateral speed {vy} for a differential base")
+            wheels = np.array([vx - self.wheels.half_track * wz, vx + self.wheels.half_track * wz]) / self.wheels.radius
+        else:
+            wheels = self.wheels.inverse_matrix() @ np.array(base)
+        if np.any(np.abs(wheels) > self.wheels.max_speed * tolerance):
+            self.unsafe.append(f"wheel speeds {wheels.tolist()} beyond {self.wheels.max_speed}")
 
     def wait(self, condition, timeout: float = DEADLINE, what: str = "") -> bool:
         """Poll until ``condition()`` (True) or ``timeout`` [s] (False)."""
@@ -162,14 +178,14 @@ class Observer:
         return sum(not c.zero for c in self.commands[since:]) >= count
 
 
-def case_loop(duration: float = 6.0, config: str = CONFIG) -> dict[str, object]:
+def case_loop(duration: float = 6.0, config: str = CONFIG, scenario: str = SCENARIO) -> dict[str, object]:
     from wbc.ros.messages import DiagnosticArray
 
-    observer = Observer()
+    observer = Observer(scenario, config)
     diagnostics_reader = observer.participant.reader("/diagnostics", DiagnosticArray)
     diagnostics = []
-    sim = robot(config)
-    ros = node("--duration", str(duration), config=config)
+    sim = robot(config, scenario)
+    ros = node("--duration", str(duration), config=config, scenario=scenario)
     graph = _graph(observer)
 
     def ended() -> bool:
@@ -230,7 +246,6 @@ def _graph(observer: Observer) -> dict[str, object]:
 def case_integration() -> dict[str, object]:
     """The loop with no odometry: the node integrates its own base commands."""
     import tempfile
-    from pathlib import Path
 
     from wbc.ros.config import config_file
 
@@ -240,6 +255,86 @@ def case_integration() -> dict[str, object]:
         path = Path(folder) / "no_odometry.toml"
         path.write_text(text.replace('odometry = "/odom"', ""))
         return case_loop(config=str(path))
+
+
+#: TIAGo's URDF on a declared differential base, its hand and head locked (docs/ros.md)
+TIAGO_SIDECAR = """name = "tiago"
+urdf = "{urdf}"
+end_effector = "arm_tool_link"
+
+[base]
+kind = "differential"
+lock = {locked}
+max_linear_speed = 1.0
+max_yaw_rate = 1.0
+
+[base.wheels]
+joints = ["wheel_left_joint", "wheel_right_joint"]
+"""
+
+#: the tool to a point 2 m to the left of where it starts (the platform must turn and drive)
+TIAGO_SCENARIO = """name = "tiago_reach"
+
+[robot]
+name = "tiago.toml"
+
+[controller]
+dt = 0.01
+duration = 6.0
+
+[[tasks]]
+type = "PositionTask"
+frame = "arm_tool_link"
+gain = 0.5
+max_speed = 0.5
+
+[[tasks]]
+type = "DampingTask"
+cost = 1e-3
+
+[[constraints]]
+type = "JointPositionLimits"
+
+[[constraints]]
+type = "JointVelocityLimits"
+
+[[constraints]]
+type = "NonholonomicBase"
+
+[[constraints]]
+type = "WheelSpeedLimits"
+
+[reference]
+type = "point"
+position = [0.108, 1.2195, 0.7065]
+"""
+
+
+def tiago_scenario(folder: str) -> str:
+    """Write TIAGo's sidecar and scenario (the URDF of the installed example-robot-data) into
+    ``folder``; the scenario's path."""
+    import importlib.metadata
+    import xml.etree.ElementTree as ElementTree
+
+    urdf = Path(str(importlib.metadata.distribution("example-robot-data").locate_file(
+        "cmeel.prefix/share/example-robot-data/robots/tiago_description/robots/tiago.urdf")))
+    locked = sorted({joint.get("name") for joint in ElementTree.parse(urdf).getroot().findall("joint")
+                     if joint.get("type") != "fixed" and joint.get("name").startswith(("hand_", "head_"))})
+    (Path(folder) / "tiago.toml").write_text(TIAGO_SIDECAR.format(urdf=urdf, locked=json.dumps(locked)))
+    scenario = Path(folder) / "tiago_reach.toml"
+    scenario.write_text(TIAGO_SCENARIO)
+    return str(scenario)
+
+
+def case_tiago() -> dict[str, object]:
+    """The closed loop on TIAGo (differential base) with the shipped tiago configuration."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        scenario = tiago_scenario(folder)
+        result = case_loop(config="tiago", scenario=scenario)
+        result["scenario"] = (Path(scenario).parent / "tiago.toml").read_text(), Path(scenario).read_text()
+        return result
 
 
 def case_watchdog() -> dict[str, object]:
@@ -384,7 +479,7 @@ def main() -> None:
     case = sys.argv[1]
     try:
         result = {"loop": case_loop, "integration": case_integration, "watchdog": case_watchdog,
-                  "fuzz": case_fuzz}[case]()
+                  "fuzz": case_fuzz, "tiago": case_tiago}[case]()
     finally:
         for process in SPAWNED:  # whatever a failed case left running
             if process.poll() is None:

@@ -379,3 +379,21 @@ def test_cold_costs_are_measured_in_a_fresh_process():
     assert set(run) == {"import_s", "first_build_s", "first_tick_s", "steady_s", "build_s", "later_first_tick_s"}
     assert all(value > 0.0 for value in run.values())
     assert run["steady_s"] < run["first_tick_s"]  # a first tick pays for code run the first time
+
+
+def test_the_users_loop_is_the_same_work_in_wbc_and_placo():
+    """wbc on placo's QP and placo, each in its own loop from the same start with the circle target
+    computed in the loop, follow the same configurations (runs where placo does)."""
+    from benchmarks import peers
+    from benchmarks.peer_setups import WbcSetup, placo_gains
+
+    placo = peers.find_placo(os.environ.get("WBC_PLACO_PYTHON"))
+    if not placo.runs:
+        pytest.skip(placo.status)
+    _, spec, configurations, targets = _placo_run(5)
+    result = peers.run_placo(placo, spec, configurations, targets, warmup=2, closed_loop=False, user_loop=300)
+    times, wbc_q = peers.wbc_user_loop(WbcSetup(placo_gains(spec), peers.PLACO_QP), configurations[0], 300)
+    placo_q = np.asarray(result["user_loop_q"])
+    assert placo_q.shape == wbc_q.shape == (300, 8) and len(result["user_loop_times"]) == 300 and np.all(times > 0)
+    assert np.abs(wbc_q[-1] - configurations[0]).max() > 0.05  # the circle moved the robot
+    assert np.abs(placo_q - wbc_q).max() < 1e-9

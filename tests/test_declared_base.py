@@ -160,7 +160,7 @@ def test_a_mobile_robot_without_a_base_warns_naming_the_fix(tmp_path):
      r"a differential base has 2 driven wheels, 3 given .*lock=\[\.\.\.\]"),
     ({"base": "differential", "wheels": ["wheel_left_joint", "wheel_left_joint"]}, r"named twice"),
     ({"base": "hovercraft"}, r"unknown base kind 'hovercraft'; choose one of"),
-    ({"base": "floating"}, r"base='floating' is not supported yet"),
+    ({"base": "floating"}, r"the model's root already is a planar base; declare base='planar'"),
     ({"base": "fixed", "wheels": ["wheel_left_joint"]}, r"a fixed base has no wheels"),
     ({"base": "mecanum", "wheels": ["wheel_left_joint", "wheel_right_joint"]}, r"a mecanum base has 4 driven wheels"),
 ])
@@ -195,12 +195,12 @@ def test_a_robot_with_a_sidecar_declares_its_base_there():
         wbc.load_robot("youbot", "differential")
 
 
-def test_mimic_joints_are_said(tmp_path):
+def test_mimic_joints_are_coupled_on_a_declared_base(tmp_path):
     path = tmp_path / "mimic.urdf"
     path.write_text(write_robot(tmp_path).read_text().replace(
         '<axis xyz="0 1 0"/><limit lower="-2.5"', '<axis xyz="0 1 0"/><mimic joint="shoulder"/><limit lower="-2.5"'))
-    with pytest.warns(wbc.ModelWarning, match=r"joints \['elbow'\] are URDF <mimic> joints"):
-        wbc.load_robot(path, "planar", lock=["wheel_left_joint", "wheel_right_joint", "caster_joint"])
+    robot = wbc.load_robot(path, "planar", lock=["wheel_left_joint", "wheel_right_joint", "caster_joint"])
+    assert [(c.joint, c.leader, c.multiplier) for c in robot.couplings] == [("elbow", "shoulder", 1.0)]
 
 
 # ------------------------------------------------------------------ a real robot: PAL's TIAGo

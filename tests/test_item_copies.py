@@ -198,6 +198,12 @@ EXAMPLES: dict[type, Example] = {
         "cost": lambda t: setattr(t, "cost", 1e-2),
         "set_target": lambda t: t.set_target([-0.2]),
     }, stack=lambda: [_position_task()]),
+    wbc.LinearCost: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LinearCost(np.full(8, 1e-3)), {
+        "c": lambda t: setattr(t, "c", [0.0, 2e-3, 0.0, -1e-3, 0.0, 0.0, 1e-3, 0.0]),
+    }, stack=lambda: [_position_task()]),
+    wbc.ManipulabilityGradient: Example(YOUBOT, Q_YOUBOT, lambda: wbc.ManipulabilityGradient("ee", 1e-3), {
+        "cost": lambda t: setattr(t, "cost", 1e-2),
+    }, stack=lambda: [_position_task()]),
     wbc.PostureTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.PostureTask(1e-2, gain=0.1), {
         "gain": lambda t: setattr(t, "gain", 0.5),
         "set_target": lambda t: t.set_target(Q_YOUBOT + 0.2),
@@ -249,6 +255,8 @@ EXAMPLES: dict[type, Example] = {
         "margin": lambda c: setattr(c, "margin", 0.003),
     }, stack=lambda: [_reach_forward(), _still_base(), wbc.PostureTask(1e-3)]),
     wbc.DofFreezing: Example(YOUBOT, Q_YOUBOT, lambda: wbc.DofFreezing(["arm_joint_2"]), {},
+                             stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
+    wbc.MimicJoints: Example(YOUBOT, Q_YOUBOT, lambda: wbc.MimicJoints([("arm_joint_4", "arm_joint_3", 0.5)]), {},
                              stack=lambda: [wbc.PostureTask(1.0, target=-Q_YOUBOT, gain=1.0)]),
     wbc.BaseFootprintAvoidance: Example(YOUBOT, Q_YOUBOT, _point_ahead_of_the_base, {
         "gain": lambda c: setattr(c, "gain", 0.1),

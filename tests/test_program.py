@@ -55,6 +55,7 @@ INTS = {
     "NORMALISE_COST": dict(nv=4),
     "NORMALISE_LEVEL": dict(nv=4),
     "NORMAL_EQUATIONS": dict(nv=4, rows=7, first=1, last=6, reset=1),
+    "LINEAR_COST": dict(nv=4, rows=7, first=5, last=7),
     "POSITION_LIMITS": dict(k=4),
     "POSITION_TASK": dict(start=1, nv=4, rows=6),
     "POSTURE": dict(start=1, dim=3, nv=4, rows=6),

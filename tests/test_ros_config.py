@@ -10,6 +10,7 @@ import textwrap
 
 import pytest
 
+import wbc
 from wbc.app.scenario import load_scenario
 from wbc.ros.config import load_config, parse_config, resolve
 from wbc.ros.errors import RosConfigError
@@ -34,6 +35,28 @@ def test_the_shipped_youbot_configuration_fits_youbot_circle(youbot):
     assert [target.topic for target in config.pose_targets] == ["/wbc/ee_target"]
     assert config.controllers[0].v_indices.tolist() == [3, 4, 5, 6, 7]
     assert config.joints[0].zero == pytest.approx(2.9496)
+
+
+def test_a_folder_named_like_a_shipped_configuration_does_not_hide_it(youbot, tmp_path, monkeypatch):
+    (tmp_path / "youbot").mkdir()
+    monkeypatch.chdir(tmp_path)
+    assert load_config("youbot", youbot.robot, youbot.tasks).odometry == "/odom"
+
+
+def test_the_shipped_tiago_configuration_fits_tiago_on_its_declared_base(tmp_path):
+    """config "tiago" against TIAGo's URDF (example-robot-data) on its differential base: the arm
+    and torso controllers by joint order, the diff-drive command topic, the odometry."""
+    from ros_harness import tiago_scenario
+    from test_declared_base import tiago_urdf
+
+    tiago_urdf()  # skips, naming the extra, where example-robot-data is not installed
+    scenario = load_scenario(tiago_scenario(str(tmp_path)))
+    config = load_config("tiago", scenario.robot, scenario.tasks)
+    names = scenario.robot.joint_names
+    assert [names[i] for c in config.controllers for i in c.v_indices] == [
+        *(f"arm_{k}_joint" for k in range(1, 8)), "torso_lift_joint"]
+    assert config.base is not None and config.base.topic == "/mobile_base_controller/cmd_vel_unstamped"
+    assert config.odometry == "/mobile_base_controller/odom" and scenario.robot.base.kind is wbc.BaseKind.UNICYCLE
 
 
 @pytest.mark.parametrize(("tables", "words"), [

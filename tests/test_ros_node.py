@@ -67,6 +67,14 @@ def integration() -> dict:
 
 
 @pytest.fixture(scope="module")
+def tiago() -> dict:
+    from test_declared_base import tiago_urdf
+
+    tiago_urdf()  # skips, naming the extra, where example-robot-data is not installed
+    return _harness("tiago")
+
+
+@pytest.fixture(scope="module")
 def watchdog() -> dict:
     return _harness("watchdog")
 
@@ -106,13 +114,48 @@ def test_closed_loop_over_dds_tracks_like_the_in_process_run(case, request):
     if summary["position_error_rms_m"] != pytest.approx(in_process["position_error_rms_m"], rel=1e-6):
         step = 2 * math.pi * 0.2 / 8.0 * DT  # [m] the circle's (radius 0.2 m, period 8 s) advance in one tick
         late = max(summary["repeated_state_ticks"], 1) / summary["control_ticks"]  # up to 3 steps off then
-        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
-        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + 3 * step
+        # a state older than a period (measured: its writer's timestamp to the tick) puts the robot that many
+        # ticks further behind the target (seen on a machine loaded by other jobs: 4.9 mm against 4.7 mm)
+        behind = max(1, math.ceil(summary["state_age_max_us"] * 1e-6 / DT - 1e-9))
+        print(f"oldest state taken: {summary['state_age_max_us'] * 1e-3:.1f} ms ({behind} periods)")
+        bound = 3 * step * behind
+        assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + bound * math.sqrt(late)
+        assert summary["position_error_max_m"] <= in_process["position_error_max_m"] + bound
     else:  # the same loop
         assert summary["position_error_max_m"] == pytest.approx(in_process["position_error_max_m"], rel=1e-6)
     robot = loop["robot"]
     # the robot applied the node's commands: under load a few are merged (two arm commands before one base
     # twist) or still in flight when the run stops (CI saw 592 steps for 601 ticks, the tracking above exact)
+    assert robot["returncode"] == 0 and robot["output"]["steps"] >= 0.95 * summary["control_ticks"]
+
+
+def test_tiago_on_its_differential_base_over_dds_tracks_like_the_in_process_run(tiago, tmp_path):
+    """A third-party robot (TIAGo's URDF, a declared differential base, the shipped ``tiago``
+    configuration: arm and torso controllers, the diff-drive's Twist, its odometry): the tool
+    goes 2 m to its left through DDS as in wbc's own loop; every command on the wire is within
+    the joints', the base's and the wheels' limits and has no lateral speed (the observer's
+    formulas)."""
+    from wbc.app.closed_loop import run
+    from wbc.app.scenario import load_scenario
+
+    node = tiago["node"]
+    assert node["returncode"] == 0, node["stderr"]
+    summary = node["output"]
+    assert summary["control_ticks"] >= 200 and summary["watchdog_trips"] == 0
+    assert summary["dropped_messages"] == 0 and summary["commands_replaced_by_zero"] == 0
+    assert tiago["unsafe"] == [] and tiago["commands"] >= 0.9 * summary["control_ticks"]
+    sidecar, scenario = tiago["scenario"]
+    (tmp_path / "tiago.toml").write_text(sidecar)
+    (tmp_path / "tiago_reach.toml").write_text(scenario)
+    in_process = run(load_scenario(tmp_path / "tiago_reach.toml"), duration=summary["control_ticks"] * DT).summary()
+    print(f"tiago: position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
+          f"in process {in_process['position_error_rms_m']:.6e} m ({summary['repeated_state_ticks']} late ticks)")
+    late = max(summary["repeated_state_ticks"], 1) / summary["control_ticks"]
+    step = 0.5 * DT  # [m] the tool's largest advance in one tick (its task's max_speed)
+    assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
+    assert in_process["position_error_rms_m"] <= summary["position_error_rms_m"] + 3 * step * math.sqrt(late)
+    assert in_process["final_position_error_m"] < 1e-3  # the loop itself reaches the point
+    robot = tiago["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= 0.95 * summary["control_ticks"]
 
 
@@ -174,8 +217,8 @@ def test_sigint_sends_zero_within_one_tick_and_exits(watchdog):
     assert node["returncode"] == 0 and node["output"]["ticks"] > node["output"]["control_ticks"] > 0
 
 
-def test_every_command_on_the_wire_is_finite_and_within_limits(loop, integration, watchdog, fuzz):
-    assert loop["unsafe"] == integration["unsafe"] == watchdog["unsafe"] == fuzz["unsafe"] == []
+def test_every_command_on_the_wire_is_finite_and_within_limits(loop, integration, watchdog, fuzz, tiago):
+    assert loop["unsafe"] == integration["unsafe"] == watchdog["unsafe"] == fuzz["unsafe"] == tiago["unsafe"] == []
 
 
 def test_sigterm_sends_zero_and_exits(fuzz):

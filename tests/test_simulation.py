@@ -77,3 +77,41 @@ def test_a_reference_task_without_a_reference_records_its_true_error_in_mujoco()
     tool = np.array([scenario.robot.frame_pose(q, "ee")[:3, 3] for q in result.q[:-1]])
     np.testing.assert_allclose(result.position_error, np.linalg.norm(goal[:3, 3] - tool, axis=1), rtol=1e-12)
     assert result.position_error[-1] < result.position_error[0] - 0.05  # and the loop drives towards it
+
+
+def test_contacts_are_off_whatever_the_mjcf_says(tmp_path, monkeypatch):
+    """The loop checks the controller: an MJCF whose geoms all collide (the youBot's with
+    contype/conaffinity 1 and a ball in the world overlapping its arm) produces no contact."""
+    import mujoco
+
+    from wbc.model.robot import model_path
+
+    text = model_path("youbot", "mjcf").read_text()
+    text = text.replace('contype="0" conaffinity="0"', 'contype="1" conaffinity="1"')
+    ball = '<geom name="ball" type="sphere" pos="0.15 0 0.2" size="0.1"/>'
+    text = text.replace('<geom name="floor"', ball + '<geom name="floor"')
+    colliding = tmp_path / "youbot.xml"
+    colliding.write_text(text)
+    model = mujoco.MjModel.from_xml_path(str(colliding))
+    data = mujoco.MjData(model)
+    mujoco.mj_step(model, data, nstep=5)
+    assert data.ncon > 0  # the MJCF as written has contacts
+    monkeypatch.setattr("wbc.app.simulation.model_path", lambda name, kind: colliding)
+    simulation = MujocoSimulation(wbc.load_robot("youbot"), 0.01)
+    simulation.reset(np.zeros(8))
+    simulation.advance()
+    assert simulation.data.ncon == 0
+
+
+def test_youbot_obstacle_keeps_its_margin_through_the_servos():
+    """Collision avoidance in the MuJoCo loop: the true configuration of every tick (coal on the
+    URDF's shapes as the oracle) keeps min_distance up to the servos' tracking lag."""
+    from test_collision_scenario import _closest_per_tick
+
+    scenario = load_scenario(TASKS / "youbot_obstacle.toml")
+    avoidance = scenario.constraints[-1]
+    simulation = MujocoSimulation(scenario.robot, scenario.dt)
+    result = run(scenario, simulation=simulation)
+    closest = _closest_per_tick(scenario, avoidance.obstacles, result.q)
+    assert closest.min() >= avoidance.min_distance - 2e-3
+    assert result.fallback_ticks == 0

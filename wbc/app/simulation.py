@@ -5,6 +5,10 @@ noise), compute ``v``, send it to the velocity actuators (optionally one tick la
 a real bus would), and integrate the physics for ``dt`` with the MJCF's own timestep.
 The MJCF must list its joints in the order of the robot's coordinates and have one
 velocity actuator per coordinate, in the same order (``models/youbot/youbot.xml``).
+
+Contacts are off (``mjDSBL_CONTACT``, whatever the MJCF says): the loop checks the controller,
+so a distance it keeps (``wbc.CollisionAvoidance``) is its own doing, never the simulator
+pushing a link back, and a distance it loses shows as a penetration, not as a contact force.
 """
 
 from __future__ import annotations
@@ -37,6 +41,7 @@ class MujocoSimulation:
         except ModelError as exc:
             raise ModelError(f"robot '{robot.name}' ships no MJCF for simulation") from exc
         self.model = mujoco.MjModel.from_xml_path(str(path))
+        self.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
         self.data = mujoco.MjData(self.model)
         names = [self.model.joint(i).name for i in range(self.model.njnt)]
         actuated = [self.model.joint(self.model.actuator(i).trnid[0]).name for i in range(self.model.nu)]

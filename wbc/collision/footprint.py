@@ -222,8 +222,9 @@ class BaseFootprintAvoidanceData(ConstraintData):
     def __init__(self, avoidance: BaseFootprintAvoidance, robot: Robot) -> None:
         super().__init__(avoidance)
         if not robot.base.is_mobile:
-            raise InvalidInputError(f"{avoidance.name}: robot '{robot.name}' has a fixed base; BaseFootprintAvoidance "
-                                    "keeps a mobile base clear (use CollisionAvoidance for a fixed arm)")
+            raise InvalidInputError(f"{avoidance.name}: robot '{robot.name}' has a {robot.base.name} base; "
+                                    "BaseFootprintAvoidance keeps a ground base on (x, y, heading) clear (use "
+                                    "CollisionAvoidance for an arm)")
         from . import footprint_kernels as kernels
 
         self._kernels = kernels

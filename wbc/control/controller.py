@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..constraints.constraint import Constraint, ConstraintData
+from ..constraints.mimic_joints import MimicJoints
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
 from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
@@ -309,6 +310,7 @@ class Controller:
         self._task_stack = stack = TaskStack(self._task_data, nv)
         self._stack_t, self._damping_rows = stack.stack_t, stack.damping_rows
         self._task_blocks, self._preview_blocks, self._n_plain = stack.blocks, stack.preview_blocks, stack.n_plain
+        self._linear_blocks = stack.linear_blocks
         self.damping = self.damping  # writes sqrt(damping) I into its rows
 
         n_ineq = sum(c.n_inequalities for c in self._constraint_data)
@@ -399,7 +401,7 @@ class Controller:
         """Append the ops of the compiled items to ``program``; the items left to Python. Items
         whose subclass overrides compute keep their own rows: no inherited ops for them."""
         kin, stack = self.kinematics, self._stack_t
-        tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks
+        tasks = [(task, jacobian, target) for task, jacobian, target, start in self._task_blocks + self._linear_blocks
                  if not (ops_follow_compute(task) and task.add_ops(program, kin, stack, start))]
         constraints = [(constraint, block) for constraint, block in self._constraint_blocks
                        if not (ops_follow_compute(constraint) and constraint.add_ops(program, kin, block))]
@@ -417,6 +419,7 @@ class Controller:
             return [], program, self._lifted_ops(program)
         program.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=0, last=self._n_plain,
                     reset=1, Hc=qp.Hc)
+        self._task_stack.add_linear_op(program, qp)
         python_preview, rest = self._preview_ops(program)
         self._bound_policy.add_op(rest, qp)
         rest.add(kernels.NORMALISE_COST, Hc=qp.Hc, scaling=self._cost_scaling, nv=nv)
@@ -430,7 +433,7 @@ class Controller:
     def _lifting(self) -> LiftedQP | None:
         """The lifted QP (the dense task rows as variables, :mod:`wbc.qp.lifting`) when it pays:
         high DOF, native DAQP, plain form, no preview; None otherwise."""
-        if self.reduced or self._preview_blocks or not getattr(self.solver, "native", False):
+        if self.reduced or self._preview_blocks or self._linear_blocks or not getattr(self.solver, "native", False):
             return None
         diagonal = dense_rows(self._task_stack, self.robot.nv)
         return LiftedQP(self._qp_v, diagonal) if worth_lifting(self.robot.nv, diagonal) else None
@@ -457,7 +460,7 @@ class Controller:
                                   and task.add_preview_ops(program, kin, stack, start, self._preview))]
         rest = TickProgram() if python_preview else program  # runs after the Python preview tasks
         rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=stack.shape[1], first=self._n_plain,
-                 last=stack.shape[1], reset=0, Hc=self._qp_v.Hc)
+                 last=self._task_stack.n_quadratic, reset=0, Hc=self._qp_v.Hc)
         return python_preview, rest
 
     def _finish_program(self, program: TickProgram, rest: TickProgram, solve: BackendSolve) -> None:
@@ -566,8 +569,11 @@ def _refuse_ignored_overrides(item: Task | Constraint, data: TaskData | Constrai
 
 
 def _base_constraints(robot: Robot, constraints: list[Constraint], reduced: bool) -> list[Constraint]:
-    """``constraints`` for ``robot``'s base: without the rows the input map satisfies in the
-    reduced form; with them (checked) for a nonholonomic base in plain form."""
+    """``constraints`` for ``robot``'s model: with :class:`MimicJoints` for its coupled joints (added
+    unless given); without the rows the input map satisfies in the reduced form; with them
+    (checked) for a nonholonomic base in plain form."""
+    if robot.couplings and not any(type(c) is MimicJoints and c.couplings is None for c in constraints):
+        constraints = [*constraints, MimicJoints()]
     if reduced:
         return [c for c in constraints if not c.satisfied_by_input_map]
     if robot.base.is_nonholonomic and not any(c.satisfied_by_input_map for c in constraints):

@@ -161,6 +161,11 @@ class Hierarchy:
             level.update((id(data), k) for data in buffers.task_data[start:start + size])
             start += size
         self.count = count = len(sizes)
+        upper = [block[0].name for block in buffers.task_stack.linear_blocks if level[id(block[0])] != count - 1]
+        if upper:
+            raise InvalidInputError(f"linear cost terms {upper} sit above the last priority level: a level's cost "
+                                    "must be bounded below on its own, which only the last level's damping makes "
+                                    "sure of; put them in the last level")
         self.rows = rows = LevelRows(buffers.task_stack, lambda task: level[id(task)], count, nv)
         #: each level's ordinary task blocks (for the error-scaled damping of its tasks)
         self._blocks = [[block for block in buffers.task_stack.blocks if level[id(block[0])] == k]
@@ -224,6 +229,8 @@ class Hierarchy:
                 if last > first or reset:
                     rest.add(kernels.NORMAL_EQUATIONS, stack=stack, nv=nv, rows=size, first=first, last=last,
                              reset=reset, Hc=qp.Hc)
+            if k == self.count - 1:
+                b.task_stack.add_linear_op(rest, qp)
             if lm.add_task_ops(rest, stack, self._blocks[k], k):  # the error-scaled damping of the level's tasks
                 lm.add_level_op(rest, k, qp.Hc, scaling_last if k == self.count - 1 else self._upper_scaling)
         first_qp = self.qps[0]

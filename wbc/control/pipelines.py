@@ -141,6 +141,8 @@ class Assembly:
         self._qp = buffers.qp
         self._q_screened, self._q_weights = q_screened, q_weights  # q is finite iff q . weights is
         self._prepare = inputs.prepare if inputs is not None and inputs.prepares else None
+        if not (tasks or constraints or self._qp.n_eq or self._prepare):  # the program does it all
+            self.run = self._run_program  # type: ignore[method-assign]
 
     def run(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
         """Fill this tick's QP for configuration ``q`` (checked up front unless the program
@@ -164,6 +166,19 @@ class Assembly:
             self._screen(q)
         prepare = self._prepare
         return has_nan if prepare is None else prepare(q, has_nan)
+
+    def _run_program(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
+        """:meth:`run` when every item is compiled, no equality rows are synced and the base
+        prepares nothing: the same steps, without the empty ones (the control loop's path)."""
+        context = self._context
+        context.measured = None if v_measured is None else context.measure(v_measured)
+        self._kinematics.update(q, self._deferred_kinematics)
+        if self._unready:
+            self._check_ready()
+        has_nan = self._run(dt)
+        if has_nan and self._q_screened:
+            self._screen(q)
+        return has_nan
 
     def _check_ready(self) -> None:
         for task in self._unready:

@@ -163,9 +163,12 @@ def as_pose(value: ArrayLike, name: str) -> NDArray[np.float64]:
     Fast path for the control loop: a float64 (4, 4) array is checked by one compiled call
     (:func:`wbc.runtime.kernels.pose_defect`); the messages come from the checks below.
     """
-    if (type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (4, 4)
-            and kernels.pose_defect(value, ROTATION_TOLERANCE) == kernels.POSE_OK):
-        return value
+    if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (4, 4):
+        try:
+            if kernels.pose_defect(value, ROTATION_TOLERANCE) == kernels.POSE_OK:
+                return value
+        except TypeError:  # a read-only array (the kernel takes writable ones): the checks below
+            pass
     pose = _real_array(value, (4, 4), name)
     if not np.all(np.isfinite(pose)):
         raise InvalidInputError(f"{name} contains NaN or inf")

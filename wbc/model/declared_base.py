@@ -37,6 +37,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..core.errors import InvalidInputError, ModelError
+from .bases.floating import FloatingBase, free_flyer_root
 from .bases.interface import LAYOUT_TOLERANCE, WheelMount, Wheels, kind_class
 from .mobile_base import BaseKind, MobileBase
 
@@ -44,7 +45,8 @@ from .mobile_base import BaseKind, MobileBase
 BASE_JOINT_NAMES = ("base_x", "base_y", "base_heading")
 #: base kinds by the name :func:`wbc.load_robot` accepts ("differential" is wbc's unicycle)
 KIND_NAMES = {"fixed": BaseKind.FIXED, "planar": BaseKind.PLANAR, "mecanum": BaseKind.MECANUM,
-              "differential": BaseKind.UNICYCLE, "unicycle": BaseKind.UNICYCLE, "synchro": BaseKind.SYNCHRO}
+              "differential": BaseKind.UNICYCLE, "unicycle": BaseKind.UNICYCLE, "synchro": BaseKind.SYNCHRO,
+              "floating": BaseKind.FLOATING}
 #: [m] how far two wheel radii may differ
 RADIUS_TOLERANCE = 1e-9
 
@@ -70,11 +72,8 @@ def base_kind(name: str) -> BaseKind:
     """The base kind called ``name`` (``"planar"``, ``"mecanum"``, ``"differential"``, ...).
 
     Raises:
-        ModelError: an unknown name (``"floating"``: not supported yet).
+        ModelError: an unknown name.
     """
-    if name == "floating":
-        raise ModelError("base='floating' is not supported yet: wbc's compiled kinematics drives 1-DOF joints "
-                         "and planar bases; load a floating-base robot with base='fixed' for its upper body")
     if not isinstance(name, str) or name not in KIND_NAMES:
         raise ModelError(f"unknown base kind {name!r}; choose one of {sorted(KIND_NAMES)}")
     return KIND_NAMES[name]
@@ -131,6 +130,47 @@ def declare_base(model: pin.Model, urdf: Path | None, declaration: BaseDeclarati
     indices = tuple(with_base.joints[with_base.getJointId(name)].idx_v for name in names)
     return with_base, kind_class(kind)(kind, indices=(indices[0], indices[1], indices[2]), max_linear_speed=linear,
                                        max_yaw_rate=yaw, wheels=wheels)
+
+
+def declare_floating(model: pin.Model, urdf: Path | None, declaration: BaseDeclaration,
+                     where: str) -> tuple[pin.Model, FloatingBase]:
+    """``model`` on a free-flyer root joint, and its :class:`FloatingBase`.
+
+    A model whose root joint is a free flyer (a URDF ``floating`` root joint) keeps it; a URDF
+    without one is parsed again with Pinocchio's ``JointModelFreeFlyer`` as its root joint
+    (named ``root_joint``; the root link's inertia then moves with it). Joints in ``lock`` are
+    held at their neutral position.
+
+    Raises:
+        ModelError: wheels, replaced joints or a wheel speed declared (a floating base has none),
+            a planar root the free flyer would sit on, a model that is not a URDF and has no free
+            flyer, or the free flyer itself locked.
+    """
+    given = [key for key, value in (("wheels", declaration.wheels), ("replace", declaration.replace),
+                                    ("max_wheel_speed", declaration.max_wheel_speed)) if value]
+    if given:
+        raise ModelError(f"{where}: {', '.join(given)}: a floating base has no wheels and replaces no root joint; "
+                         "remove them (lock=[...] holds joints)")
+    if planar_root_joints(model) or root_chain(model):
+        raise ModelError(f"{where}: the model's root already is a planar base; declare base='planar' (or a wheeled "
+                         "kind) for it, or remove its planar root joint from the model for a floating base")
+    if free_flyer_root(model) is None:
+        if urdf is None or urdf.suffix.lower() != ".urdf":
+            raise ModelError(f"{where}: base='floating' needs a URDF (parsed again with a free-flyer root) or a "
+                             "model whose root joint is a free flyer (a URDF 'floating' root joint, an MJCF "
+                             "<freejoint/>)")
+        model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+    locked = sorted(joint_index(model, name, "lock", where) for name in declaration.lock)
+    if locked:
+        model = pin.buildReducedModel(model, locked, pin.neutral(model))
+    root = free_flyer_root(model)
+    if root is None:
+        raise ModelError(f"{where}: lock holds the free-flyer root joint; declare base='fixed' for a robot bolted "
+                         "to the world")
+    joint = model.joints[root]
+    return model, FloatingBase(BaseKind.FLOATING, configuration_start=joint.idx_q, velocity_start=joint.idx_v,
+                               max_linear_speed=declaration.max_linear_speed or math.inf,
+                               max_yaw_rate=declaration.max_yaw_rate or math.inf)
 
 
 # ------------------------------------------------------------------ model surgery
@@ -291,13 +331,5 @@ def wheel_like_joints(model: pin.Model) -> list[str]:
             if model.joints[j].shortname().startswith("JointModelRUB") and "wheel" in model.names[j].lower()]
 
 
-def mimic_joints(urdf: Path | None) -> list[str]:
-    """Joints a URDF declares as ``<mimic>`` of another (loaded as independent joints)."""
-    if urdf is None or urdf.suffix.lower() != ".urdf":
-        return []
-    root = ElementTree.parse(urdf).getroot()
-    return [str(joint.get("name")) for joint in root.iterfind("joint") if joint.find("mimic") is not None]
-
-
-__all__ = ["BaseDeclaration", "declare_base", "base_kind", "planar_root_joints", "root_chain", "wheel_like_joints",
-           "joint_index", "mimic_joints", "BASE_JOINT_NAMES", "KIND_NAMES"]
+__all__ = ["BaseDeclaration", "declare_base", "declare_floating", "base_kind", "planar_root_joints", "root_chain",
+           "wheel_like_joints", "joint_index", "BASE_JOINT_NAMES", "KIND_NAMES"]

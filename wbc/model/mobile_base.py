@@ -13,6 +13,8 @@ Conventions (used everywhere in wbc):
 * Nonholonomic bases (unicycle / differential drive, synchro drive) cannot slip
   sideways: ``v_y = -sin(heading) xdot + cos(heading) ydot = 0``. Their real inputs are
   ``(v, omega)`` = (forward speed [m/s], heading rate [rad/s]).
+* A floating base (a free-flyer root joint) has the pose ``(p, quaternion (x, y, z, w))`` in
+  ``q`` and the base-frame twist ``(v, omega)`` in ``v`` (:mod:`wbc.model.bases.floating`).
 * Wheel speeds are wheel angular rates [rad/s], positive when the wheel rolls the base
   forward (+x of the base frame).
 """
@@ -24,6 +26,7 @@ from .bases import (
     BaseKind,
     DifferentialWheels,
     FixedBase,
+    FloatingBase,
     MecanumBase,
     MecanumWheels,
     MobileBase,
@@ -34,4 +37,4 @@ from .bases import (
 )
 
 __all__ = ["MobileBase", "BaseKind", "MecanumWheels", "DifferentialWheels", "FIXED_BASE", "TwistRows", "FixedBase",
-           "PlanarBase", "MecanumBase", "UnicycleBase", "SynchroBase"]
+           "PlanarBase", "MecanumBase", "UnicycleBase", "SynchroBase", "FloatingBase"]

@@ -31,20 +31,29 @@ from pydantic import Field, ValidationError
 from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFrameError
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
+from ..runtime import kernels
 from . import shipped
+from .bases.floating import free_flyer_root
 from .bases.interface import kind_class
+from .couplings import JointCoupling, check_couplings, coupled_joints
 from .declared_base import (
     BaseDeclaration,
     base_kind,
     declare_base,
+    declare_floating,
     joint_index,
-    mimic_joints,
     planar_root_joints,
     wheel_like_joints,
 )
+from .mjcf import load_mjcf
 from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+
+#: Pinocchio joints whose coordinates form a vector space (``pinocchio.integrate`` is ``q + v``):
+#: 1-DOF revolute (bounded: not the continuous kinds, nq = 2) and prismatic joints
+VECTOR_SPACE_JOINTS = frozenset({"JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned",
+                                 "JointModelPX", "JointModelPY", "JointModelPZ", "JointModelPrismaticUnaligned"})
 
 #: largest number of velocity DOF a Robot accepts: Pinocchio's Data allocates O(nv^3) memory
 #: (second-order derivative tensors; measured with pin 4.1: 69 MB at nv = 100, 0.5 GB at 200,
@@ -78,7 +87,9 @@ class Robot:
     * ``base`` -- the :class:`~wbc.model.mobile_base.MobileBase`;
     * ``lower``, ``upper`` -- position limits (size nq, ``+-inf`` where unbounded);
     * ``velocity_limit`` -- symmetric speed limits (size nv) [rad/s or m/s]; for a
-      mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``.
+      mobile base the linear entries are the base-frame limits of ``|v_x|, |v_y|``;
+    * ``couplings`` -- joints that follow others (URDF ``<mimic>``, :mod:`wbc.model.couplings`),
+      held by :class:`wbc.MimicJoints`, which every controller of the robot adds.
     """
 
     name: str
@@ -87,10 +98,13 @@ class Robot:
     end_effector: str | None = None
     parameters: dict[str, Any] = field(default_factory=dict)
     source: Path | None = None
+    couplings: tuple[JointCoupling, ...] = ()
 
     def __post_init__(self) -> None:
         model = self.model
         self._check_size()
+        self.couplings = tuple(self.couplings)
+        check_couplings(model, self.couplings, str(self.source or self.name))
         self._data = model.createData()
         self._check_joints()
         self.lower: NDArray[np.float64] = np.array(model.lowerPositionLimit, dtype=np.float64)
@@ -101,6 +115,11 @@ class Robot:
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
+        #: q + v dt integrates every coordinate (decided once: vector-space joints and a base that
+        #: keeps the joints' own integration); else the base's integrate (SE(2), SE(3), ...)
+        self._vector_space = (all(joint.shortname() in VECTOR_SPACE_JOINTS for joint in model.joints[1:])
+                              and type(self.base).integrate is MobileBase.integrate)
+        self._nq = model.nq
         self._input_map = self.base.allocate_input_map(self.nv)
         self._input_map_varies = self.base.is_nonholonomic  # S depends on q (else S = I)
         self._frame_ids: dict[str, int] = {}
@@ -202,10 +221,11 @@ class Robot:
         return pin.neutral(self.model)
 
     def random_configuration(self, rng: np.random.Generator, base_range: float = 1.0) -> NDArray[np.float64]:
-        """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``."""
+        """Uniform sample within the position limits; unbounded axes in ``[-base_range, base_range]``;
+        quaternions (a floating base) and the ``(cos, sin)`` of continuous joints normalised."""
         low = np.where(np.isfinite(self.lower), self.lower, -base_range)
         high = np.where(np.isfinite(self.upper), self.upper, base_range)
-        return rng.uniform(low, high)
+        return pin.normalize(self.model, rng.uniform(low, high))  # unit quaternions, (cos, sin) pairs
 
     def within_limits(self, q: ArrayLike, tol: float = 0.0) -> bool:
         q = self.check_configuration(q)
@@ -234,12 +254,13 @@ class Robot:
         return S.copy() if out is None else S
 
     def base_twist(self, q: ArrayLike, v: ArrayLike) -> NDArray[np.float64]:
-        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``.
+        """Base-frame twist ``(v_x, v_y, omega)`` [m/s, m/s, rad/s] of the velocity ``v`` at ``q``
+        (a floating base: ``(v_x, v_y, v_z, omega_x, omega_y, omega_z)``).
 
         Raises:
             InvalidInputError: a fixed base, or a malformed ``q`` or ``v``.
         """
-        if not self.base.is_mobile:
+        if self.base.kind is BaseKind.FIXED:
             raise InvalidInputError(f"robot '{self.name}' has a fixed base")
         return self.base.twist(self.check_configuration(q), self.check_velocity(v))
 
@@ -292,11 +313,20 @@ class Robot:
 
         Returns:
             ``pinocchio.integrate(model, q, v * dt)`` (unless the base integrates its coordinates
-            otherwise: :meth:`MobileBase.integrate`), a new array of size :attr:`nq`.
+            otherwise: :meth:`MobileBase.integrate`), a new array of size :attr:`nq`. On a robot
+            whose coordinates all form a vector space (1-DOF revolute and prismatic joints, every
+            shipped robot) that is ``q + v dt``, computed and checked in one compiled call.
 
         Raises:
             InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
         """
+        if self._vector_space and type(dt) is float:  # the control loop's fast path
+            reached = np.empty(self._nq)
+            try:
+                if kernels.integrate_vector_space(q, v, dt, reached):  # finite: so were q, v and dt
+                    return reached
+            except TypeError:  # not float64 vectors (a list, another dtype, a strided view): checked below
+                pass
         q = self.check_configuration(q)
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
@@ -360,27 +390,33 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
                wheel_radius: float | None = None, lock: Sequence[str] = (), replace: Sequence[str] = (),
                max_linear_speed: float | None = None, max_yaw_rate: float | None = None,
                max_wheel_speed: float | None = None) -> Robot:
-    """Load a shipped robot by name (``"youbot"``) or any URDF by path.
+    """Load a shipped robot by name (``"youbot"``) or any URDF or MJCF (``.xml``, Pinocchio's MJCF
+    parser, :mod:`wbc.model.mjcf`) by path.
 
     A URDF may sit next to a ``<stem>.toml`` sidecar (see ``models/youbot/youbot.toml``)
-    that declares the base. Without one, a chain of root joints prismatic-x, prismatic-y,
-    revolute-z, or a URDF ``planar`` root joint, is recognised as a holonomic planar base;
-    anything else is a fixed-base robot, unless ``base`` declares one
+    that declares the base (an MJCF next to one is read with that sidecar's base). Without one,
+    a chain of root joints prismatic-x, prismatic-y, revolute-z, or a URDF ``planar`` root joint,
+    is recognised as a holonomic planar base, a free-flyer root joint (a URDF ``floating`` joint,
+    an MJCF ``<freejoint/>``) as a floating base; anything else is a fixed-base robot, unless
+    ``base`` declares one
     (:mod:`wbc.model.declared_base`: the base joints ``base_x``, ``base_y``, ``base_heading`` are
     put at the root of the model, replacing a ``planar`` root joint):
 
     Args:
         base: ``"planar"`` (holonomic, no wheel model), ``"mecanum"``, ``"differential"``,
-            ``"synchro"`` or ``"fixed"``; for a URDF without a sidecar (a sidecar declares its
-            base in its ``[base]`` table, with the same keys).
+            ``"synchro"``, ``"floating"`` (a free-flyer root joint, :mod:`wbc.model.bases.floating`;
+            a URDF ``floating`` root joint is recognised without it) or ``"fixed"``; for a URDF
+            without a sidecar (a sidecar declares its base in its ``[base]`` table, with the same keys).
         wheels: the driven wheel joints (differential: 2, mecanum: 4, any order): held at 0 in
             the model (their speeds follow from the base's motion) and read for the wheel model
             (positions, axes, URDF velocity limit, radius of the link's collision cylinder).
         wheel_radius: [m] when the URDF does not give it.
         lock: more joints held at their neutral position (casters, passive wheels).
         replace: the root joints the base joints replace (default: a ``planar`` root joint).
-        max_linear_speed: [m/s] ``|v_x|, |v_y|`` limit (default: the replaced joints', else none).
-        max_yaw_rate: [rad/s] ``|omega|`` limit (default as for ``max_linear_speed``).
+        max_linear_speed: [m/s] ``|v_x|, |v_y|`` limit (default: the replaced joints', else none;
+            a floating base: each base-frame linear component).
+        max_yaw_rate: [rad/s] ``|omega|`` limit (default as for ``max_linear_speed``; a floating
+            base: each base-frame angular component).
         max_wheel_speed: [rad/s] (default: the wheel joints' URDF velocity limit).
 
     Returns:
@@ -394,7 +430,7 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
 
     Warns:
         ModelWarning: a robot loaded with a fixed base whose ``continuous`` joints are named
-            wheels (declare its base), or a URDF ``<mimic>`` joint (moved independently).
+            wheels (declare its base).
     """
     declared = base is not None or any((wheels, wheel_radius, lock, replace, max_linear_speed, max_yaw_rate,
                                         max_wheel_speed))
@@ -409,25 +445,30 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     sidecar = path if path.suffix == ".toml" else path.with_suffix(".toml")
     if sidecar.is_file():
         _no_declaration(declared, sidecar)
-        return _load_from_sidecar(sidecar)
+        return _load_from_sidecar(sidecar, path if path.suffix.lower() == ".xml" else None)
     model = _build_model(path)
     where = str(path)
     if declared:
         if base is None:  # limits or joints to hold, for the base the model has: planar if it has one
-            base = "planar" if planar_root_joints(model) else "fixed"
+            base = "planar" if planar_root_joints(model) else "floating" if free_flyer_root(model) else "fixed"
         declaration = BaseDeclaration(base_kind(base), tuple(wheels), wheel_radius,
                                       tuple(lock), tuple(replace), max_linear_speed, max_yaw_rate, max_wheel_speed)
         model, mobile_base = _declared(model, path, declaration, where)
     elif planar_root_joints(model):
         model, mobile_base = declare_base(model, path, BaseDeclaration(BaseKind.PLANAR), where)
+    elif free_flyer_root(model) is not None:  # a URDF 'floating' root joint
+        model, mobile_base = declare_floating(model, path, BaseDeclaration(BaseKind.FLOATING), where)
     else:
         mobile_base = _detect_planar_base(model)
     _warn_unhandled(model, mobile_base, path)
-    return Robot(name=model.name or path.stem, model=model, base=mobile_base, source=path)
+    return Robot(name=model.name or path.stem, model=model, base=mobile_base, source=path,
+                 couplings=coupled_joints(path, model))
 
 
 def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where: str) -> tuple[pin.Model, MobileBase]:
     """The model and base of a declaration (a fixed one only locks joints)."""
+    if declaration.kind is BaseKind.FLOATING:
+        return declare_floating(model, urdf, declaration, where)
     if declaration.kind is not BaseKind.FIXED:
         return declare_base(model, urdf, declaration, where)
     if declaration.wheels or declaration.replace:
@@ -440,7 +481,8 @@ def _declared(model: pin.Model, urdf: Path, declaration: BaseDeclaration, where:
                          "one; declare its base (base='planar' | 'mecanum' | 'differential' | 'synchro')")
     held = sorted(joint_index(model, name, "lock", where) for name in declaration.lock)
     planar = planar_root_joints(model)  # a planar root joint held: the robot stands at the origin
-    locked = sorted(set(held + planar))
+    free_flyer = free_flyer_root(model)  # the same for a free-flyer root joint
+    locked = sorted(set(held + planar + ([free_flyer] if free_flyer else [])))
     return (pin.buildReducedModel(model, locked, pin.neutral(model)) if locked else model), FIXED_BASE
 
 
@@ -451,9 +493,9 @@ def _no_declaration(declared: bool, where: str | Path) -> None:
 
 
 def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> None:
-    """Say what wbc does not model: a mobile robot loaded as fixed, mimic joints."""
+    """Say what wbc does not model: a mobile robot loaded as fixed, wheels left free."""
     wheels = wheel_like_joints(model)
-    if wheels and not mobile_base.is_mobile:
+    if wheels and mobile_base.kind is BaseKind.FIXED:
         warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels, but the robot is loaded with a fixed "
                       "base (its base will not move); declare it: load_robot(path, base='differential' | "
                       "'mecanum' | 'planar', wheels=[...])", ModelWarning, stacklevel=3)
@@ -461,11 +503,6 @@ def _warn_unhandled(model: pin.Model, mobile_base: MobileBase, urdf: Path) -> No
         warnings.warn(f"{urdf}: continuous joints {wheels} look like wheels but stay free joints of the model (the "
                       "controller would spin them as it likes); name the driven ones in wheels=[...] and the "
                       "others in lock=[...]", ModelWarning, stacklevel=3)
-    mimics = mimic_joints(urdf)
-    if mimics:
-        warnings.warn(f"{urdf}: joints {mimics} are URDF <mimic> joints; wbc moves them as independent joints "
-                      "(couplings are not modelled yet): hold them with lock=[...] or leave them out of the "
-                      "tasks", ModelWarning, stacklevel=3)
 
 
 # ------------------------------------------------------------------ sidecar schema
@@ -487,6 +524,13 @@ class DifferentialWheelsTable(Table):
 class FixedBaseTable(Table):
     kind: Literal["fixed"]
     lock: list[str] = []
+
+
+class FloatingBaseTable(Table):
+    kind: Literal["floating"]
+    lock: list[str] = []
+    max_linear_speed: Positive | None = None  # each base-frame linear component [m/s]
+    max_yaw_rate: Positive | None = None  # each base-frame angular component [rad/s]
 
 
 class MobileBaseTable(Table):
@@ -528,7 +572,7 @@ class Sidecar(Table):
     urdf: str | None = None
     mjcf: str | None = None
     end_effector: str | None = None
-    base: Annotated[FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
+    base: Annotated[FixedBaseTable | FloatingBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable,
                     Field(discriminator="kind")] = FixedBaseTable(kind="fixed")
     geometry: dict[str, float] = {}
     acceleration: AccelerationTable | None = None
@@ -544,15 +588,18 @@ def _read_sidecar(path: Path) -> tuple[Sidecar, dict[str, Any]]:
 
 
 def _build_model(urdf: Path) -> pin.Model:
+    if urdf.suffix.lower() == ".xml":
+        return load_mjcf(urdf)
     try:
         return pin.buildModelFromUrdf(str(urdf))
     except (ValueError, RuntimeError) as exc:
         raise ModelError(f"cannot parse URDF {urdf}: {exc}") from exc
 
 
-def _load_from_sidecar(sidecar: Path) -> Robot:
+def _load_from_sidecar(sidecar: Path, model_file: Path | None = None) -> Robot:
+    """The robot a sidecar describes, from its URDF (or ``model_file``: the MJCF asked for)."""
     spec, params = _read_sidecar(sidecar)
-    urdf = sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
+    urdf = model_file or sidecar.parent / (spec.urdf or sidecar.with_suffix(".urdf").name)
     model = _build_model(urdf)
     try:
         model, base = _base_from_spec(model, urdf, spec.base)
@@ -560,16 +607,20 @@ def _load_from_sidecar(sidecar: Path) -> Robot:
         raise ModelError(f"{sidecar}: {exc}") from exc
     _warn_unhandled(model, base, urdf)
     return Robot(name=spec.name or sidecar.stem, model=model, base=base, end_effector=spec.end_effector,
-                 parameters=params, source=urdf)
+                 parameters=params, source=urdf, couplings=coupled_joints(urdf, model))
 
 
-BaseTable = FixedBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
+BaseTable = FixedBaseTable | FloatingBaseTable | PlanarBaseTable | MecanumBaseTable | UnicycleBaseTable
 
 
 def _base_from_spec(model: pin.Model, urdf: Path, spec: BaseTable) -> tuple[pin.Model, MobileBase]:
     """The model and base a sidecar's ``[base]`` table describes."""
     if isinstance(spec, FixedBaseTable):
         return _declared(model, urdf, BaseDeclaration(BaseKind.FIXED, lock=tuple(spec.lock)), "[base]")
+    if isinstance(spec, FloatingBaseTable):
+        return declare_floating(model, urdf, BaseDeclaration(BaseKind.FLOATING, lock=tuple(spec.lock),
+                                                             max_linear_speed=spec.max_linear_speed,
+                                                             max_yaw_rate=spec.max_yaw_rate), "[base]")
     wheels = getattr(spec, "wheels", None)
     if spec.joints is None or spec.lock or spec.replace or (wheels is not None and wheels.joints):
         return _declared_from_table(model, urdf, spec, wheels)

@@ -7,6 +7,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..constraints.constraint import ConstraintData, ConstraintRows
+from ..runtime import kernels
+from ..runtime.program import TickProgram
 from ..tasks.task import TaskData
 from .bounds import BoundPolicy
 from .problem import QP
@@ -19,30 +21,42 @@ class TaskStack:
     """The stacked least-squares rows ``A = [W J | W r]`` of every task.
 
     Rows: the ordinary tasks, then ``sqrt(damping) I`` (target 0), then the tasks that need
-    the holonomic preview (SteeringTask). With A the first two blocks, ``A^T [W J] = [H; r^T J]``
-    gives H and -c in one pass (:func:`wbc.runtime.kernels.normal_equations`), written straight into the
-    QP buffer. Stored transposed (C-contiguous ``A^T``), so that every column of A the kernel sums
-    over is contiguous. Each task writes its static rows once here (``write_static``).
+    the holonomic preview (SteeringTask), then the linear cost terms (``TaskData.linear``: one
+    row ``c^T`` each, added to the QP's ``c`` alone). With A the first two blocks,
+    ``A^T [W J] = [H; r^T J]`` gives H and -c in one pass
+    (:func:`wbc.runtime.kernels.normal_equations`), written straight into the QP buffer. Stored
+    transposed (C-contiguous ``A^T``), so that every column of A the kernel sums over is
+    contiguous. Each task writes its static rows once here (``write_static``).
     """
 
     def __init__(self, tasks: list[TaskData], nv: int) -> None:
-        plain = [t for t in tasks if not t.uses_preview]
-        preview = [t for t in tasks if t.uses_preview]
+        plain = [t for t in tasks if not (t.uses_preview or t.linear)]
+        preview = [t for t in tasks if t.uses_preview and not t.linear]
+        linear = [t for t in tasks if t.linear]
         self.n_plain = n_plain = sum(t.dim for t in plain) + nv  #: rows of the ordinary tasks and the damping
-        self.stack_t = np.zeros((nv + 1, n_plain + sum(t.dim for t in preview)))
+        #: rows whose squares make the cost (ordinary, damping, preview); the linear rows follow
+        self.n_quadratic = n_quadratic = n_plain + sum(t.dim for t in preview)
+        self.stack_t = np.zeros((nv + 1, n_quadratic + sum(t.dim for t in linear)))
         self.stack = self.stack_t.T  #: (rows, nv + 1) view: [W J | W r]
         self.damping_rows = self.stack[n_plain - nv:n_plain, :nv]  #: sqrt(damping) I, written by the controller
         self.blocks: list[TaskBlock] = []
         self.preview_blocks: list[TaskBlock] = []
-        start = 0
-        for task in plain + preview:
-            if preview and task is preview[0]:
-                start = n_plain
-            stop = start + task.dim
-            block = (task, self.stack[start:stop, :nv], self.stack[start:stop, nv], start)
-            task.write_static(block[1])
-            (self.preview_blocks if task.uses_preview else self.blocks).append(block)
-            start = stop
+        self.linear_blocks: list[TaskBlock] = []
+        for group, start, blocks in ((plain, 0, self.blocks), (preview, n_plain, self.preview_blocks),
+                                     (linear, n_quadratic, self.linear_blocks)):
+            for task in group:
+                stop = start + task.dim
+                block = (task, self.stack[start:stop, :nv], self.stack[start:stop, nv], start)
+                task.write_static(block[1])
+                blocks.append(block)
+                start = stop
+
+    def add_linear_op(self, program: TickProgram, qp: QP) -> None:
+        """Append the op adding the linear rows to ``qp``'s ``c`` (none without linear terms):
+        after the normal equations that reset it, before its cost normalisation."""
+        if self.linear_blocks:
+            program.add(kernels.LINEAR_COST, stack=self.stack_t, nv=qp.n, rows=self.stack_t.shape[1],
+                        first=self.n_quadratic, last=self.stack_t.shape[1], Hc=qp.Hc)
 
 
 class ConstraintLayout:

@@ -181,13 +181,14 @@ def shipped_configs() -> list[str]:
 
 def config_file(name_or_path: str | Path) -> Path:
     """The file of a configuration given by path, or by the name of a shipped one (a string
-    without a folder or suffix that names no existing file, e.g. ``"youbot"``).
+    without a folder or suffix that names no existing file, e.g. ``"youbot"``; a folder of that
+    name in the working directory does not hide it).
 
     Raises:
         RosConfigError: a name that is no shipped configuration.
     """
     path = Path(name_or_path)
-    if isinstance(name_or_path, str) and path.name == name_or_path and not path.suffix and not path.exists():
+    if isinstance(name_or_path, str) and path.name == name_or_path and not path.suffix and not path.is_file():
         if name_or_path in shipped_configs():
             return SHIPPED / f"{name_or_path}.toml"
         raise RosConfigError(f"no configuration file or shipped configuration {name_or_path!r}"

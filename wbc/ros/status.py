@@ -109,6 +109,7 @@ class NodeStatus:
             "step_p50_us": self.step.percentile(50) * us, "step_p99_us": self.step.percentile(99) * us,
             "state_age_p50_us": self.state_age.percentile(50) * us,
             "state_age_p99_us": self.state_age.percentile(99) * us,
+            "state_age_max_us": self.state_age.percentile(100) * us,
             "watchdog_trip_state_ages_s": self.trip_ages,
         }
         if self.position_error.count:

@@ -6,8 +6,10 @@ from .com_task import CoMTask
 from .damping_task import DampingTask
 from .frame_task import FrameTask
 from .kinetic_energy import KineticEnergyRegularization
+from .linear_cost import LinearCost
 from .linear_task import LinearTask
 from .look_at_task import LookAtTask
+from .manipulability_gradient import ManipulabilityGradient
 from .manipulability_task import ManipulabilityTask
 from .position_task import PositionTask
 from .posture_task import PostureTask
@@ -17,4 +19,5 @@ from .task import Task
 
 __all__ = ["Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask",
            "ManipulabilityTask", "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization",
-           "LookAtTask", "AxisAlignTask", "LinearTask"]
+           "LookAtTask", "AxisAlignTask", "LinearTask",
+           "LinearCost", "ManipulabilityGradient"]

@@ -49,7 +49,8 @@ class BaseVelocityTask(Task):
 
     def bind(self, robot: Robot) -> BaseVelocityTaskData:
         if not robot.base.is_mobile:
-            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a fixed base")
+            raise InvalidInputError(f"{self.name}: robot '{robot.name}' has a {robot.base.name} base; a base "
+                                    "velocity task drives a ground base on (x, y, heading)")
         return BaseVelocityTaskData(self, robot)
 
     def __repr__(self) -> str:

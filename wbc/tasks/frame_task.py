@@ -15,9 +15,7 @@ from ..runtime.program import TickProgram
 from .error_task import ErrorTask, ErrorTaskData
 from .task import _norm
 
-_NO_TWIST = np.zeros(0)
-_FLOAT64 = np.dtype(np.float64)
-_POSE_OK = kernels.POSE_OK
+_POSE_OK, _POSE_SHAPE = kernels.POSE_OK, kernels.POSE_SHAPE
 
 
 class FrameTask(ErrorTask):
@@ -85,8 +83,8 @@ class FrameTask(ErrorTask):
         """Set the target of the next ticks.
 
         Args:
-            pose: the 4x4 world pose of the frame (a float64 array takes the control loop's
-                fast path: one compiled check and copy).
+            pose: the 4x4 world pose of the frame (a float64 array without ``twist`` takes the
+                control loop's fast path: one compiled check and copy).
             twist: optional feed-forward twist of a moving target (6, world-aligned at the frame
                 origin, (linear [m/s]; angular [rad/s])); None for a fixed target.
 
@@ -95,11 +93,17 @@ class FrameTask(ErrorTask):
                 not ``[0, 0, 0, 1]``, a block that is not a rotation), or ``twist`` is not 6
                 finite numbers. The previous target is then kept.
         """
-        twist = _NO_TWIST if twist is None else as_vector(twist, 6, "target twist")
-        if not (type(pose) is np.ndarray and pose.dtype is _FLOAT64 and pose.shape == (4, 4)
-                and kernels.set_frame_target(pose, twist, self._settings, ROTATION_TOLERANCE) == _POSE_OK):
-            # not the control loop's fast path: convert, or raise saying what is wrong
-            kernels.set_frame_target(as_pose(pose, "target pose"), twist, self._settings, ROTATION_TOLERANCE)
+        if twist is None:
+            try:  # the control loop's fast path: a float64 4x4 array, checked and copied in one call
+                defect = kernels.set_frame_pose(pose, self._settings, ROTATION_TOLERANCE)
+            except TypeError:  # not a 2-D float64 array
+                defect = _POSE_SHAPE
+            if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
+                kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings, ROTATION_TOLERANCE)
+        else:
+            twist = np.array(as_vector(twist, 6, "target twist"))
+            kernels.set_frame_target(np.array(as_pose(pose, "target pose")), twist, self._settings,
+                                     ROTATION_TOLERANCE)
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
             self._has_target = True
 

@@ -29,8 +29,8 @@ class PostureTask(Task):
         target: reference configuration (size nq); ``None`` uses ``robot.neutral()``.
         gain: fraction of the error removed per tick, in (0, 1].
         joints: names of the joints to regulate; ``None`` = every joint that is not
-            part of the mobile base (pulling a base toward a fixed world position is
-            rarely wanted).
+            part of the base, mobile or floating (pulling a base toward a fixed world
+            position is rarely wanted).
     """
 
     #: the data of the controllers using the task, for set_target: a copy starts without them
@@ -96,7 +96,7 @@ class PostureTaskData(TaskData):
     def __init__(self, task: PostureTask, robot: Robot) -> None:
         super().__init__(task)
         model = robot.model
-        base = set(robot.base.indices) if robot.base.is_mobile else set()
+        base = set(robot.base.velocity_coordinates)
         if task._joint_spec is None:
             joints = [j for j in model.joints[1:] if j.idx_v not in base]
         else:

@@ -41,6 +41,10 @@ class TaskData:
     #: PostureTask): the row then adds to the diagonal of H only, which the lifted form of
     #: high-DOF QPs (:mod:`wbc.qp.lifting`) keeps out of its auxiliary variables
     diagonal_rows: bool = False
+    #: True for a linear cost term ``c^T v`` (:class:`~wbc.tasks.linear_cost.LinearCost`): the task
+    #: has one row, :meth:`compute` writes ``c`` into its ``W J`` part (the target is unused) and the
+    #: controller adds that row to the QP's ``c`` only -- never to ``H`` (no least-squares square)
+    linear: bool = False
     #: True when the controller's error-scaled damping (``Controller.lm_damping``) applies to
     #: this task: its target feeds back an error through a nonlinear map (a frame's pose, a
     #: measure), whose linear model overshoots at the edge of the workspace. False when the

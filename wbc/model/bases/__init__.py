@@ -5,10 +5,12 @@
 * :mod:`~wbc.model.bases.planar` -- holonomic ``(x, y, heading)``, and the math planar kinds share;
 * :mod:`~wbc.model.bases.mecanum` -- holonomic on four Swedish wheels;
 * :mod:`~wbc.model.bases.unicycle` -- differential drive (no lateral slip);
-* :mod:`~wbc.model.bases.synchro` -- synchro drive.
+* :mod:`~wbc.model.bases.synchro` -- synchro drive;
+* :mod:`~wbc.model.bases.floating` -- a free-flyer root joint (SE(3)).
 """
 
 from .fixed import FIXED_BASE, FixedBase
+from .floating import FloatingBase
 from .interface import NO_ROWS, BaseKind, MobileBase, TwistRows, Wheels
 from .mecanum import MecanumBase, MecanumWheels
 from .planar import PlanarBase
@@ -16,4 +18,5 @@ from .synchro import SynchroBase
 from .unicycle import DifferentialWheels, UnicycleBase
 
 __all__ = ["MobileBase", "BaseKind", "TwistRows", "Wheels", "NO_ROWS", "FixedBase", "FIXED_BASE", "PlanarBase",
-           "MecanumBase", "MecanumWheels", "UnicycleBase", "DifferentialWheels", "SynchroBase"]
+           "MecanumBase", "MecanumWheels", "UnicycleBase", "DifferentialWheels", "SynchroBase",
+           "FloatingBase"]

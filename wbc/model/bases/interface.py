@@ -39,11 +39,13 @@ class BaseKind(enum.Enum):
     MECANUM = "mecanum"  #: holonomic, four 45-degree Swedish wheels
     UNICYCLE = "unicycle"  #: differential drive: no lateral slip, the chassis turns with the heading
     SYNCHRO = "synchro"  #: synchro drive: no lateral slip, wheels steer together, chassis does not turn
+    FLOATING = "floating"  #: a free-flyer root joint: SE(3) pose, base-frame twist (humanoids, legged robots)
     CUSTOM = "custom"  #: a kind defined outside wbc (its class names it: ``base.name``)
 
     @property
     def is_mobile(self) -> bool:
-        return self is not BaseKind.FIXED
+        """Whether the base drives on the ground plane on ``(x, y, heading)`` coordinates."""
+        return self not in (BaseKind.FIXED, BaseKind.FLOATING)
 
     @property
     def is_nonholonomic(self) -> bool:
@@ -116,7 +118,9 @@ class MobileBase(abc.ABC):
     max_yaw_rate: float = np.inf
     wheels: Wheels | None = None
 
-    is_mobile: ClassVar[bool] = True  #: False only for a base bolted to the world
+    #: whether the base drives on the ground plane on ``(x, y, heading)`` coordinates (False: bolted
+    #: to the world, or floating: its free-flyer coordinates are read like joint rates)
+    is_mobile: ClassVar[bool] = True
     #: driven wheels the kind's wheel model describes (:meth:`MobileBase.wheels_from_mounts`; 0: none)
     wheel_count: ClassVar[int] = 0
     _shipped: ClassVar[dict[BaseKind, type[MobileBase]]] = {}  #: the class of each shipped kind
@@ -158,6 +162,12 @@ class MobileBase(abc.ABC):
     def is_nonholonomic(self) -> bool:
         """Whether the base's velocity obeys no-slip rows (fewer inputs than coordinates)."""
         return self.no_slip_rows().count > 0
+
+    @property
+    def velocity_coordinates(self) -> tuple[int, ...]:
+        """The base's coordinates in ``v`` (what whole-robot joint defaults such as
+        :class:`wbc.PostureTask` leave out): ``indices`` for a ground base, none when fixed."""
+        return tuple(self.indices) if self.is_mobile else ()
 
     # ------------------------------------------------------------ coordinates
     @abc.abstractmethod

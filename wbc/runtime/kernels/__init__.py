@@ -56,8 +56,8 @@ from typing import Any
 
 # ------------------------------------------------------------- validation
 
-#: results of :func:`pose_defect`
-POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION = range(4)
+#: results of :func:`pose_defect` (and POSE_SHAPE: not 4 x 4, from :func:`set_frame_target`)
+POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION, POSE_SHAPE = range(5)
 
 # ------------------------------------------------------------------- tasks
 
@@ -126,9 +126,10 @@ DAQP_SKIPPED = 0
 
 #: the compiled functions of each topic module, re-exported here by :func:`load`
 COMPILED = {
-    "frames": ("log3", "pose_defect", "frame_jacobian", "set_frame_target", "frame_task_rows",
+    "frames": ("log3", "pose_defect", "frame_jacobian", "set_frame_target", "set_frame_pose",
+               "frame_task_rows",
                "position_task_rows"),
-    "joints": ("posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
+    "joints": ("integrate_vector_space", "posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),
     "manipulability": ("manipulability_gradient", "barrier_row"),
     "assembly": ("normal_equations", "lm_curvature", "lm_damping_rows", "lm_damping_level", "preview_solve",
                  "merge_bounds", "normalise_cost", "constraint_defect", "qp_defect", "has_nan", "has_non_finite",

@@ -404,6 +404,19 @@ NORMAL_EQUATIONS = Op("NORMAL_EQUATIONS", _normal_equations, (
 
 
 @njit(inline="always")
+def _linear_cost(stack: np.ndarray, nv: int, rows: int, first: int, last: int, Hc: np.ndarray, dt: float) -> None:
+    for r in range(first, last):
+        for i in range(nv):
+            Hc[nv, i] += stack[i, r]
+
+
+#: c += the W J part of the stack's rows first:last (linear cost terms c_k^T v, no Hessian)
+LINEAR_COST = Op("LINEAR_COST", _linear_cost, (
+    STACK, ("nv", None), ("rows", None), ("first", None), ("last", None), ("Hc", ("nv + 1", "nv"))),
+    checks=("0 <= first", "first <= last", "last <= rows"))
+
+
+@njit(inline="always")
 def _preview(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray, nv: int, dt: float) -> None:
     preview_solve(Hc, factor, preview)
 

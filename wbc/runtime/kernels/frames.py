@@ -30,6 +30,7 @@ from . import (
     POSE_NOT_FINITE,
     POSE_NOT_ROTATION,
     POSE_OK,
+    POSE_SHAPE,
     POSITION_FEEDFORWARD,
     POSITION_GAIN,
     POSITION_MAX_SPEED,
@@ -141,15 +142,15 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
 
 
 
-@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, nogil=True)
-def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
-    """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
-    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose`` passes
-    :func:`pose_defect` with ``tolerance``; returns its verdict (nothing written unless
-    POSE_OK): the control loop's ``set_target`` is one call."""
-    defect = pose_defect(pose, tolerance)
-    if defect != POSE_OK:
-        return defect
+@njit(inline="always")
+def _target_defect(pose: np.ndarray, tolerance: float) -> int:
+    if pose.shape[0] != 4 or pose.shape[1] != 4:
+        return POSE_SHAPE
+    return pose_defect(pose, tolerance)
+
+
+@njit(inline="always")
+def _write_target(pose: np.ndarray, twist: np.ndarray, has_twist: bool, settings: np.ndarray) -> None:
     rotation, position, feedforward = settings[FRAME_TARGET_ROTATION], settings[FRAME_TARGET_POSITION], \
         settings[FRAME_FEEDFORWARD]
     for a in range(3):
@@ -157,7 +158,29 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
             rotation[3 * a + b] = pose[a, b]
         position[a] = pose[a, 3]
     for a in range(6):
-        feedforward[a] = twist[a] if len(twist) == 6 else 0.0
+        feedforward[a] = twist[a] if has_twist else 0.0
+
+
+# the setters hold the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
+@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE)
+def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
+    """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
+    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose``
+    is 4 x 4 (else POSE_SHAPE) and passes :func:`pose_defect` with ``tolerance``; returns its
+    verdict (nothing written unless POSE_OK): the control loop's ``set_target`` is one call."""
+    defect = _target_defect(pose, tolerance)
+    if defect == POSE_OK:
+        _write_target(pose, twist, len(twist) == 6, settings)
+    return defect
+
+
+@njit("int64(float64[:, :], float64[:], float64)", cache=CACHE)
+def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
+    """:func:`set_frame_target` without a feed-forward twist (zero): one argument fewer to pass,
+    for the control loop's ``set_target(pose)``."""
+    defect = _target_defect(pose, tolerance)
+    if defect == POSE_OK:
+        _write_target(pose, settings, False, settings)
     return defect
 
 

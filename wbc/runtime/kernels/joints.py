@@ -1,4 +1,5 @@
-"""Joint-space kernels: PostureTask and SteeringTask rows, position-limit bounds, heading rows.
+"""Joint-space kernels: PostureTask and SteeringTask rows, position-limit bounds, heading rows,
+the integration of vector-space coordinates.
 """
 
 from __future__ import annotations
@@ -20,6 +21,27 @@ from . import (
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
+
+# ---------------------------------------------------------- configuration
+
+
+@njit("boolean(float64[::1], float64[::1], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
+def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.ndarray) -> bool:
+    """``reached = q + v dt`` (``pinocchio.integrate`` on coordinates that form a vector space:
+    1-DOF revolute and prismatic joints), the control loop's ``robot.integrate`` in one call.
+    True when ``q``, ``v`` and ``reached`` have one size, ``dt > 0`` and every entry of ``reached``
+    is finite -- which holds only if every entry of ``q`` and ``v`` is (and ``dt`` finite);
+    False otherwise (``reached`` then holds no answer: the caller takes its checked path)."""
+    n = reached.size
+    if q.size != n or v.size != n or not dt > 0.0:
+        return False
+    screen = 0.0
+    for i in range(n):
+        value = q[i] + v[i] * dt
+        reached[i] = value
+        screen += value - value  # NaN for an inf or NaN entry, else 0
+    return screen == 0.0
+
 
 # ------------------------------------------------------------------- tasks
 

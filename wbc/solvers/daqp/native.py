@@ -51,6 +51,7 @@ class NativeWorkspace:
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
+        self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
         # the initial constraint states (equality rows active), what a cold tick re-reads;
         # DAQP only reads the problem's sense (it copies it into the workspace's own)
         self._initial_sense = np.zeros(m, dtype=np.intc)
