@@ -78,7 +78,47 @@ def test_rows_are_the_velocity_damper_of_each_close_pair():
         assert data.pairs.distance[i] >= oracle[key] - 1e-6
         assert rows.h[i] == pytest.approx(0.4 * (data.pairs.distance[i] - 0.02) / dt)
         np.testing.assert_array_equal(rows.G[i], -data.pairs.rows[i])
-    assert np.all(rows.G[count:] == 0.0) and np.all(rows.h[count:] == 1.0)  # inert: 0 <= 1
+    corners = data.corners
+    assert corners > 0  # the capsules' ends
+    checked = 0
+    for j, i in enumerate(data.corner_pair[:corners].tolist()):
+        # a capsule end's distance is at least the pair's, at most 5 m/s * dt more
+        gap = rows.h[count + j] * dt / 0.4 + 0.02
+        assert data.pairs.distance[i] - 1e-12 <= gap <= data.pairs.distance[i] + 5.0 * dt + 1e-12
+        checked += _check_corner_row(data, i, gap, rows.G[count + j], q, sphere)
+    assert checked > 0
+    end = count + corners
+    assert np.all(rows.G[end:] == 0.0) and np.all(rows.h[end:] == 1.0)  # inert: 0 <= 1
+
+
+def _check_corner_row(data, i, gap, row, q, sphere) -> bool:
+    """A capsule end's row against finite differences of that end's distance to the sphere,
+    ``|p(q) - c| - R - r`` (p: the end of robot link a's capsule, the sphere still)."""
+    pair = data.distances.pairs[data.pairs.pair[i]]
+    table = data.distances.table
+    if table[pair[1], 1] != 0:  # a self pair: both move; the sphere pairs suffice here
+        return False
+    import pinocchio as pin
+    model, pdata = YOUBOT.model, YOUBOT.model.createData()
+    joint, radius = int(table[pair[0], 1]), table[pair[0], 14]
+    pin.forwardKinematics(model, pdata, q)
+    world = data.distances._world[pair[0]]
+    axis, centre = world[[2, 5, 8]], world[9:12]
+
+    def distance(p):
+        return np.linalg.norm(p - sphere.center) - sphere.radius - radius
+
+    ends = [centre + sign * table[pair[0], 15] * axis for sign in (1.0, -1.0)]
+    end = min(ends, key=lambda e: abs(distance(e) - gap))
+    assert distance(end) == pytest.approx(gap, abs=1e-9)
+    local = pdata.oMi[joint].actInv(end)
+    for k in range(YOUBOT.nv):
+        step = np.zeros(YOUBOT.nv)
+        step[k] = 1e-6
+        pin.forwardKinematics(model, pdata, pin.integrate(model, q, step))
+        rate = (distance(pdata.oMi[joint].act(local)) - distance(end)) / 1e-6
+        assert -row[k] == pytest.approx(rate, abs=1e-5)
+    return True
 
 
 def test_every_pair_within_detection_gets_a_row_and_no_other():
@@ -100,7 +140,7 @@ def test_the_row_count_is_fixed():
     data = controller.data(avoidance)
     geometry = RobotGeometry(YOUBOT)
     candidates = len(geometry.pairs) + geometry.size  # self pairs + every moving shape against the sphere
-    assert data.n_inequalities == candidates
+    assert data.n_inequalities == 2 * candidates  # a row per pair, as many for the corners
     q = NEUTRAL.copy()
     for _ in range(3):
         q = YOUBOT.integrate(q, controller.step(q), 0.01)
@@ -108,7 +148,7 @@ def test_the_row_count_is_fixed():
     sphere.center = EE  # moved between ticks: now in contact with the gripper
     controller.step(q)
     assert any("sphere0" in label for label in data.active_labels())
-    assert data.n_inequalities == candidates
+    assert data.n_inequalities == 2 * candidates
 
 
 @pytest.mark.parametrize("solver", wbc.available_solvers())
@@ -170,6 +210,28 @@ def test_random_obstacles_are_never_entered(x, y, z, size, kind):
     controller = _reach(EE + (0.3, 0.0, -0.15), wbc.CollisionAvoidance([obstacle]))
     _, closest, _ = _run(controller, NEUTRAL, 150, oracle, excluded)
     assert closest.min() >= MIN_DISTANCE - TOLERANCE
+
+
+def test_a_capsule_parallel_to_a_box_edge_does_not_chatter_into_the_margin():
+    """The gripper's cross capsule lies parallel to the box's top edge: its closest point ties
+    between the two ends. With the witness row alone the QP turned one end away while the other
+    approached, the witness jumped, and the command reversed every tick at full speed, settling at
+    18.3 mm of the 20 mm margin; the corner rows (a damper per end) keep the margin and stop it."""
+    pose = np.eye(4)
+    pose[:3, 3] = EE + (0.28125, 0.0, -0.25)
+    box = wbc.Box(pose, (0.0625, 0.125, 0.0625))
+    oracle, excluded = Oracle(YOUBOT, [box]), _excluded(YOUBOT)
+    controller = _reach(EE + (0.3, 0.0, -0.15), wbc.CollisionAvoidance([box]))
+    q, commands, closest = NEUTRAL.copy(), [], []
+    for _ in range(150):
+        v = controller.step(q)
+        q = YOUBOT.integrate(q, v, 0.01)
+        commands.append(v)
+        closest.append(_closest(oracle, excluded, q))
+    assert min(closest) >= MIN_DISTANCE - 1e-4
+    late = np.array(commands[100:])
+    reversals = np.sum((late[1:] * late[:-1] < 0.0) & (np.abs(late[1:]) > 0.1) & (np.abs(late[:-1]) > 0.1))
+    assert reversals == 0  # no coordinate reverses a command above 0.1 (rad, m)/s between two ticks
 
 
 def test_moving_obstacle_pushes_the_arm_away():

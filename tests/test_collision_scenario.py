@@ -91,3 +91,19 @@ def test_the_run_reports_and_plots_the_smallest_distance_against_the_margin(tmp_
     axes = {ax.get_label(): ax for ax in figure(runs).axes}
     floor = [line for line in axes["distance"].lines if line.get_linestyle() == "--"]
     assert len(floor) == 1 and floor[0].get_ydata()[0] == pytest.approx(20.0)
+
+
+def test_youbot_obstacle_with_acceleration_limits_brakes_in_time():
+    """The dampers alone asked for decelerations the hard acceleration box forbids (104 of 600
+    ticks from the fallback, -2.8 mm; with the collision rows braking, the footprint's rows still
+    6 ticks); their braking bounds cap the approach speeds where the box can still stop them."""
+    scenario = load_scenario(SCENARIO)
+    obstacles = scenario.constraints[-1].obstacles
+    scenario.constraints.append(wbc.AccelerationLimits())
+    result = closed_loop.run(scenario)
+    assert _closest_per_tick(scenario, obstacles, result.q).min() >= MIN_DISTANCE - TOLERANCE
+    assert result.fallback_ticks <= 2  # measured: 0 (daqp)
+    step = np.abs(np.diff(np.vstack([np.zeros(scenario.robot.nv), result.v]), axis=0))
+    assert np.all(step[:, 3:] <= np.pi * scenario.dt + 1e-6)  # the arm's sidecar limit: pi rad/s^2
+    end = scenario.robot.frame_pose(result.q[-1], "ee")[:3, 3]
+    np.testing.assert_allclose(end, (0.9, 0.0, 0.1), atol=0.01)

@@ -14,10 +14,17 @@ from ..core.settings import Setting
 from ..core.validation import as_flag, as_gain, as_items, as_nonnegative, as_positive
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
+from ..model.tick_context import TickContext
+from .braking import RowBraking
 from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
+#: [m/s] a capsule end gets no row (:func:`wbc.collision.kernels.corner_rows`) when its distance exceeds
+#: the pair's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
+#: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
+#: allows approaching faster than this (the row would never bind)
+CORNER_SPEED = 5.0
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
 INERT = 1.0
@@ -75,11 +82,22 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
+    **Corners.** Where a capsule lies parallel to the other shape's face or edge, its closest
+    point ties between its two ends: d is the minimum of two smooth pieces (the ends' spheres' distances)
+    and one witness row is not its first-order model: the QP turns the witness end away while the
+    other approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter
+    creeps into the margin. So when the witness is at one end, the other end's distance gets a
+    damper of its own, if within :data:`CORNER_SPEED` ``* dt`` of d
+    (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the exact
+    first-order model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
+    row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
+
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
-    = ``capacity`` (default: every candidate pair, so no pair within ``detection_distance`` is
-    ever left out); each tick the pairs within ``detection_distance`` fill the first rows and the
-    others are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and
-    nothing is allocated. With a smaller ``capacity``, the closest pairs get the rows.
+    = 2 ``capacity`` (``capacity`` default: every candidate pair, so no pair within
+    ``detection_distance`` is ever left out); each tick the pairs within ``detection_distance``
+    fill the first rows, their corner rows the next (at most ``capacity`` of them), and the others
+    are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and nothing is
+    allocated. With a smaller ``capacity``, the closest pairs get the rows.
 
     Args:
         obstacles: :class:`~wbc.Sphere`, :class:`~wbc.Box`, :class:`~wbc.Capsule`,
@@ -142,7 +160,14 @@ class CollisionAvoidanceData(ConstraintData):
         geometry = RobotGeometry(robot, srdf=avoidance.srdf)
         self.distances = Distances(robot, avoidance.obstacles, avoidance.self_collision,
                                    avoidance.detection_distance, avoidance.capacity, geometry)
-        self.n_inequalities = self.distances.capacity
+        capacity = self.distances.capacity
+        #: rows: one per pair, then as many for the corners that tie with a pair's witness
+        self.n_inequalities = 2 * capacity
+        #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
+        self.corner_pair = np.zeros(capacity, dtype=np.int64)
+        self.corners = 0
+        self.context: TickContext | None = None
+        self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
         #: (detection_distance, min_distance, gain), copied from the constraint every tick
@@ -151,6 +176,9 @@ class CollisionAvoidanceData(ConstraintData):
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
         self._jacobians_t = np.zeros((robot.nv, 6))
+
+    def use_context(self, context: TickContext) -> None:
+        self.context = context
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.G[:] = 0.0
@@ -177,6 +205,14 @@ class CollisionAvoidanceData(ConstraintData):
             kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
         else:
             pairs.count = packed
+        self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
+                                           jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
+                                           pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
+                                           self.corner_pair, distances._scratch)
+        braking = None if self.context is None else self.context.braking
+        if braking is not None:
+            active = pairs.count + self.corners
+            self._braking.apply(braking, kin.q, G[:active], h[:active], avoidance.gain, dt)
         if G is not rows.G:
             rows.G[:] = G
 
@@ -192,7 +228,8 @@ class CollisionAvoidanceData(ConstraintData):
         return [self.distances.labels[k] for k in self.pairs.pair[:self.pairs.count].tolist()]
 
     def row_labels(self) -> list[str]:
-        """This tick's pair of each row (``"link↔sphere0"``), then ``"row i (no pair)"`` for the
-        inert rows of the capacity."""
+        """This tick's pair of each row (``"link↔sphere0"``), then the corner rows (``"link↔sphere0
+        corner"``), then ``"row i (no pair)"`` for the inert rows of the capacity."""
         active = self.active_labels()
+        active += [f"{active[i]} corner" for i in self.corner_pair[:self.corners].tolist()]
         return active + [f"row {i} (no pair)" for i in range(len(active), self.n_inequalities)]

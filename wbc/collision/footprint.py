@@ -15,7 +15,9 @@ from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
+from ..model.tick_context import TickContext
 from .avoidance import INERT, DistanceMargins
+from .braking import RowBraking
 
 #: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
 #: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
@@ -243,6 +245,11 @@ class BaseFootprintAvoidanceData(ConstraintData):
         self._settings = np.zeros(3)
         #: per sector: (d, n_b (2), p_b (2), point index) of the last tick's closest point (d = inf: none)
         self.closest = np.full((self.n_inequalities, kernels.BEST_COLUMNS), np.inf)
+        self.context: TickContext | None = None
+        self._braking = RowBraking(self.n_inequalities)
+
+    def use_context(self, context: TickContext) -> None:
+        self.context = context
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.G[:] = 0.0
@@ -256,6 +263,9 @@ class BaseFootprintAvoidanceData(ConstraintData):
         self._kernels.footprint_rows(avoidance._ordered, avoidance._cell_start, avoidance._meta, avoidance._n_points,
                                      self._edges, self._shape, pose, self._turns, settings, dt, self._columns,
                                      self._sectors, self.closest, rows.G, rows.h)
+        braking = None if self.context is None else self.context.braking
+        if braking is not None:  # hard acceleration bounds in the stack: brake in time (RowBraking)
+            self._braking.apply(braking, kin.q, rows.G, rows.h, avoidance.gain, dt)
 
     @property
     def min_distance(self) -> float:

@@ -52,6 +52,7 @@ from .layout import (
     PAIR_B,
     PLANE,
     RADIUS,
+    SPHERE,
 )
 
 CACHE = _cache.prepare(Path(__file__).parent, ("kernels", "footprint_kernels"), cold=("kernels",)) is not None
@@ -531,6 +532,125 @@ def damper_rows(count, distance, rows, G, h, settings, dt):
     """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
     ``G``, ``h`` (``settings = (detection, d_min, gain)``); the other rows inert (``0 <= 1``)."""
     _damper_rows(count, distance, rows, G, h, settings, dt)
+
+
+#: [m] a witness this close (across the normal) to a segment's end is at that end
+WITNESS_AT_END = 1e-6
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _across(ex, ey, ez, nx, ny, nz):
+    """The length of (ex, ey, ez) across the unit normal n."""
+    along = nx * ex + ny * ey + nz * ez
+    ex, ey, ez = ex - along * nx, ey - along * ny, ez - along * nz
+    return math.sqrt(ex * ex + ey * ey + ez * ez)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _end_distance(table, world, capsule, end, other, out, scratch):
+    """The distance of the sphere at the ``end`` (+-1) of ``capsule``'s segment to shape ``other``
+    into ``out`` as in :func:`segment_segment` (a: the sphere); False for a shape measured by coal."""
+    half = table[capsule, HALF_LENGTH] * end
+    px = world[capsule, 9] + world[capsule, 2] * half
+    py = world[capsule, 10] + world[capsule, 5] * half
+    pz = world[capsule, 11] + world[capsule, 8] * half
+    point, radius, kind = (px, py, pz, px, py, pz), table[capsule, RADIUS], table[other, KIND]
+    if kind == SPHERE or kind == CAPSULE:
+        segment_segment(point, radius, _segment(table, world, other), table[other, RADIUS], out)
+    elif kind == BOX:
+        box_segment(table, world, other, point, radius, out, scratch)
+        _flip(out)
+    elif kind == PLANE:
+        segment_plane(point, radius, world, other, out)
+    else:
+        return False
+    return True
+
+
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
+      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
+def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
+                normal, G, h, settings, dt, speed, corner_slot, scratch):
+    """The dampers of the capsule ends that nearly tie with a pair's witness end, in rows
+    ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
+    ``corner_slot``); returns how many. ``scratch``: >= 59 floats.
+
+    Why: where a capsule lies parallel to the other shape's face or edge, its closest point ties
+    between its two ends. Its distance is ``d = min(d_0, d_1, d_inner)``, ``d_e`` the distance of
+    the sphere at end e (smooth where the shapes are apart), and its first-order change is the
+    minimum over the pieces that tie (Danskin), not the change at the one end the distance routine
+    returned. A single row lets the QP turn the witness end away while the other approaches; the
+    next tick the witness jumps to that end and the command reverses: a full-speed two-tick
+    chatter that creeps into the margin. So when the witness is at one end, the other end's piece
+    gets its own damper, with its own witness points and normal::
+
+        d_e_dot = n_e . (J_b(w_b,e) - J_a(w_a,e)) v  >=  -gain (d_e - d_min) / dt
+
+    d_e >= d, so the row is looser than the pair's own the farther the end is; with the witness
+    row it is the exact first-order model of d at the tie. An interior witness is a smooth point
+    (no row: the pair's row would be a convex combination of the ends', a degenerate active set).
+    ``speed`` [m/s]: an end with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
+    one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
+    the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
+    measured by coal get none. Box vertices get no rows: four coplanar vertices' rows are linearly
+    dependent, which the solvers handle badly when a face lies parallel to another (an
+    axis-aligned platform and crate).
+    """
+    n_rows, scale, d_min = 0, settings[GAIN] / dt, settings[MIN_DISTANCE]
+    last, i = -np.inf, -1
+    for _ in range(count):  # the pairs in order of distance (ties by entry): the closest get the rows first
+        d, nxt = np.inf, -1
+        for m in range(count):
+            if (distance[m] > last or (distance[m] == last and m > i)) and distance[m] < d:
+                d, nxt = distance[m], m
+        if nxt < 0:
+            break
+        i, last = nxt, d
+        if not d > 0.0:
+            continue
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
+        ends = (pairs[slot_pair[i], PAIR_A], pairs[slot_pair[i], PAIR_B])
+        joint_a, joint_b = int(table[ends[0], JOINT]), int(table[ends[1], JOINT])
+        for side in range(2):
+            s = ends[side]
+            kind = table[s, KIND]
+            if kind != CAPSULE:
+                continue
+            # which end the witness is at (across the normal: the radius lies along it)
+            wx, wy, wz = ((witness_a[i, 0], witness_a[i, 1], witness_a[i, 2]) if side == 0
+                          else (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2]))
+            half = table[s, HALF_LENGTH]
+            ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
+            cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
+            if _across(cx + ux, cy + uy, cz + uz, nx, ny, nz) <= WITNESS_AT_END:
+                end = -1.0  # the witness at the + end: the - end's row
+            elif _across(cx - ux, cy - uy, cz - uz, nx, ny, nz) <= WITNESS_AT_END:
+                end = 1.0
+            else:  # an interior witness: the pieces meet there smoothly
+                continue
+            out = scratch[40:50]
+            if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
+                continue
+            gap = out[0]
+            if gap - d > speed * dt or scale * (gap - d_min) > speed:
+                continue
+            if side == 1:  # the capsule is b
+                _flip(out)
+            row = count + n_rows
+            if n_rows == corner_slot.size or row >= G.shape[0]:
+                return n_rows
+            points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
+            for m in range(3):
+                points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
+            gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
+                         G[row:row + 1])
+            for k in range(G.shape[1]):
+                G[row, k] = -G[row, k]
+            h[row] = scale * (gap - d_min)
+            corner_slot[n_rows] = i
+            n_rows += 1
+    return n_rows
 
 
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "

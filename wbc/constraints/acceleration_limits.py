@@ -215,6 +215,7 @@ class AccelerationLimitsData(ConstraintData):
         self._started = False  # computed once already
         self._heading = 0.0  # the heading at the last compute: the previous command's heading
         self._viability_channels(robot)
+        self._braking_rates(robot)
         if self._base_rows or n_wheels:
             cos_part = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
             sin_part = np.array([[0.0, 1.0], [0.0, -1.0], [-1.0, 0.0], [1.0, 0.0]])
@@ -226,6 +227,25 @@ class AccelerationLimitsData(ConstraintData):
                 cos_part = np.vstack([cos_part, forward, -forward])
                 sin_part = np.vstack([sin_part, turned, -turned])
             self._heading_rows = HeadingRows(cos_part, sin_part, self._yaw, self._x, self._y)
+
+    def _braking_rates(self, robot: Robot) -> None:
+        """The rates :meth:`decelerations` reads (an unbounded channel: a huge finite rate)."""
+        huge = 1e12
+        self._magnitudes = np.zeros((0, robot.nv))
+        self._joint_rate = np.zeros(robot.nv)  # per velocity coordinate; the base's x, y: below
+        self._joint_rate[self._joints] = np.minimum(self._accel[:self._n_joints], huge)
+        if not self._n_base:
+            return
+        base = np.minimum(self._accel[self._n_joints:self._n_joints + 2], huge)
+        self._yaw_rate = float(self._joint_rate[self._yaw])
+        if self.n_wheels:  # alone along x, y or yaw, every wheel within its limit
+            wheel = self._accel[self._n_joints + 2]
+            column = np.abs(self._H0).max(axis=0)
+            limits = [min(rate, wheel / column[k]) if column[k] > 0.0 else rate
+                      for k, rate in enumerate((base[0], base[1], self._yaw_rate))]
+            base, self._yaw_rate = np.array(limits[:2]), limits[2]
+            self._joint_rate[self._yaw] = 0.0
+        self._base_rate = (float(base[0]), float(base[1]))
 
     def _viability_channels(self, robot: Robot) -> None:
         """The joint channels with finite position limits and acceleration (1-DOF joints)."""
@@ -248,6 +268,35 @@ class AccelerationLimitsData(ConstraintData):
 
     def use_context(self, context: TickContext) -> None:
         self.context = context
+        context.braking = self  # the collision dampers brake within these bounds
+
+    def decelerations(self, gradients: NDArray[np.float64], q: NDArray[np.float64],
+                      out: NDArray[np.float64]) -> None:
+        """``out[i]``: a rate [unit/s^2] at which ``g . v`` (``g = gradients[i]``) can change in either
+        direction within the acceleration bounds (:class:`~wbc.model.tick_context.Braking`): the
+        support of the bounds' set in direction g, or a lower bound of it. The joint boxes are
+        independent: ``sum_j |g_j| a_j``. The base's ``(a_x, a_y)`` box turns with the heading:
+        ``a_x |g'_x| + a_y |g'_y|`` with ``g' = R(theta)^T g_xy``; with wheel limits, which couple
+        ``(a_x, a_y, yaw)``, the largest of ``A_c |g'_c|`` over the three, ``A_c`` the acceleration
+        along channel c alone that every bound allows (the set contains those six points, hence
+        their hull). Speed limits are not counted (braking lowers speeds)."""
+        n = gradients.shape[0]
+        if n > self._magnitudes.shape[0]:  # grows to the caller's row count once
+            self._magnitudes = np.zeros((n, gradients.shape[1]))
+        magnitudes = self._magnitudes[:n]
+        np.abs(gradients, out=magnitudes)
+        np.matmul(magnitudes, self._joint_rate, out=out)
+        if not self._n_base:
+            return
+        c, s = math.cos(q[self._yaw]), math.sin(q[self._yaw])
+        ax, ay = self._base_rate
+        for i in range(out.shape[0]):
+            gx, gy = gradients[i, self._x], gradients[i, self._y]
+            along, across = abs(c * gx + s * gy), abs(-s * gx + c * gy)
+            if self.n_wheels:  # the yaw channel is in the hull, not in the box sum
+                out[i] += max(ax * along, ay * across, self._yaw_rate * abs(gradients[i, self._yaw]))
+            else:
+                out[i] += ax * along + ay * across
 
     def write_static(self, rows: ConstraintRows) -> None:
         if self.n_inequalities:

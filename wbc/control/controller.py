@@ -303,6 +303,7 @@ class Controller:
     def _allocate(self) -> None:
         robot, nv = self.robot, self.robot.nv
         # each item's data for this controller (Model/Data: the items stay specifications)
+        self._context.braking = None  # set again by the acceleration bounds of this stack, if any
         self._task_data = [self._bind(task) for task in self.tasks]
         self._constraint_data = [self._bind(constraint) for constraint in self.constraints]
 

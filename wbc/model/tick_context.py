@@ -10,11 +10,23 @@ acceleration limits bound ``|v - previous| <= a_max dt``).
 
 from __future__ import annotations
 
+from typing import Protocol
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.validation import as_vector
 from .kinematics import Kinematics
+
+
+class Braking(Protocol):
+    """What the hard acceleration bounds of a controller can deliver (registered in the context
+    by :class:`~wbc.AccelerationLimits`' data when it is bound)."""
+
+    def decelerations(self, gradients: NDArray[np.float64], q: NDArray[np.float64],
+                      out: NDArray[np.float64]) -> None:
+        """``out[i]`` <= the largest rate of change of ``gradients[i] . v`` [unit/s^2] that the
+        acceleration bounds allow in either direction at configuration ``q`` (a lower bound)."""
 
 
 class TickContext:
@@ -25,15 +37,18 @@ class TickContext:
     * ``previous`` -- the command ``v`` of the previous tick, as ``step`` returned it (None
       before the first tick; wbc never writes that array again);
     * ``measured`` -- the measured joint velocity ``v_measured`` given to this tick's ``step``
-      [unit/s], size ``nv`` (None when not given).
+      [unit/s], size ``nv`` (None when not given);
+    * ``braking`` -- the controller's acceleration bounds as a :class:`Braking` (None without
+      them), set when the items are bound: rows that must brake in time (collision dampers) read it.
     """
 
-    __slots__ = ("kinematics", "dt", "previous", "measured", "_measured")
+    __slots__ = ("kinematics", "dt", "previous", "measured", "braking", "_measured")
 
     def __init__(self, kinematics: Kinematics, dt: float) -> None:
         self.kinematics, self.dt = kinematics, dt
         self.previous: NDArray[np.float64] | None = None
         self.measured: NDArray[np.float64] | None = None
+        self.braking: Braking | None = None
         self._measured = np.zeros(kinematics.robot.nv)  # where a measured velocity is copied to
 
     def measure(self, v_measured: ArrayLike) -> NDArray[np.float64]:

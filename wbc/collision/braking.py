@@ -1,0 +1,50 @@
+"""The braking (viability) bound of velocity-damper rows under hard acceleration bounds."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..constraints.acceleration_limits import braking_speed
+from ..model.tick_context import Braking
+
+#: the share of the rate at which the acceleration bounds can change a row's ``g . v`` that its
+#: braking bound counts on: the rest absorbs the change of the row while braking and the speed limits
+BRAKING_SHARE = 0.5
+#: the rate given to a row that no bound moves (a zero row: inert, or a vanishing gradient): its
+#: braking bound is then above its damper, which it keeps
+UNBOUNDED = 1e300
+
+
+class RowBraking:
+    """Caps damper rows ``-g . v <= h``, ``h = gain (d - d_min) / dt``, by the speed from which the
+    acceleration bounds of the stack can still stop the approach before ``d_min``::
+
+        d_dot >= -min(gain (d - d_min) / dt,  v_brake(d - d_min, a_d))
+
+    ``v_brake`` is :func:`~wbc.constraints.acceleration_limits.braking_speed`: the exact discrete-time
+    inverse of the distance covered while braking at ``a_d`` per tick (Del Prete et al. 2018, as for
+    the joints' position limits), invariant: braking at ``a_d`` from the bound meets it at the next
+    tick. ``a_d`` = :data:`BRAKING_SHARE` times ``braking.decelerations`` (what the bounds can do
+    along g). The damper alone asks, one tick before the margin, for a stop from any approach speed,
+    which the hard bounds forbid; capped, the soft rows stay feasible with them. Rows inside the
+    margin (``h <= 0``: a push-out) keep the damper. Buffers for up to ``rows`` rows.
+    """
+
+    def __init__(self, rows: int) -> None:
+        self._deceleration, self._margin, self._speed = np.zeros(rows), np.zeros(rows), np.zeros(rows)
+        self._still = np.zeros(rows, dtype=bool)
+
+    def apply(self, braking: Braking, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64],
+              gain: float, dt: float) -> None:
+        """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``) in place."""
+        n = h.shape[0]
+        deceleration, margin, speed, still = self._deceleration[:n], self._margin[:n], self._speed[:n], self._still[:n]
+        braking.decelerations(G, q, deceleration)
+        np.multiply(deceleration, BRAKING_SHARE, out=deceleration)
+        np.less_equal(deceleration, 0.0, out=still)
+        np.copyto(deceleration, UNBOUNDED, where=still)
+        np.multiply(h, dt / gain, out=margin)  # d - d_min of each row
+        braking_speed(margin, deceleration, dt, speed)
+        np.maximum(speed, np.minimum(h, 0.0, out=margin), out=speed)  # inside the margin: the push-out
+        np.minimum(h, speed, out=h)
