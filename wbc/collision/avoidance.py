@@ -25,6 +25,10 @@ from .obstacles import Obstacle
 #: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
 #: allows approaching faster than this (the row would never bind)
 CORNER_SPEED = 5.0
+#: rows for corners (capsule ends that tie with a pair's witness) beyond the pairs' own, the closest
+#: pairs' first: measured 2.4 on average and at most 5 per tick on the youBot with self-collision and
+#: 10 obstacles (benchmarks/collision.py), 4 on youbot_obstacle; every row costs DAQP time even inert
+CORNER_ROWS = 8
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
 INERT = 1.0
@@ -93,9 +97,10 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
 
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
-    = 2 ``capacity`` (``capacity`` default: every candidate pair, so no pair within
-    ``detection_distance`` is ever left out); each tick the pairs within ``detection_distance``
-    fill the first rows, their corner rows the next (at most ``capacity`` of them), and the others
+    = ``capacity`` + :data:`CORNER_ROWS` (``capacity`` default: every candidate pair, so no pair
+    within ``detection_distance`` is ever left out); each tick the pairs within
+    ``detection_distance`` fill the first rows, their corner rows the next (at most
+    :data:`CORNER_ROWS`, the closest pairs' first), and the others
     are inert (``G`` row 0, ``h`` = :data:`INERT`): the row count never changes and nothing is
     allocated. With a smaller ``capacity``, the closest pairs get the rows.
 
@@ -161,10 +166,11 @@ class CollisionAvoidanceData(ConstraintData):
         self.distances = Distances(robot, avoidance.obstacles, avoidance.self_collision,
                                    avoidance.detection_distance, avoidance.capacity, geometry)
         capacity = self.distances.capacity
-        #: rows: one per pair, then as many for the corners that tie with a pair's witness
-        self.n_inequalities = 2 * capacity
+        #: rows: one per pair, then :data:`CORNER_ROWS` (at most ``capacity``) for the corners that tie
+        #: with a pair's witness
+        self.n_inequalities = capacity + min(capacity, CORNER_ROWS)
         #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
-        self.corner_pair = np.zeros(capacity, dtype=np.int64)
+        self.corner_pair = np.zeros(min(capacity, CORNER_ROWS), dtype=np.int64)
         self.corners = 0
         self.context: TickContext | None = None
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack

@@ -609,6 +609,8 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
         i, last = nxt, d
         if not d > 0.0:
             continue
+        if scale * (d - d_min) > speed:  # every end is at d or farther: no row binds, here or for the farther pairs
+            break
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         ends = (pairs[slot_pair[i], PAIR_A], pairs[slot_pair[i], PAIR_B])
         joint_a, joint_b = int(table[ends[0], JOINT]), int(table[ends[1], JOINT])
