@@ -167,3 +167,28 @@ def test_roboplan_robot_examples_reach_two_metres_sideways(monkeypatch, script, 
     pin.framesForwardKinematics(robot.model, data, q)
     assert np.linalg.norm(data.oMf[robot.model.getFrameId(frame)].translation - target) < 1e-4
     assert (q[1] > 1.0) if sideways == "slides" else (np.hypot(q[0], q[1]) > 0.5)
+
+
+def test_solo_example_lifts_a_foot_over_its_support_triangle():
+    """examples/solo.py (a floating base): the swing foot near its target, the stance feet where
+    they were, the centre of mass inside the support triangle by its margin at the end (Pinocchio's
+    centre of mass and feet, the triangle's edges written out here)."""
+    import pinocchio as pin
+
+    from test_declared_base import tiago_urdf
+
+    tiago_urdf()  # skips, naming the extra, where example-robot-data is not installed
+    robot, q, target, triangle = runpy.run_path(str(EXAMPLES / "solo.py"))["main"]()
+    model, data = robot.model, robot.model.createData()
+    com = pin.centerOfMass(model, data, q)
+    pin.framesForwardKinematics(model, data, q)
+    assert np.linalg.norm(data.oMf[model.getFrameId("FL_FOOT")].translation - target) < 5e-3
+    start = robot.neutral()
+    start[2], start[7:] = 0.235, runpy.run_path(str(EXAMPLES / "solo.py"))["STANDING"]
+    for foot in ("FR_FOOT", "HL_FOOT", "HR_FOOT"):
+        np.testing.assert_allclose(data.oMf[model.getFrameId(foot)].translation, robot.frame_pose(start, foot)[:3, 3],
+                                   atol=1e-5)
+    corners = np.array(triangle)
+    for k in range(3):  # counter-clockwise: the centre of mass left of every edge, by the 2 cm margin
+        edge, to_com = corners[(k + 1) % 3] - corners[k], com[:2] - corners[k]
+        assert (edge[0] * to_com[1] - edge[1] * to_com[0]) / np.linalg.norm(edge) >= 0.02 - 1e-4
