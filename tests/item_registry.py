@@ -160,6 +160,8 @@ CASES = [
     Case("DofFreezing", "youbot", lambda robot, q: wbc.DofFreezing(["arm_joint_2", "base_yaw"]), None,
          "constant bounds v_j = 0"),
     Case("BaseFootprintAvoidance", "youbot", _points_around_the_base, 0.4),
+    Case("LinearConstraint", "youbot", lambda robot, q: wbc.LinearConstraint([[0, 0, 0, 1, -1, 0, 0, 0]]), None,
+         "constant rows A v = b (tests/test_linear_cost.py)"),
     Case("MimicJoints", "youbot", lambda robot, q: wbc.MimicJoints([("arm_joint_5", "arm_joint_4", 0.5)]), None,
          "constant equality rows v_j = m v_leader (tests/test_mimic_joints.py)"),
 ]

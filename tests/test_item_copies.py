@@ -204,6 +204,9 @@ EXAMPLES: dict[type, Example] = {
     wbc.ManipulabilityGradient: Example(YOUBOT, Q_YOUBOT, lambda: wbc.ManipulabilityGradient("ee", 1e-3), {
         "cost": lambda t: setattr(t, "cost", 1e-2),
     }, stack=lambda: [_position_task()]),
+    wbc.LinearConstraint: Example(YOUBOT, Q_YOUBOT, lambda: wbc.LinearConstraint([[0, 0, 0, 1, -1, 0, 0, 0]]), {
+        "set_target": lambda t: t.set_target([0.05]),
+    }, stack=lambda: [_position_task()]),
     wbc.PostureTask: Example(YOUBOT, Q_YOUBOT, lambda: wbc.PostureTask(1e-2, gain=0.1), {
         "gain": lambda t: setattr(t, "gain", 0.5),
         "set_target": lambda t: t.set_target(Q_YOUBOT + 0.2),

@@ -177,3 +177,46 @@ def _measure_position(robot, q, columns):
     model, data = robot.model, robot.model.createData()
     J = pin.computeFrameJacobian(model, data, q, model.getFrameId("ee"), pin.LOCAL_WORLD_ALIGNED)[:3, columns]
     return float(np.sqrt(np.linalg.det(J @ J.T)))
+
+
+# ------------------------------------------------------------------ LinearConstraint (the hard A v = b)
+def test_a_linear_constraint_holds_exactly_and_moves_the_rest(youbot):
+    """Two arm joints coupled with an offset (v_3 - v_4 = 0.05) while the gripper reaches: the
+    command satisfies the rows to the solver's precision every tick, b and A changed between ticks."""
+    couple = wbc.LinearConstraint([[0, 0, 0, 1, -1, 0, 0, 0]], b=[0.05])
+    ee = wbc.PositionTask("ee", gain=0.3)
+    ee.set_target(youbot.frame_pose(Q, "ee")[:3, 3] + [0.1, 0.05, 0.0])
+    controller = wbc.Controller(youbot, [ee, wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits(), couple])
+    q = Q.copy()
+    for k in range(60):
+        if k == 30:
+            couple.set_target([-0.02])
+            couple.set_matrix([[0, 0, 0, 1, 0, -1, 0, 0]])
+        v = controller.step(q)
+        A, b = ([[0, 0, 0, 1, -1, 0, 0, 0]], 0.05) if k < 30 else ([[0, 0, 0, 1, 0, -1, 0, 0]], -0.02)
+        np.testing.assert_allclose(np.asarray(A) @ v, [b], atol=1e-9)
+        q = youbot.integrate(q, v, controller.dt)
+    soft = wbc.Controller(youbot, [ee, wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()])
+    assert abs(soft.step(q)[3] - soft.step(q)[5] + 0.02) > 1e-3  # without it the rows would not hold
+
+
+def test_an_infeasible_linear_constraint_is_named_in_the_conflicts(youbot):
+    """b beyond the velocity limits: the fallback answers within the limits and names the rows."""
+    too_fast = wbc.LinearConstraint([[0, 0, 0, 1, 0, 0, 0, 0]], b=[50.0], name="too_fast")
+    controller = wbc.Controller(youbot, [wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits(), too_fast])
+    v = controller.step(Q)
+    assert not controller.last.success
+    assert np.all(np.abs(v) <= youbot.velocity_limit + 1e-9)
+    assert any("too_fast" in label for label in controller.last.conflicts)
+
+
+def test_bad_linear_constraints_are_refused_by_name(youbot):
+    with pytest.raises(wbc.InvalidInputError, match="A must be a matrix"):
+        wbc.LinearConstraint([1.0, 2.0])
+    with pytest.raises(wbc.InvalidInputError, match="A has 3 columns, robot 'youbot' has nv = 8"):
+        wbc.Controller(youbot, [wbc.PostureTask(1e-3)], [wbc.LinearConstraint([[1.0, 0.0, 0.0]])])
+    constraint = wbc.LinearConstraint([[0, 0, 0, 1, -1, 0, 0, 0]])
+    with pytest.raises(wbc.InvalidInputError, match="b contains NaN"):
+        constraint.set_target([np.nan])
+    with pytest.raises(wbc.InvalidInputError, match="A must keep its shape"):
+        constraint.set_matrix(np.zeros((2, 8)))

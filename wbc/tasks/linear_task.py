@@ -39,7 +39,7 @@ class LinearTask(ErrorTask):
 
     def __init__(self, A: Sequence[Sequence[float]] | ArrayLike, b: ArrayLike | None = None, cost: ArrayLike = 1.0,
                  name: str | None = None) -> None:
-        matrix = np.array(_as_matrix(A), dtype=float)
+        matrix = np.array(as_matrix(A), dtype=float)
         super().__init__(matrix.shape[0], 1.0, name)
         self._matrix = matrix
         self.cost = cost
@@ -59,7 +59,7 @@ class LinearTask(ErrorTask):
         Raises:
             InvalidInputError: not finite, or another shape (the previous ``A`` is kept).
         """
-        matrix = _as_matrix(A)
+        matrix = as_matrix(A)
         if matrix.shape != self._matrix.shape:
             raise InvalidInputError(f"{self.name}: A must keep its shape {self._matrix.shape}, got {matrix.shape}; "
                                     "create another LinearTask for another number of rows")
@@ -105,7 +105,7 @@ class LinearTaskData(ErrorTaskData):
         errors[self.name] = _norm(self._residual)
 
 
-def _as_matrix(value: ArrayLike) -> NDArray[np.float64]:
+def as_matrix(value: ArrayLike) -> NDArray[np.float64]:
     """A finite 2-D float array with at least one row and one column."""
     try:
         shape = np.shape(value)
