@@ -303,7 +303,7 @@ def test_a_joint_driven_at_its_limit_brakes_in_time_and_never_overshoots(youbot,
 def test_a_rate_limit_without_the_braking_bound_overshoots(youbot):
     """What the viability bound prevents: the same run with a plain box |v - v_prev| <= a dt (the
     acceleration limit without it, soft beside the position damper) overshoots the limit."""
-    from tests.test_tick_context import RateLimit  # a box around the previous command, nothing more
+    from test_tick_context import RateLimit  # a box around the previous command, nothing more
 
     q0 = np.array([0.0, 0.0, 0.0, 0.0, -0.8, 1.0, 1.2, 0.0])
     target = q0.copy()
