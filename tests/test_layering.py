@@ -136,3 +136,13 @@ def test_the_import_reader_sees_function_level_and_relative_imports():
     assert "wbc.solvers.daqp.abi" in GRAPH["wbc.control.hierarchy"]
     assert "wbc.solvers.daqp.abi" in GRAPH["wbc.solvers.daqp.native"]  # from . import abi as daqp_abi
     assert "wbc.control.tick_buffers" in GRAPH["wbc.control.diagnostics"]  # from .tick_buffers import ...
+
+
+def test_tests_import_their_helpers_as_the_folders_modules():
+    """``from tests.x import ...`` resolves only once another test put the checkout on sys.path:
+    a run of one file (or a plain ``pytest`` collecting it first) fails at import."""
+    folder = Path(__file__).resolve().parent
+    offenders = [f"{path.name}:{number}" for path in sorted(folder.glob("*.py"))
+                 for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)
+                 if line.lstrip().startswith(("from tests.", "import tests."))]
+    assert offenders == []
