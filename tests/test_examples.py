@@ -192,3 +192,42 @@ def test_solo_example_lifts_a_foot_over_its_support_triangle():
     for k in range(3):  # counter-clockwise: the centre of mass left of every edge, by the 2 cm margin
         edge, to_com = corners[(k + 1) % 3] - corners[k], com[:2] - corners[k]
         assert (edge[0] * to_com[1] - edge[1] * to_com[0]) / np.linalg.norm(edge) >= 0.02 - 1e-4
+
+
+def test_com_support_example_keeps_the_centre_of_mass_inside_while_reaching():
+    """examples/com_support.py: Pinocchio's centre of mass in the platform's frame never passes
+    the polygon's front edge (x = 0.065 m); the reach still closes most of the way."""
+    import pinocchio as pin
+
+    robot, q, forward = runpy.run_path(str(EXAMPLES / "com_support.py"))["main"]()
+    assert forward <= 0.065 + 1e-6
+    com = pin.centerOfMass(robot.model, robot.model.createData(), q)
+    pose = robot.frame_pose(q, "base_link")
+    assert (pose[:3, :3].T @ (com - pose[:3, 3]))[0] <= 0.065 + 1e-6
+    assert np.linalg.norm(robot.frame_pose(q, "ee")[:3, 3] - [0.8, 0.0, 0.1]) < 0.1
+
+
+def test_joint_coupling_example_holds_the_hard_row_exactly_and_the_soft_one_approximately():
+    results = runpy.run_path(str(EXAMPLES / "joint_coupling.py"))["main"]()
+    (soft_worst, soft_reach), (hard_worst, hard_reach) = results["soft"], results["hard"]
+    assert hard_worst < 1e-9 and soft_worst > 1e-3  # exact vs weighed against the reach
+    assert hard_reach < 1e-4 and soft_reach < 1e-4  # both reach (the wrist has room)
+
+
+def test_linear_cost_example_climbs_the_arm_measure_then_drives_forward():
+    """examples/linear_cost.py: the arm's position measure (written out: sqrt det J J^T of the
+    arm's columns, Pinocchio's Jacobian) rises while the gripper holds; then the platform drives
+    forward (+x, the push of -c)."""
+    import pinocchio as pin
+
+    robot, start, climbed, final = runpy.run_path(str(EXAMPLES / "linear_cost.py"))["main"]()
+
+    def measure(q):
+        model = robot.model
+        J = pin.computeFrameJacobian(model, model.createData(), q, model.getFrameId("ee"),
+                                     pin.LOCAL_WORLD_ALIGNED)[:3, 3:]
+        return np.sqrt(np.linalg.det(J @ J.T))
+
+    assert measure(climbed) > 1.4 * measure(start)
+    assert np.linalg.norm(robot.frame_pose(climbed, "ee")[:3, 3] - robot.frame_pose(start, "ee")[:3, 3]) < 1e-3
+    assert final[0] - climbed[0] > 0.1
