@@ -11,6 +11,12 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from wbc.model.mjcf import MIN_PIN_FOR_COMPOSITES
+
+#: Pinocchio expands an MJCF body's several joints (a composite joint) the way wbc reads it
+COMPOSITES = tuple(int(part) for part in pin.__version__.split(".")[:2]) >= MIN_PIN_FOR_COMPOSITES
+needs_composites = pytest.mark.skipif(not COMPOSITES, reason=f"pin {pin.__version__}: an MJCF body with several "
+                                      "joints is refused below pin 4 (wbc.model.mjcf)")
 
 BODY_WITH_THREE_JOINTS = """<mujoco model="three">
   <compiler angle="radian"/>
@@ -32,6 +38,7 @@ BODY_WITH_THREE_JOINTS = """<mujoco model="three">
 """
 
 
+@needs_composites
 def test_the_mjcf_youbot_is_the_urdf_youbot(tmp_path, rng):
     urdf = wbc.load_robot("youbot")
     mjcf = wbc.load_robot(wbc.model_path("youbot", "mjcf"))  # with its sidecar: the same base
@@ -48,6 +55,7 @@ def test_the_mjcf_youbot_is_the_urdf_youbot(tmp_path, rng):
     np.testing.assert_allclose(mjcf.lower[3:], urdf.lower[3:])
 
 
+@needs_composites
 def test_the_joints_of_one_body_become_a_chain_with_pinocchios_kinematics(tmp_path, rng):
     path = tmp_path / "three.xml"
     path.write_text(BODY_WITH_THREE_JOINTS.format(equality=""))
@@ -68,9 +76,20 @@ def test_the_joints_of_one_body_become_a_chain_with_pinocchios_kinematics(tmp_pa
                                    pin.centerOfMass(reference, data, q), atol=1e-12)
 
 
+@pytest.mark.skipif(COMPOSITES, reason=f"pin {pin.__version__} expands composite joints")
+def test_an_older_pinocchio_refuses_a_body_with_several_joints_naming_the_fix(tmp_path):
+    path = tmp_path / "three.xml"
+    path.write_text(BODY_WITH_THREE_JOINTS.format(equality=""))
+    with pytest.raises(wbc.ModelError, match=r"several joints needs pinocchio >= 4\.0.*pip install -U pin"):
+        wbc.load_robot(path)
+
+
 def test_mjcf_equality_constraints_are_said_and_a_broken_file_is_a_model_error(tmp_path):
-    path = tmp_path / "loop.xml"
-    path.write_text(BODY_WITH_THREE_JOINTS.format(equality='<equality><joint joint1="h1" joint2="h3"/></equality>'))
+    path = tmp_path / "loop.xml"  # one joint per body: read by every supported pin
+    path.write_text('<mujoco><compiler angle="radian"/><worldbody><body name="a"><joint name="h1" axis="0 0 1"/>'
+                    '<inertial pos="0 0 0" mass="1" diaginertia="0.1 0.1 0.1"/><body name="b" pos="0.3 0 0">'
+                    '<joint name="h3" axis="0 1 0"/><inertial pos="0 0 0.1" mass="1" diaginertia="0.1 0.1 0.1"/>'
+                    '</body></body></worldbody><equality><joint joint1="h1" joint2="h3"/></equality></mujoco>')
     with pytest.warns(wbc.ModelWarning, match=r"<equality> constraints .* are not modelled"):
         wbc.load_robot(path)
     broken = tmp_path / "broken.xml"

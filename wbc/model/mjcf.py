@@ -5,6 +5,9 @@ Pinocchio gathers the joints of one MJCF ``<body>`` into a single composite join
 base through separate 1-DOF joints, so :func:`load_mjcf` expands every composite into the chain
 of its joints, named as in the file; the kinematics are unchanged. MJCF ``<equality>``
 constraints (closed loops, joint couplings) are not modelled: loading warns and names the fix.
+The expansion needs Pinocchio >= 4 (:data:`MIN_PIN_FOR_COMPOSITES`): pin 3.3.1's composite joints
+of an MJCF body gave other kinematics than its own model when expanded, so an MJCF body with
+several joints is refused there (a body with one joint each loads with any pin).
 """
 
 from __future__ import annotations
@@ -17,6 +20,10 @@ import numpy as np
 import pinocchio as pin
 
 from ..core.errors import ModelError, ModelWarning
+
+#: the oldest Pinocchio whose composite joints (an MJCF body with several joints) wbc expands:
+#: checked on 4.1 (same kinematics as Pinocchio's own model) and 3.3.1 (not the same)
+MIN_PIN_FOR_COMPOSITES = (4, 0)
 
 
 def load_mjcf(path: Path) -> pin.Model:
@@ -57,6 +64,10 @@ def expand_composite_joints(model: pin.Model, names: dict[str, list[str]]) -> pi
     kept; the same kinematics, limits and inertias."""
     if not any(joint.shortname() == "JointModelComposite" for joint in model.joints):
         return model
+    if tuple(int(part) for part in pin.__version__.split(".")[:2]) < MIN_PIN_FOR_COMPOSITES:
+        raise ModelError(f"an MJCF <body> with several joints needs pinocchio >= "
+                         f"{'.'.join(map(str, MIN_PIN_FOR_COMPOSITES))} (this is {pin.__version__}): "
+                         "pip install -U pin, or give each joint a body of its own")
     expanded = pin.Model()
     expanded.name = model.name
     joint_map, frame_map = {0: 0}, {0: 0}
@@ -76,9 +87,11 @@ def expand_composite_joints(model: pin.Model, names: dict[str, list[str]]) -> pi
         joint_map[j] = parent
     for f in range(1, model.nframes):
         frame = model.frames[f]
-        frame_map[f] = expanded.addFrame(pin.Frame(frame.name, joint_map[frame.parentJoint],
-                                                   frame_map[frame.parentFrame], frame.placement, frame.type,
-                                                   frame.inertia), False)
+        # parentFrame is the frame tree's bookkeeping (placements are relative to parentJoint);
+        # pin 3.3's MJCF parser gives a site its own index there: the universe stands in for it
+        parent_frame = frame_map.get(frame.parentFrame, 0)
+        frame_map[f] = expanded.addFrame(pin.Frame(frame.name, joint_map[frame.parentJoint], parent_frame,
+                                                   frame.placement, frame.type, frame.inertia), False)
     return expanded
 
 
