@@ -7,15 +7,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core.errors import InvalidInputError
-from ..core.validation import as_vector
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
-from ..tasks.linear_task import as_matrix
+from ..tasks.linear_task import LinearEquation, as_matrix
 from .constraint import Constraint, ConstraintData, ConstraintRows
 
 
-class LinearConstraint(Constraint):
+class LinearConstraint(LinearEquation, Constraint):
     """``A v = b`` exactly (m equality rows of the QP), with ``A`` (m x nv) and ``b`` (m) in the
     units of your choice: e.g. ``v_i - v_j = 0`` moves two joints together, a row of a Jacobian
     with ``b = 0`` forbids a motion. :class:`~wbc.LinearTask` asks the same softly.
@@ -35,45 +33,19 @@ class LinearConstraint(Constraint):
                  name: str | None = None) -> None:
         super().__init__(name)
         self._matrix = np.array(as_matrix(A), dtype=float)
-        self._target = np.zeros(self._matrix.shape[0])
+        self._b = np.zeros(self._matrix.shape[0])
         if b is not None:
             self.set_target(b)
 
-    def set_target(self, b: ArrayLike) -> None:
-        """``b`` (m numbers) from the next tick on.
-
-        Raises:
-            InvalidInputError: not m finite numbers (the previous ``b`` is kept).
-        """
-        self._target[:] = as_vector(b, self._target.size, "b")
-
-    def set_matrix(self, A: ArrayLike) -> None:
-        """``A`` (the same shape as before) from the next tick on.
-
-        Raises:
-            InvalidInputError: not finite, or another shape (the previous ``A`` is kept).
-        """
-        matrix = as_matrix(A)
-        if matrix.shape != self._matrix.shape:
-            raise InvalidInputError(f"{self.name}: A must keep its shape {self._matrix.shape}, got {matrix.shape}; "
-                                    "create another LinearConstraint for another number of rows")
-        self._matrix[...] = matrix
-
     @property
-    def target(self) -> NDArray[np.float64]:
-        """``b`` (a copy)."""
-        return self._target.copy()
-
-    @property
-    def matrix(self) -> NDArray[np.float64]:
-        """``A`` (a copy)."""
-        return self._matrix.copy()
+    def _rhs(self) -> NDArray[np.float64]:
+        return self._b
 
     def bind(self, robot: Robot) -> LinearConstraintData:
         return LinearConstraintData(self, robot)
 
     def __repr__(self) -> str:
-        return f"LinearConstraint(A={self._matrix.tolist()}, b={self._target.tolist()})"
+        return f"LinearConstraint(A={self._matrix.tolist()}, b={self._b.tolist()})"
 
 
 class LinearConstraintData(ConstraintData):
@@ -82,15 +54,13 @@ class LinearConstraintData(ConstraintData):
     constraint: LinearConstraint
 
     def __init__(self, linear: LinearConstraint, robot: Robot) -> None:
-        if linear._matrix.shape[1] != robot.nv:
-            raise InvalidInputError(f"{linear.name}: A has {linear._matrix.shape[1]} columns, robot {robot.name!r} "
-                                    f"has nv = {robot.nv}: give one column per velocity coordinate")
+        linear.check_columns(robot)
         super().__init__(linear)
         self.n_equalities = linear._matrix.shape[0]
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         rows.A[...] = self.constraint._matrix
-        rows.b[...] = self.constraint._target
+        rows.b[...] = self.constraint._b
 
     def row_labels(self) -> list[str]:
         return [f"row {i}" for i in range(self.n_equalities)]

@@ -16,7 +16,59 @@ from .error_task import ErrorTask, ErrorTaskData
 from .task import _norm
 
 
-class LinearTask(ErrorTask):
+class LinearEquation:
+    """``A`` (m x nv) and ``b`` (m) of an equation ``A v = b`` that an item asks for, each
+    reassignable between ticks (the number of rows is fixed): shared by :class:`LinearTask`
+    (soft) and :class:`~wbc.LinearConstraint` (hard). ``b`` lives in ``_rhs`` (a
+    LinearTask's feed-forward)."""
+
+    name: str
+    _matrix: NDArray[np.float64]
+
+    @property
+    def _rhs(self) -> NDArray[np.float64]:
+        raise NotImplementedError
+
+    def set_target(self, b: ArrayLike) -> None:
+        """``b`` (m numbers) from the next tick on.
+
+        Raises:
+            InvalidInputError: not m finite numbers (the previous ``b`` is kept).
+        """
+        self._rhs[:] = as_vector(b, self._rhs.size, "b")
+
+    def set_matrix(self, A: ArrayLike) -> None:
+        """``A`` (the same shape as before) from the next tick on.
+
+        Raises:
+            InvalidInputError: not finite, or another shape (the previous ``A`` is kept).
+        """
+        matrix = as_matrix(A)
+        if matrix.shape != self._matrix.shape:
+            raise InvalidInputError(f"{self.name}: A must keep its shape "
+                                    f"{self._matrix.shape}, got {matrix.shape}; create another "
+                                    f"{type(self).__name__} for another number of rows")
+        self._matrix[...] = matrix
+
+    @property
+    def target(self) -> NDArray[np.float64]:
+        """``b`` (a copy)."""
+        return self._rhs.copy()
+
+    @property
+    def matrix(self) -> NDArray[np.float64]:
+        """``A`` (a copy)."""
+        return self._matrix.copy()
+
+    def check_columns(self, robot: Robot) -> None:
+        """Refuse ``A`` whose columns are not ``robot``'s velocity coordinates."""
+        if self._matrix.shape[1] != robot.nv:
+            raise InvalidInputError(f"{self.name}: A has {self._matrix.shape[1]} columns, "
+                                    f"robot {robot.name!r} has nv = {robot.nv}: give one column per "
+                                    "velocity coordinate")
+
+
+class LinearTask(LinearEquation, ErrorTask):
     """Ask for ``A v = b`` in the least-squares sense: rows ``W (A v - b)``, i.e. the cost
     ``sum_i cost_i (A_i v - b_i)^2``, with ``A`` (m x nv) and ``b`` (m) given by the user in
     the units of their choice (e.g. ``v_i - v_j = 0`` couples two joints).
@@ -45,35 +97,9 @@ class LinearTask(ErrorTask):
         self.cost = cost
         self.set_target(np.zeros(matrix.shape[0]) if b is None else b)
 
-    def set_target(self, b: ArrayLike) -> None:
-        """``b`` (m numbers) from the next tick on.
-
-        Raises:
-            InvalidInputError: not m finite numbers (the previous ``b`` is kept).
-        """
-        self._feedforward[:] = as_vector(b, self._feedforward.size, "b")
-
-    def set_matrix(self, A: ArrayLike) -> None:
-        """``A`` (the same shape as before) from the next tick on.
-
-        Raises:
-            InvalidInputError: not finite, or another shape (the previous ``A`` is kept).
-        """
-        matrix = as_matrix(A)
-        if matrix.shape != self._matrix.shape:
-            raise InvalidInputError(f"{self.name}: A must keep its shape {self._matrix.shape}, got {matrix.shape}; "
-                                    "create another LinearTask for another number of rows")
-        self._matrix[...] = matrix
-
     @property
-    def target(self) -> NDArray[np.float64]:
-        """``b`` (a copy)."""
-        return self._feedforward.copy()
-
-    @property
-    def matrix(self) -> NDArray[np.float64]:
-        """``A`` (a copy)."""
-        return self._matrix.copy()
+    def _rhs(self) -> NDArray[np.float64]:
+        return self._feedforward
 
     def bind(self, robot: Robot) -> LinearTaskData:
         return LinearTaskData(self, robot)
@@ -89,9 +115,7 @@ class LinearTaskData(ErrorTaskData):
     lm_damped = False  # exact rows, a reference rather than an error
 
     def __init__(self, task: LinearTask, robot: Robot) -> None:
-        if task._matrix.shape[1] != robot.nv:
-            raise InvalidInputError(f"{task.name}: A has {task._matrix.shape[1]} columns, robot {robot.name!r} has "
-                                    f"nv = {robot.nv}: give one column per velocity coordinate")
+        task.check_columns(robot)
         super().__init__(task, robot)
         self._residual = np.zeros(self.dim)
 
