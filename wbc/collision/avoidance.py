@@ -172,7 +172,6 @@ class CollisionAvoidanceData(ConstraintData):
         #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
         self.corner_pair = np.zeros(min(capacity, CORNER_ROWS), dtype=np.int64)
         self.corners = 0
-        self.context: TickContext | None = None
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
@@ -184,7 +183,7 @@ class CollisionAvoidanceData(ConstraintData):
         self._jacobians_t = np.zeros((robot.nv, 6))
 
     def use_context(self, context: TickContext) -> None:
-        self.context = context
+        self._braking.use_context(context)
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.G[:] = 0.0
@@ -215,10 +214,8 @@ class CollisionAvoidanceData(ConstraintData):
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
                                            self.corner_pair, distances._scratch)
-        braking = None if self.context is None else self.context.braking
-        if braking is not None:
-            active = pairs.count + self.corners
-            self._braking.apply(braking, kin.q, G[:active], h[:active], avoidance.gain, dt)
+        active = pairs.count + self.corners
+        self._braking.apply(kin.q, G[:active], h[:active], avoidance.gain, dt)
         if G is not rows.G:
             rows.G[:] = G
 

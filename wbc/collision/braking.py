@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..constraints.acceleration_limits import braking_speed
-from ..model.tick_context import Braking
+from ..model.tick_context import TickContext
 
 #: the share of the rate at which the acceleration bounds can change a row's ``g . v`` that its
 #: braking bound counts on: the rest absorbs the change of the row while braking and the speed limits
@@ -28,16 +28,26 @@ class RowBraking:
     tick. ``a_d`` = :data:`BRAKING_SHARE` times ``braking.decelerations`` (what the bounds can do
     along g). The damper alone asks, one tick before the margin, for a stop from any approach speed,
     which the hard bounds forbid; capped, the soft rows stay feasible with them. Rows inside the
-    margin (``h <= 0``: a push-out) keep the damper. Buffers for up to ``rows`` rows.
+    margin (``h <= 0``: a push-out) keep the damper. Buffers for up to ``rows`` rows; the bounds
+    are the controller's (``context.braking``, :meth:`use_context`): without them nothing changes.
     """
 
     def __init__(self, rows: int) -> None:
         self._deceleration, self._margin, self._speed = np.zeros(rows), np.zeros(rows), np.zeros(rows)
         self._still = np.zeros(rows, dtype=bool)
+        self._context: TickContext | None = None
 
-    def apply(self, braking: Braking, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64],
-              gain: float, dt: float) -> None:
-        """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``) in place."""
+    def use_context(self, context: TickContext) -> None:
+        """Read the acceleration bounds of ``context``'s controller (its damper rows' data calls this)."""
+        self._context = context
+
+    def apply(self, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64], gain: float,
+              dt: float) -> None:
+        """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``) in place, when the controller has
+        acceleration bounds."""
+        braking = None if self._context is None else self._context.braking
+        if braking is None:
+            return
         n = h.shape[0]
         deceleration, margin, speed, still = self._deceleration[:n], self._margin[:n], self._speed[:n], self._still[:n]
         braking.decelerations(G, q, deceleration)

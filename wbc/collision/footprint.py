@@ -245,11 +245,10 @@ class BaseFootprintAvoidanceData(ConstraintData):
         self._settings = np.zeros(3)
         #: per sector: (d, n_b (2), p_b (2), point index) of the last tick's closest point (d = inf: none)
         self.closest = np.full((self.n_inequalities, kernels.BEST_COLUMNS), np.inf)
-        self.context: TickContext | None = None
-        self._braking = RowBraking(self.n_inequalities)
+        self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
 
     def use_context(self, context: TickContext) -> None:
-        self.context = context
+        self._braking.use_context(context)
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.G[:] = 0.0
@@ -263,9 +262,7 @@ class BaseFootprintAvoidanceData(ConstraintData):
         self._kernels.footprint_rows(avoidance._ordered, avoidance._cell_start, avoidance._meta, avoidance._n_points,
                                      self._edges, self._shape, pose, self._turns, settings, dt, self._columns,
                                      self._sectors, self.closest, rows.G, rows.h)
-        braking = None if self.context is None else self.context.braking
-        if braking is not None:  # hard acceleration bounds in the stack: brake in time (RowBraking)
-            self._braking.apply(braking, kin.q, rows.G, rows.h, avoidance.gain, dt)
+        self._braking.apply(kin.q, rows.G, rows.h, avoidance.gain, dt)  # with acceleration bounds: in time
 
     @property
     def min_distance(self) -> float:
