@@ -26,8 +26,9 @@ from .obstacles import Obstacle
 #: allows approaching faster than this (the row would never bind)
 CORNER_SPEED = 5.0
 #: rows for corners (capsule ends that tie with a pair's witness) beyond the pairs' own, the closest
-#: pairs' first: measured 2.4 on average and at most 5 per tick on the youBot with self-collision and
-#: 10 obstacles (benchmarks/collision.py), 4 on youbot_obstacle; every row costs DAQP time even inert
+#: pairs' first: measured 3.8 on average and at most 7 per tick on the youBot with self-collision and
+#: 10 obstacles (benchmarks/collision.py), 5.1 and 8 on youbot_obstacle (at the budget on 3 % of its
+#: ticks, its margin kept to 0.01 mm); every row costs DAQP time even inert
 CORNER_ROWS = 8
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
@@ -86,14 +87,14 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     that rate, never frozen. The rows are soft (``hard = False``): they yield to the actuator
     limits in the controller's elastic fallback when both cannot hold.
 
-    **Corners.** Where a capsule lies parallel to the other shape's face or edge, its closest
-    point ties between its two ends: d is the minimum of two smooth pieces (the ends' spheres' distances)
-    and one witness row is not its first-order model: the QP turns the witness end away while the
-    other approaches, the witness jumps, the command reverses, and a full-speed two-tick chatter
-    creeps into the margin. So when the witness is at one end, the other end's distance gets a
-    damper of its own, if within :data:`CORNER_SPEED` ``* dt`` of d
-    (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the exact
-    first-order model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
+    **Corners.** Where a capsule lies parallel to the other shape's face or edge, or along another
+    capsule, its closest point ties between points far apart: d is the minimum of smooth pieces
+    (the ends' spheres' distances and the inside's) and one witness row is not its first-order
+    model: the QP turns the witness away while an end approaches, the witness jumps, the command
+    reverses, and a full-speed two-tick chatter creeps into the margin. So each capsule end that is
+    not the witness gets a damper of its own, if within :data:`CORNER_SPEED` ``* dt`` of d
+    (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the first-order
+    model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
     row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
 
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data

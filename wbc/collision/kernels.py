@@ -534,8 +534,13 @@ def damper_rows(count, distance, rows, G, h, settings, dt):
     _damper_rows(count, distance, rows, G, h, settings, dt)
 
 
-#: [m] a witness this close (across the normal) to a segment's end is at that end
-WITNESS_AT_END = 1e-6
+#: an end of a capsule closer than this fraction of its segment's length to the pair's witness
+#: (across the normal) gets no row of its own: the row would nearly repeat the pair's (two almost
+#: parallel rows, a degenerate active set the solvers answer badly: DAQP returned infeasible or
+#: rows violated by up to 44 % on random obstacles), and the witness row already models that end
+END_ZONE = 0.1
+#: an end's row whose cosine with the pair's row exceeds this is left out (for the same reason)
+PARALLEL = 1.0 - 1e-3
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -572,24 +577,28 @@ def _end_distance(table, world, capsule, end, other, out, scratch):
       "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                 normal, G, h, settings, dt, speed, corner_slot, scratch):
-    """The dampers of the capsule ends that nearly tie with a pair's witness end, in rows
+    """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
     ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
     ``corner_slot``); returns how many. ``scratch``: >= 59 floats.
 
-    Why: where a capsule lies parallel to the other shape's face or edge, its closest point ties
-    between its two ends. Its distance is ``d = min(d_0, d_1, d_inner)``, ``d_e`` the distance of
-    the sphere at end e (smooth where the shapes are apart), and its first-order change is the
-    minimum over the pieces that tie (Danskin), not the change at the one end the distance routine
-    returned. A single row lets the QP turn the witness end away while the other approaches; the
-    next tick the witness jumps to that end and the command reverses: a full-speed two-tick
-    chatter that creeps into the margin. So when the witness is at one end, the other end's piece
-    gets its own damper, with its own witness points and normal::
+    Why: where a capsule lies parallel to the other shape's face or edge, or along another capsule,
+    its closest point ties between points far apart. Its distance is ``d = min(d_0, d_1, d_inner)``,
+    ``d_e`` the distance of the sphere at end e (smooth where the shapes are apart), and its
+    first-order change is the minimum over the pieces that tie (Danskin), not the change at the one
+    point the distance routine returned. A single row lets the QP turn the witness away while an
+    end approaches; the next tick the witness jumps to that end and the command reverses: a
+    full-speed two-tick chatter that creeps into the margin (the witness at one end; also with the
+    witness inside, when the capsule is nearly parallel: the wrist reversing at 1.57 rad/s, 2.3 mm
+    into the margin). So each end of a capsule in a pair gets a damper of its own, with its own
+    witness points and normal, unless it is the witness (within :data:`END_ZONE` of the segment's
+    length, across the normal) or its row is the pair's own to within :data:`PARALLEL`::
 
         d_e_dot = n_e . (J_b(w_b,e) - J_a(w_a,e)) v  >=  -gain (d_e - d_min) / dt
 
     d_e >= d, so the row is looser than the pair's own the farther the end is; with the witness
-    row it is the exact first-order model of d at the tie. An interior witness is a smooth point
-    (no row: the pair's row would be a convex combination of the ends', a degenerate active set).
+    row it is the first-order model of d at the tie. Left: a capsule lying on a box face and
+    overhanging its edge ties between an end and the overhang point, which gets no row (a one-tick
+    kick, measured <= 0.3 mm).
     ``speed`` [m/s]: an end with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
     one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
     the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
@@ -625,33 +634,40 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
             half = table[s, HALF_LENGTH]
             ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
             cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
-            if _across(cx + ux, cy + uy, cz + uz, nx, ny, nz) <= WITNESS_AT_END:
-                end = -1.0  # the witness at the + end: the - end's row
-            elif _across(cx - ux, cy - uy, cz - uz, nx, ny, nz) <= WITNESS_AT_END:
-                end = 1.0
-            else:  # an interior witness: the pieces meet there smoothly
-                continue
-            out = scratch[40:50]
-            if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
-                continue
-            gap = out[0]
-            if gap - d > speed * dt or scale * (gap - d_min) > speed:
-                continue
-            if side == 1:  # the capsule is b
-                _flip(out)
-            row = count + n_rows
-            if n_rows == corner_slot.size or row >= G.shape[0]:
-                return n_rows
-            points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
-            for m in range(3):
-                points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
-            gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
-                         G[row:row + 1])
-            for k in range(G.shape[1]):
-                G[row, k] = -G[row, k]
-            h[row] = scale * (gap - d_min)
-            corner_slot[n_rows] = i
-            n_rows += 1
+            near = END_ZONE * 2.0 * half  # an end this close to the witness (across n) would repeat its row
+            for e in range(2):
+                end = 2.0 * e - 1.0
+                if _across(cx + end * ux, cy + end * uy, cz + end * uz, nx, ny, nz) <= near:
+                    continue
+                out = scratch[40:50]
+                if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
+                    continue
+                gap = out[0]
+                if gap - d > speed * dt or scale * (gap - d_min) > speed:
+                    continue
+                if side == 1:  # the capsule is b
+                    _flip(out)
+                row = count + n_rows
+                if n_rows == corner_slot.size or row >= G.shape[0]:
+                    return n_rows
+                points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
+                for m in range(3):
+                    points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
+                gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
+                             G[row:row + 1])
+                dot, own, norm = 0.0, 0.0, 0.0
+                for k in range(G.shape[1]):
+                    G[row, k] = -G[row, k]
+                    dot += G[row, k] * G[i, k]
+                    own += G[i, k] * G[i, k]
+                    norm += G[row, k] * G[row, k]
+                if dot * dot > PARALLEL * PARALLEL * own * norm and dot > 0.0:
+                    for k in range(G.shape[1]):  # the pair's own row, to within PARALLEL: adds no direction,
+                        G[row, k] = 0.0  # only degeneracy; the row stays inert
+                    continue
+                h[row] = scale * (gap - d_min)
+                corner_slot[n_rows] = i
+                n_rows += 1
     return n_rows
 
 
