@@ -158,8 +158,8 @@ class TickProgram:
 
         It calls the compiled code without numba's type check of the arguments
         (:func:`wbc.runtime.native_entry.unchecked_entry`): ``q`` must be a 1-D float64 ndarray
-        (any strides; read-only too), which the caller checks; its size is checked here (a
-        ValueError, before anything is written)."""
+        (any strides; read-only too), which the caller checks; a ``q`` of another size than the
+        input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written."""
         if self._input[0] < 0:
             raise TypeError("stepper(): the program has no input (set_input)")
         return functools.partial(unchecked_entry(kernels.run_program), self._packed)

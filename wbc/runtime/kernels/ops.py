@@ -58,8 +58,9 @@ PROGRAM_INPUT, PROGRAM_INPUT_SIZE = 2 + FLAG_COUNT, 3 + FLAG_COUNT
 #: words before the rows in the program's packed array: rows, width, the flags, the input and its size
 PROGRAM_HEADER = 4 + FLAG_COUNT
 #: what a run returns: a NaN screen found a NaN (the solves after it skipped); else the solve's answer
-#: was accepted (flag :data:`FLAG_ACCEPTED`); else 0
-RUN_FOUND_NAN, RUN_ACCEPTED = 1, 2
+#: was accepted (flag :data:`FLAG_ACCEPTED`); else 0 -- or, before any row runs, that its ``q`` does not
+#: fit the program's input (another size, or no input: nothing written)
+RUN_FOUND_NAN, RUN_ACCEPTED, RUN_BAD_INPUT = 1, 2, 3
 #: the opcode of a third-party op (a CompiledOp): row [OP_EXTERNAL, callback address, operands...];
 #: wbc's own ops get the opcodes 1, 2, ... (by name) when the kernels load
 OP_EXTERNAL = 0

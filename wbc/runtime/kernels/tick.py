@@ -7,7 +7,8 @@ array argument, a dozen arrays would cost more than the arithmetic. One native c
 runs every row; ``packed`` = [rows, width, the flags (:data:`~wbc.runtime.kernels.ops.FLAG_COUNT`),
 the input's operand index and size, the rows (rows x width, row-major), the operand addresses].
 Each row is [opcode, operands...] (array operands by index into the addresses). It returns
-:data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0.
+:data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0
+(:data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`: ``q`` does not fit the input, nothing run).
 
 :func:`interpreter_source` writes ``run_program`` from the :class:`~.ops.Op` declarations of
 the package: one decoder per op, which reads the op's int operands from its row, views each
@@ -42,6 +43,7 @@ from .ops import (
     PROGRAM_INPUT,
     PROGRAM_INPUT_SIZE,
     RUN_ACCEPTED,
+    RUN_BAD_INPUT,
     RUN_FOUND_NAN,
     Op,
     decoder_source,
@@ -105,7 +107,8 @@ def interpreter_source(ops: Sequence[Op], stamp: str, cache: bool) -> str:
               "def run_program(packed, q, dt):",
               '    """Copy ``q`` into the program\'s input (unless it is empty), then run the rows of the',
               f'    program ``packed`` in order; {RUN_FOUND_NAN} when a NaN screen found a NaN, else',
-              f'    {RUN_ACCEPTED} when the solve\'s answer was accepted, else 0."""',
+              f'    {RUN_ACCEPTED} when the solve\'s answer was accepted, else 0 ({RUN_BAD_INPUT}: q does not fit',
+              '    the input: nothing run)."""',
               "    rows, width = packed[0], packed[1]",
               f"    flags = packed[2:{2 + FLAG_COUNT}]",
               f"    for i in range({FLAG_COUNT}):",
@@ -114,7 +117,7 @@ def interpreter_source(ops: Sequence[Op], stamp: str, cache: bool) -> str:
               f"    addresses = packed[{PROGRAM_HEADER} + rows * width:]",
               "    if q.size:",
               f"        if packed[{PROGRAM_INPUT}] < 0 or q.size != packed[{PROGRAM_INPUT_SIZE}]:",
-              '            raise ValueError("run_program: q does not fit the program\'s input")',
+              f"            return {RUN_BAD_INPUT}",
               f"        target = carray(_float64_at(addresses[packed[{PROGRAM_INPUT}]]), (q.size,))",
               "        for i in range(q.size):",
               "            target[i] = q[i]",
