@@ -176,3 +176,18 @@ def test_set_target_takes_array_likes_subclasses_and_other_byte_orders():
         np.testing.assert_array_equal(task.target, pose)
     with pytest.raises(wbc.InvalidInputError, match="shape"):
         task.set_target(_ArrayLike(np.eye(3)))
+
+
+def test_integrate_takes_array_likes_read_only_and_byte_swapped_vectors(youbot, rng):
+    """The vector-space fast path calls the compiled q + v dt without numba's type check, after
+    checking that q and v are 1-D float64 arrays: anything else is converted by the checked path,
+    and a 2-D array of the right size is refused as before."""
+    q, v = youbot.random_configuration(rng), rng.normal(size=8)
+    expected = pin.integrate(youbot.model, q, v * 0.01)
+    read_only = q.copy()
+    read_only.flags.writeable = False
+    for same_q, same_v in ((read_only, v), (_ArrayLike(q), _ArrayLike(v)), (q.view(_Subclass), v.astype(">f8"))):
+        np.testing.assert_array_equal(youbot.integrate(same_q, same_v, 0.01), expected)
+    for bad_q, bad_v in ((q[None, :], v), (q, v[:, None]), (_ArrayLike(q[:7]), v)):
+        with pytest.raises(wbc.InvalidInputError, match="shape"):
+            youbot.integrate(bad_q, bad_v, 0.01)
