@@ -226,6 +226,8 @@ class Controller:
     # --------------------------------------------------------------- settings
     _dt: float  # where dt lives
     _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
+    _answer_copy: Callable[[], NDArray[np.float64]]  # the native tick's: a copy of DAQP's answer (with _stepper)
+    _outcome: memoryview  # the native tick's: DAQP's control vector (kernels.DAQP_CONTROL_*; with _stepper)
 
     @property
     def last(self) -> TickDiagnostics:
@@ -492,9 +494,8 @@ class Controller:
         self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
         # the control loop's path, when the program does the whole tick and v = x: one native call
         # from q to the checked answer (step), taken once the first tick has checked the tasks
-        self._native_step = self._stepper = None
-        self._answer_copy: Callable[[], NDArray[np.float64]] | None = None
-        self._outcome: memoryview | None = None
+        self._native_step: Callable[[NDArray[np.float64], float], int] | None = None  # taken by step when set
+        self._stepper: Callable[[NDArray[np.float64], float], int] | None = None  # what _native_step is set to
         if (bound is not None and not split and self._assembly.all_in_program and self._command is None
                 and self._kinematics_op is not None and self._q_screened):
             self._stepper = program.stepper()
@@ -530,9 +531,9 @@ class Controller:
             q = self.robot.check_configuration(q)
         native = self._native_step
         if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
-            status = native(q, self._dt)  # q copied in, the program run, DAQP's answer checked (_finish_program)
+            run = native(q, self._dt)  # q copied in, the program run, DAQP's answer checked (_finish_program)
             self.kinematics.current = NOTHING_CURRENT  # (the program wrote q: Pinocchio's data is stale)
-            if status == RUN_ACCEPTED:
+            if run == RUN_ACCEPTED:
                 buffers = self._buffers
                 buffers.tick += 1
                 v = self._answer_copy()
@@ -540,7 +541,7 @@ class Controller:
                 self._record = (buffers.tick, self._solver_name, _OPTIMAL, "optimal", self._outcome[_SOLVE_TIME],
                                 time.perf_counter() - start, v, v)
                 return v
-            has_nan, answer = status == RUN_FOUND_NAN, None
+            has_nan, answer = run == RUN_FOUND_NAN, None
             if has_nan:
                 self._assembly.screen(q)  # raises for a non-finite q, as the assembly does
         else:  # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command

@@ -60,7 +60,7 @@ def _integrate_vector_space(q: NDArray[np.float64], v: NDArray[np.float64], dt: 
     own): this function replaces itself by that entry on its first call (the kernels load lazily)."""
     global _integrate_vector_space
     _integrate_vector_space = unchecked_entry(kernels.integrate_vector_space)
-    return _integrate_vector_space(q, v, dt, reached)  # type: ignore[no-any-return]
+    return _integrate_vector_space(q, v, dt, reached)
 
 #: Pinocchio joints whose coordinates form a vector space (``pinocchio.integrate`` is ``q + v``):
 #: 1-DOF revolute (bounded: not the continuous kinds, nq = 2) and prismatic joints
@@ -334,10 +334,12 @@ class Robot:
         """
         if self._vector_space and type(dt) is float:  # the control loop's fast path
             reached = np.empty(self._nq)
+            given_q: Any = q  # (their attributes are read inside the try)
+            given_v: Any = v
             try:  # float64 vectors (any strides, read-only too): one compiled call, without numba's type check
-                if (q.dtype is _FLOAT64 and v.dtype is _FLOAT64 and q.ndim == 1 and v.ndim == 1
-                        and _integrate_vector_space(q, v, dt, reached)):  # finite: so were q, v and dt
-                    return reached
+                if (given_q.dtype is _FLOAT64 and given_v.dtype is _FLOAT64 and given_q.ndim == 1
+                        and given_v.ndim == 1 and _integrate_vector_space(given_q, given_v, dt, reached)):
+                    return reached  # finite: so were q, v and dt
             except (AttributeError, TypeError):  # not ndarrays (the entry unboxes ndarrays only): checked below
                 pass
         q = self.check_configuration(q)

@@ -24,8 +24,8 @@ def unchecked_entry(function: Any) -> Callable[..., Any]:
     the signature's dtype and dimensions -- checked by the caller, or its own buffers -- and
     layouts the signature accepts (a C-contiguous signature reads a strided array wrongly).
     """
-    signatures = getattr(function, "signatures", ())
+    signatures: Any = getattr(function, "signatures", ())
     if len(signatures) != 1:
-        return function  # type: ignore[no-any-return]
+        return function
     entry = getattr(function.overloads.get(signatures[0]), "entry_point", None)
-    return function if entry is None else entry  # type: ignore[no-any-return]
+    return function if entry is None else entry

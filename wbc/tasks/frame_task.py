@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
@@ -26,7 +28,7 @@ def _set_pose(pose: NDArray[np.float64], settings: NDArray[np.float64], toleranc
     function replaces itself by that entry on its first call (the kernels load lazily)."""
     global _set_pose
     _set_pose = unchecked_entry(kernels.set_frame_pose)
-    return _set_pose(pose, settings, tolerance)  # type: ignore[no-any-return]
+    return _set_pose(pose, settings, tolerance)
 
 
 class FrameTask(ErrorTask):
@@ -105,9 +107,10 @@ class FrameTask(ErrorTask):
                 finite numbers. The previous target is then kept.
         """
         if twist is None:
+            given: Any = pose  # (its attributes are read inside the try)
             try:  # the control loop's fast path: a 2-D float64 array, checked and copied in one compiled call
-                defect = (_set_pose(pose, self._settings, ROTATION_TOLERANCE) if pose.dtype is _FLOAT64
-                          and pose.ndim == 2 else _POSE_SHAPE)
+                defect = (_set_pose(given, self._settings, ROTATION_TOLERANCE) if given.dtype is _FLOAT64
+                          and given.ndim == 2 else _POSE_SHAPE)
             except (AttributeError, TypeError):  # not an ndarray (the entry unboxes ndarrays only)
                 defect = _POSE_SHAPE
             if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
