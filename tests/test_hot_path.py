@@ -1,5 +1,7 @@
 """The shortcuts of the control tick compute what the plain formulas compute."""
 
+import re
+
 import daqp
 import numpy as np
 import pytest
@@ -105,3 +107,125 @@ def test_heading_rows_are_the_base_frame_limits(youbot, rng):
         rates = youbot.wheel_speeds(q, v)
         np.testing.assert_allclose(blocks[wbc.MecanumWheelLimits].G @ v, np.concatenate([rates, -rates]),
                                    atol=1e-12)
+
+
+def _loop_controller(youbot, **options) -> tuple[wbc.Controller, wbc.FrameTask]:
+    """A youBot controller whose whole tick is compiled (the control loop's native path)."""
+    task = wbc.FrameTask("ee", 1.0, 0.5)
+    task.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
+    limits = [wbc.JointVelocityLimits(), wbc.JointPositionLimits(), wbc.MecanumWheelLimits()]
+    return wbc.Controller(youbot, [task, wbc.PostureTask(1e-2)], limits, **options), task
+
+
+def _huge(youbot, index: int) -> np.ndarray:
+    q = youbot.neutral()
+    q[index] = 1e200  # finite: the program's kinematics overflow (base x: a NaN in the QP; arm: infeasible)
+    return q
+
+
+@pytest.mark.parametrize("options", [{}, {"solver_options": {"iter_limit": 1}}, {"strict": False, "damping": 0.0}])
+def test_the_native_tick_is_the_assembly_pipeline(youbot, options):
+    """step(q) -- after its first tick one native call from q to the checked answer -- gives
+    what the assembly pipeline (taken with v_measured, which no item here reads) gives: the same
+    commands, outcomes and statuses tick by tick, on a circle with the fallback's cases mixed in
+    (a NaN in the QP from the kinematics, an infeasible QP, an iteration limit)."""
+    native, native_task = _loop_controller(youbot, **options)
+    pipeline, pipeline_task = _loop_controller(youbot, **options)
+    zero = np.zeros(youbot.nv)
+    q_native, q_pipeline = youbot.neutral(), youbot.neutral()
+    centre = youbot.frame_pose(youbot.neutral(), "ee")
+    outcomes = set()
+    for k in range(120):
+        target = centre.copy()
+        target[:3, 3] += 0.15 * np.array([np.sin(0.2 * k), np.cos(0.2 * k) - 1.0, 0.0])
+        native_task.set_target(target)
+        pipeline_task.set_target(target)
+        odd = {40: _huge(youbot, 0), 41: _huge(youbot, 3)}.get(k)
+        v = native.step(q_native if odd is None else odd)
+        w = pipeline.step(q_pipeline if odd is None else odd, v_measured=zero)
+        np.testing.assert_array_equal(v, w)
+        a, b = native.last, pipeline.last
+        assert (a.tick, a.outcome, a.status, a.solver) == (b.tick, b.outcome, b.status, b.solver)
+        np.testing.assert_array_equal(native.qp.data, pipeline.qp.data)
+        outcomes.add(a.outcome)
+        if odd is None:
+            q_native, q_pipeline = youbot.integrate(q_native, v, 0.01), youbot.integrate(q_pipeline, w, 0.01)
+    assert wbc.Outcome.ZERO in outcomes  # the odd ticks went through the fallback chain
+    if "solver_options" in options:
+        assert wbc.Outcome.ELASTIC in outcomes
+
+
+def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):
+    """The native tick is taken: once the first tick has checked the tasks, a tick without
+    v_measured neither calls Kinematics.update (the program copies q) nor the assembly."""
+    from wbc.model.kinematics import Kinematics
+
+    controller, _ = _loop_controller(youbot)
+    calls = []
+    update = Kinematics.update
+    monkeypatch.setattr(Kinematics, "update", lambda self, *args: calls.append(1) or update(self, *args))
+    q = youbot.neutral()
+    controller.step(q)
+    assert len(calls) == 1  # the first tick: the assembly (which checks the tasks' readiness)
+    for _ in range(3):
+        controller.step(q)
+    assert len(calls) == 1
+    controller.step(q, v_measured=np.zeros(youbot.nv))
+    assert len(calls) == 2 and controller.context.measured is not None
+    controller.step(q)  # the assembly again, once: it clears the measured velocity
+    assert len(calls) == 3 and controller.context.measured is None
+    controller.step(q)
+    assert len(calls) == 3
+
+
+def test_a_task_without_target_is_refused_before_the_native_tick(youbot):
+    controller = wbc.Controller(youbot, [wbc.FrameTask("ee"), wbc.PostureTask(1e-2)], [wbc.JointVelocityLimits()])
+    for _ in range(2):  # refused again: a refused first tick does not open the native path
+        with pytest.raises(wbc.InvalidInputError, match="target"):
+            controller.step(youbot.neutral())
+
+
+def _bad_configurations(youbot) -> dict[str, object]:
+    q = youbot.neutral()
+    nan, inf = q.copy(), q.copy()
+    nan[2], inf[5] = np.nan, -np.inf
+    return {"nan": nan, "inf": inf, "short": q[:-1], "long": np.r_[q, 0.0], "matrix": q[None, :],
+            "text": ["a"] * youbot.nq, "none": None}
+
+
+def _unusual_configurations(youbot, rng) -> dict[str, object]:
+    q = youbot.neutral() + 0.1 * rng.standard_normal(youbot.nq)
+    read_only, wide = q.copy(), np.zeros(2 * youbot.nq)
+    read_only.flags.writeable = False
+    wide[::2] = q
+    return {"list": q.tolist(), "read-only": read_only, "strided": wide[::2], "big-endian": q.astype(">f8"),
+            "float32": q.astype(np.float32), "int": np.round(q).astype(int)}
+
+
+@pytest.mark.parametrize("case", ["nan", "inf", "short", "long", "matrix", "text", "none"])
+def test_a_bad_q_on_the_native_tick_is_refused_as_by_the_assembly(youbot, case):
+    """The same exception and message as a fresh controller's first tick (the assembly's),
+    and the next good tick answers as before."""
+    bad = _bad_configurations(youbot)[case]
+    fresh, _ = _loop_controller(youbot)
+    with pytest.raises(wbc.InvalidInputError) as expected:
+        fresh.step(bad)
+    warm, _ = _loop_controller(youbot)
+    q = youbot.neutral()
+    before = warm.step(q)
+    warm.step(q)
+    with pytest.raises(type(expected.value), match="^" + re.escape(str(expected.value)) + "$"):
+        warm.step(bad)
+    np.testing.assert_array_equal(warm.step(q), before)
+    assert warm.last.outcome is wbc.Outcome.OPTIMAL
+
+
+def test_unusual_but_valid_qs_on_the_native_tick(youbot, rng):
+    """Lists, read-only, strided, big-endian, float32 and integer arrays: the command the
+    assembly gives for the same q (converted by check_configuration)."""
+    for case, q in _unusual_configurations(youbot, rng).items():
+        warm, _ = _loop_controller(youbot)
+        warm.step(youbot.neutral())
+        warm.step(youbot.neutral())
+        pipeline, _ = _loop_controller(youbot)
+        np.testing.assert_array_equal(warm.step(q), pipeline.step(q, v_measured=np.zeros(youbot.nv)), err_msg=case)

@@ -147,3 +147,47 @@ def test_a_read_only_pose_or_twist_is_a_target():
     np.testing.assert_array_equal(task.target, pose)
     task.set_target(pose, twist=twist)
     np.testing.assert_array_equal(task._feedforward, twist)
+
+
+class _ArrayLike:
+    """Not an ndarray, but with an ndarray's dtype and ndim (e.g. another library's array)."""
+
+    def __init__(self, array: np.ndarray) -> None:
+        self._array, self.dtype, self.ndim = array, array.dtype, array.ndim
+
+    def __array__(self, dtype=None, copy=None):
+        return self._array if dtype is None else self._array.astype(dtype)
+
+
+class _Subclass(np.ndarray):
+    pass
+
+
+def test_set_target_takes_array_likes_subclasses_and_other_byte_orders():
+    """The fast path calls the compiled setter without numba's type check, after checking that
+    the pose is a 2-D float64 array itself: anything else is converted by the checked path."""
+    task = wbc.FrameTask("ee")
+    pose = np.eye(4)
+    pose[:3, :3] = pin.rpy.rpyToMatrix(-0.4, 0.1, 0.9)
+    pose[:3, 3] = [0.2, 0.5, -0.3]
+    for same in (_ArrayLike(pose), pose.view(_Subclass), pose.astype(">f8"), pose.T.copy().T):
+        task.set_target(np.eye(4))
+        task.set_target(same)
+        np.testing.assert_array_equal(task.target, pose)
+    with pytest.raises(wbc.InvalidInputError, match="shape"):
+        task.set_target(_ArrayLike(np.eye(3)))
+
+
+def test_integrate_takes_array_likes_read_only_and_byte_swapped_vectors(youbot, rng):
+    """The vector-space fast path calls the compiled q + v dt without numba's type check, after
+    checking that q and v are 1-D float64 arrays: anything else is converted by the checked path,
+    and a 2-D array of the right size is refused as before."""
+    q, v = youbot.random_configuration(rng), rng.normal(size=8)
+    expected = pin.integrate(youbot.model, q, v * 0.01)
+    read_only = q.copy()
+    read_only.flags.writeable = False
+    for same_q, same_v in ((read_only, v), (_ArrayLike(q), _ArrayLike(v)), (q.view(_Subclass), v.astype(">f8"))):
+        np.testing.assert_array_equal(youbot.integrate(same_q, same_v, 0.01), expected)
+    for bad_q, bad_v in ((q[None, :], v), (q, v[:, None]), (_ArrayLike(q[:7]), v)):
+        with pytest.raises(wbc.InvalidInputError, match="shape"):
+            youbot.integrate(bad_q, bad_v, 0.01)

@@ -37,6 +37,7 @@ DECLARED = _declared()
 INTS = {
     "BAND": dict(first=1, last=3, first_preview=0, last_preview=1, nv=3, rows=5, size=9 + 9 + 8 * 5, row=1,
                  target_rows=8),
+    "DAQP_ACCEPT": {},
     "DAQP_SOLVE": dict(n=3, size=9 + 9 + 2 * 5, update_ldp=1, solve=1, clock_gettime=1, clock_id=1, steady_mask=0),
     "FORWARD_KINEMATICS": dict(nq=2, joints=3, nv=2),
     "FRAME_TASK": dict(start=2, nv=4, rows=9),
@@ -119,7 +120,7 @@ def test_every_declared_op_is_numbered_and_bound():
         assert getattr(kernels, name) is op and op.spec.name == name
 
 
-@pytest.mark.parametrize("name", sorted(set(DECLARED) - {"DAQP_SOLVE"}))
+@pytest.mark.parametrize("name", sorted(set(DECLARED) - {"DAQP_SOLVE", "DAQP_ACCEPT"}))  # (flags only: below)
 def test_the_generated_decoder_calls_the_kernel_with_the_declared_operands(name):
     """One row run by run_program changes every array exactly as the kernel called directly on
     copies of the same arrays (operands in declaration order, then dt)."""
@@ -173,6 +174,82 @@ def test_a_failed_level_stops_the_solves_below_it():
     assert program.run(DT) is False  # a stop is no NaN
     assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
     np.testing.assert_array_equal(operands["target"], target)  # no band rows written
+
+
+@pytest.mark.parametrize(("exitflag", "defect", "accepted"), [
+    (1.0, 0.0, True), (2.0, 1e-6, True),  # solved (DAQP's exit flags >= 1), defect at most the tolerance
+    (1.0, 1.1e-6, False), (1.0, np.inf, False), (1.0, np.nan, False),  # an answer that does not check
+    (0.0, 0.0, False), (-1.0, 0.0, False), (-4.0, 0.0, False)])  # skipped, infeasible, iteration limit
+def test_the_accept_op_passes_exactly_the_answers_within_the_tolerance(exitflag, defect, accepted):
+    control = np.zeros(kernels.DAQP_CONTROL_SIZE)
+    control[[kernels.DAQP_CONTROL_EXITFLAG, kernels.DAQP_CONTROL_DEFECT]] = (exitflag, defect)
+    program = TickProgram()
+    program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
+    assert program.runner()(DT) == (ops.RUN_ACCEPTED if accepted else 0)
+    assert program.run(DT) is False  # not a NaN either way
+
+
+def test_a_nan_screen_outranks_an_accepted_answer_and_flags_start_clean():
+    data, control = np.zeros(2), np.zeros(kernels.DAQP_CONTROL_SIZE)
+    control[kernels.DAQP_CONTROL_EXITFLAG] = 1.0
+    program = TickProgram()
+    program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
+    program.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
+    run = program.runner()
+    assert run(DT) == ops.RUN_ACCEPTED
+    data[0] = np.nan
+    assert run(DT) == ops.RUN_FOUND_NAN
+    data[0], control[kernels.DAQP_CONTROL_EXITFLAG] = 0.0, -1.0
+    assert run(DT) == 0  # no flag of an earlier run survives
+
+
+def _input_program(size: int) -> tuple[TickProgram, np.ndarray, np.ndarray]:
+    """(program, its input, seen): the program screens its input for NaN and inf, then writes
+    input + dt into ``seen`` (a CompiledOp)."""
+    from numba import njit
+
+    @njit(nogil=True)
+    def copy(source, target, n, dt):
+        for i in range(n):
+            target[i] = source[i] + dt
+
+    into, seen = np.zeros(size), np.zeros(size)
+    program = TickProgram()
+    program.set_input(into)
+    program.add(kernels.HAS_NAN, data=into, size=size, infinite=1)
+    program.add(CompiledOp("COPY", copy, (("source", ("n",)), ("target", ("n",)), ("n", None))),
+                source=into, target=seen, n=size)
+    return program, into, seen
+
+
+def test_a_stepper_copies_q_into_the_input_before_the_rows_run():
+    program, into, seen = _input_program(4)
+    step = program.stepper()
+    q = np.array([1.0, 2.0, 3.0, 4.0])
+    assert step(q, 0.5) == 0
+    np.testing.assert_array_equal(into, q)
+    np.testing.assert_array_equal(seen, q + 0.5)  # the rows saw this q
+    wide = np.arange(8.0)
+    wide.flags.writeable = False
+    assert step(wide[::2], 0.0) == 0  # any strides, read-only: only read
+    np.testing.assert_array_equal(seen, [0.0, 2.0, 4.0, 6.0])
+    assert step(np.array([0.0, np.inf, 0.0, 0.0]), 0.0) == ops.RUN_FOUND_NAN  # the screen saw it
+    into[:] = 7.0
+    assert program.run(0.0) is False  # run(dt) copies nothing
+    np.testing.assert_array_equal(seen, np.full(4, 7.0))
+
+
+def test_a_stepper_refuses_a_q_of_another_size_before_running():
+    program, into, seen = _input_program(3)
+    step = program.stepper()
+    for q in (np.zeros(2), np.zeros(4), np.full(2, np.nan)):
+        assert step(q, DT) == ops.RUN_BAD_INPUT
+        np.testing.assert_array_equal(into, np.zeros(3))
+        np.testing.assert_array_equal(seen, np.zeros(3))
+    with pytest.raises(TypeError, match="the program has no input"):
+        TickProgram().stepper()
+    with pytest.raises(TypeError, match="1-D array"):
+        TickProgram().set_input(np.zeros((2, 2)))
 
 
 def test_misnamed_misshapen_or_out_of_range_operands_are_refused():

@@ -35,7 +35,7 @@ from ..constraints.mimic_joints import MimicJoints
 from ..core.errors import InvalidInputError
 from ..core.outcome import Outcome
 from ..core.validation import as_flag, as_items, as_nonnegative, as_positive, finite_weights
-from ..model.kinematics import Kinematics
+from ..model.kinematics import NOTHING_CURRENT, Kinematics
 from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..qp.layout import ConstraintLayout, TaskStack
@@ -43,6 +43,7 @@ from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
 from ..runtime import kernels
+from ..runtime.kernels.ops import RUN_ACCEPTED, RUN_FOUND_NAN
 from ..runtime.program import TickProgram, ops_follow_compute
 from ..solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from ..tasks.task import Task, TaskData
@@ -180,6 +181,7 @@ class Controller:
         #: ``last`` is built from when read (a record object per tick would cost ~4 % of a tick)
         self._record: TickRecord | None = None
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
+        self._answer_tolerance = np.array([ANSWER_TOLERANCE])  # operand of the program's check of DAQP's answer
         self._allocate()
 
     # ----------------------------------------------------------------- copies
@@ -224,6 +226,8 @@ class Controller:
     # --------------------------------------------------------------- settings
     _dt: float  # where dt lives
     _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
+    _answer_copy: Callable[[], NDArray[np.float64]]  # the native tick's: a copy of DAQP's answer (with _stepper)
+    _outcome: memoryview  # the native tick's: DAQP's control vector (kernels.DAQP_CONTROL_*; with _stepper)
 
     @property
     def last(self) -> TickDiagnostics:
@@ -476,6 +480,11 @@ class Controller:
         if not self._q_screened and self._kinematics_op is not None:  # Kinematics.update computes them already
             program.drop(self._kinematics_op)
         split = self._program_after_preview is not None
+        bound = self._solver.bound if type(solve) is ProgramSolve and isinstance(self._solver, DaqpBackend) else None
+        if bound is not None and not split:  # the program checks DAQP's answer itself (see _native_tick)
+            bound.add_accept_op(program, self._answer_tolerance)
+        if self._kinematics_op is not None and self._q_screened:
+            program.set_input(self.kinematics.q)  # q copied in by the program (the native tick's stepper)
         self._assembly = Assembly(self._context, self.robot, self._buffers, self._task_data, self._python_tasks,
                                   self._python_constraints, program, self._q_screened, self._q_weights,
                                   None if split else self._inputs)
@@ -483,6 +492,15 @@ class Controller:
             self._assembly = SplitAssembly(self._assembly, self._buffers, self._python_preview, rest, self._inputs)
         # the hot path's callables (bound once: wbc.control.pipelines)
         self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
+        # the control loop's path, when the program does the whole tick and v = x: one native call
+        # from q to the checked answer (step), taken once the first tick has checked the tasks
+        self._native_step: Callable[[NDArray[np.float64], float], int] | None = None  # taken by step when set
+        self._stepper: Callable[[NDArray[np.float64], float], int] | None = None  # what _native_step is set to
+        if (bound is not None and not split and self._assembly.all_in_program and self._command is None
+                and self._kinematics_op is not None and self._q_screened):
+            self._stepper = program.stepper()
+            self._answer_copy, self._outcome = bound.x.copy, bound.control_view
+        self._solver_name = self._solver.name
 
     # --------------------------------------------------------------- hot path
     def step(self, q: ArrayLike, v_measured: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -511,9 +529,27 @@ class Controller:
         if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
                 and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
             q = self.robot.check_configuration(q)
-        # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
-        has_nan = self._assemble(q, self._dt, v_measured)
-        answer = None if has_nan else self._fast(ANSWER_TOLERANCE)  # solved and checked in the program already
+        native = self._native_step
+        if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
+            run = native(q, self._dt)  # q copied in, the program run, DAQP's answer checked (_finish_program)
+            self.kinematics.current = NOTHING_CURRENT  # (the program wrote q: Pinocchio's data is stale)
+            if run == RUN_ACCEPTED:
+                buffers = self._buffers
+                buffers.tick += 1
+                v = self._answer_copy()
+                self._context.previous = v
+                self._record = (buffers.tick, self._solver_name, _OPTIMAL, "optimal", self._outcome[_SOLVE_TIME],
+                                time.perf_counter() - start, v, v)
+                return v
+            has_nan, answer = run == RUN_FOUND_NAN, None
+            if has_nan:
+                self._assembly.screen(q)  # raises for a non-finite q, as the assembly does
+        else:  # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
+            self._native_step = None  # (a tick with v_measured: the next one clears the context's on this path)
+            has_nan = self._assemble(q, self._dt, v_measured)
+            answer = None if has_nan else self._fast(ANSWER_TOLERANCE)  # solved and checked in the program already
+            if v_measured is None:
+                self._native_step = self._stepper  # the tasks are checked (the assembly raised otherwise)
         buffers = self._buffers
         buffers.tick += 1
         if answer is not None:  # the control loop's path
@@ -523,7 +559,7 @@ class Controller:
         command = self._command  # None: v = u = x (a holonomic or fixed base, the QP over v)
         v, u = (x, x) if command is None else command(x)
         self._context.previous = v
-        self._record = (buffers.tick, self._solver.name, outcome, status, solve_time, time.perf_counter() - start, v, u)
+        self._record = (buffers.tick, self._solver_name, outcome, status, solve_time, time.perf_counter() - start, v, u)
         return v
 
     def _answer(self, has_nan: bool) -> tuple[NDArray[np.float64], float, Outcome, str]:
@@ -555,6 +591,7 @@ class Controller:
 
 _FLOAT64 = np.dtype(np.float64)
 _OPTIMAL = Outcome.OPTIMAL
+_SOLVE_TIME = kernels.DAQP_CONTROL_TIME
 
 
 #: what a task's or constraint's data computes (TaskData / ConstraintData)

@@ -33,6 +33,7 @@ from ..qp.lifting import LiftedQP
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
 from ..runtime import kernels
+from ..runtime.kernels.ops import RUN_FOUND_NAN
 from ..runtime.program import TickProgram
 from ..solvers import QPSolution, QPSolver
 from ..tasks.task import TaskData
@@ -141,7 +142,9 @@ class Assembly:
         self._qp = buffers.qp
         self._q_screened, self._q_weights = q_screened, q_weights  # q is finite iff q . weights is
         self._prepare = inputs.prepare if inputs is not None and inputs.prepares else None
-        if not (tasks or constraints or self._qp.n_eq or self._prepare):  # the program does it all
+        #: whether the program does it all (no Python item, no equality rows to sync, nothing to prepare)
+        self.all_in_program = not (tasks or constraints or self._qp.n_eq or self._prepare)
+        if self.all_in_program:
             self.run = self._run_program  # type: ignore[method-assign]
 
     def run(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
@@ -161,9 +164,9 @@ class Assembly:
             constraint.compute(kin, dt, block)
         if self._qp.n_eq:
             self._qp.sync_equalities()
-        has_nan = self._run(dt)
+        has_nan = self._run(dt) == RUN_FOUND_NAN
         if has_nan and self._q_screened:
-            self._screen(q)
+            self.screen(q)
         prepare = self._prepare
         return has_nan if prepare is None else prepare(q, has_nan)
 
@@ -175,9 +178,9 @@ class Assembly:
         self._kinematics.update(q, self._deferred_kinematics)
         if self._unready:
             self._check_ready()
-        has_nan = self._run(dt)
+        has_nan = self._run(dt) == RUN_FOUND_NAN
         if has_nan and self._q_screened:
-            self._screen(q)
+            self.screen(q)
         return has_nan
 
     def _check_ready(self) -> None:
@@ -185,7 +188,7 @@ class Assembly:
             task.check_ready()
         self._unready = []
 
-    def _screen(self, q: NDArray[np.float64]) -> None:
+    def screen(self, q: NDArray[np.float64]) -> None:
         """The program found a NaN: raise if it came from ``q`` (naming what is wrong with it)."""
         if not math.isfinite(q.dot(self._q_weights)):
             self._buffers.tick += 1  # this call overwrote the buffers the previous record reads lazily
@@ -209,7 +212,7 @@ class SplitAssembly(Assembly):
         kin, preview = self._kinematics, self._preview
         for task, jacobian, target in self._preview_tasks:
             task.compute_preview(kin, dt, jacobian, target, preview)
-        has_nan = self._after(dt)
+        has_nan = self._after(dt) == RUN_FOUND_NAN
         prepare = self._prepare
         return has_nan if prepare is None else prepare(q, has_nan)
 

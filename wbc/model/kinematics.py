@@ -17,6 +17,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
 
+#: values of :attr:`Kinematics.current`
+NOTHING_CURRENT, PINOCCHIO_CURRENT, HESSIANS_CURRENT = 0, 1, 2
+
 #: whether this Pinocchio's Python binding has kinematic Hessians (pin >= 4; not pin 3.x);
 #: without them :class:`Kinematics` computes the same tensor itself (:func:`jacobian_derivative`)
 PINOCCHIO_HESSIANS = hasattr(pin, "computeJointKinematicHessians") and hasattr(pin, "getFrameKinematicHessian")
@@ -50,8 +53,10 @@ class Kinematics:
         self.q = np.zeros(robot.nq)
         self._masks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._pinocchio_hessians = PINOCCHIO_HESSIANS
-        self._hessians_current = False
-        self._pinocchio_current = False
+        #: what is computed for ``q`` beyond the compiled chain: NOTHING_CURRENT, PINOCCHIO_CURRENT
+        #: (Pinocchio's data) or HESSIANS_CURRENT (and its kinematic Hessians). Whoever writes ``q``
+        #: sets it to NOTHING_CURRENT: :meth:`update`, or the controller whose tick program copies q in
+        self.current = NOTHING_CURRENT
         self._column_major = _hessian_buffer_is_column_major() if self._pinocchio_hessians else False
         if not _binding_returns_live_views():
             raise ModelError(f"pinocchio {pin.__version__}: data.J / data.oMi are not returned as live "
@@ -78,21 +83,20 @@ class Kinematics:
     @property
     def data(self) -> pin.Data:
         """Pinocchio's data for the current ``q`` (forward kinematics and joint Jacobians)."""
-        if not self._pinocchio_current:
+        if self.current == NOTHING_CURRENT:
             pin.computeJointJacobians(self.model, self._data, self.q)
-            self._pinocchio_current = True
+            self.current = PINOCCHIO_CURRENT
         return self._data
 
     def update(self, q: np.ndarray, deferred: bool = False) -> None:
         """Recompute for configuration ``q`` (already validated). ``deferred`` (native mode,
         a controller's tick program with :meth:`add_op` first): only store q."""
         self.q[:] = q
-        self._hessians_current = False
         if self.chain is None:
             pin.computeJointJacobians(self.model, self._data, self.q)
-            self._pinocchio_current = True
+            self.current = PINOCCHIO_CURRENT
             return
-        self._pinocchio_current = False
+        self.current = NOTHING_CURRENT
         if not deferred:
             kernels.forward_kinematics(self.q, self.chain, self.placements, self._jacobians_t)
 
@@ -160,9 +164,9 @@ class Kinematics:
 
     def _raw_frame_hessian(self, frame_id: int) -> np.ndarray:
         """Pinocchio's frame Hessian as its binding returns it (joint Hessians once per tick)."""
-        if not self._hessians_current:
+        if self.current != HESSIANS_CURRENT:
             pin.computeJointKinematicHessians(self.model, self.data)
-            self._hessians_current = True
+            self.current = HESSIANS_CURRENT
         return pin.getFrameKinematicHessian(self.model, self.data, frame_id, _LWA)
 
     def _hessian_masks(self, frame_id: int) -> tuple[np.ndarray, np.ndarray]:

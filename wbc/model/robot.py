@@ -32,6 +32,7 @@ from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFr
 from ..core.schema import Positive, Table, explain, read_toml, suggest
 from ..core.validation import as_positive, as_vector
 from ..runtime import kernels
+from ..runtime.native_entry import unchecked_entry
 from . import shipped
 from .bases.floating import free_flyer_root
 from .bases.interface import kind_class
@@ -49,6 +50,17 @@ from .mjcf import load_mjcf
 from .mobile_base import FIXED_BASE, BaseKind, DifferentialWheels, MecanumWheels, MobileBase, PlanarBase
 
 _REFERENCE_FRAME = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _integrate_vector_space(q: NDArray[np.float64], v: NDArray[np.float64], dt: float,
+                            reached: NDArray[np.float64]) -> bool:
+    """:func:`wbc.runtime.kernels.integrate_vector_space` through its compiled entry, without numba's
+    type check (the caller checks that ``q`` and ``v`` are 1-D float64 arrays; ``reached`` is its
+    own): this function replaces itself by that entry on its first call (the kernels load lazily)."""
+    global _integrate_vector_space
+    _integrate_vector_space = unchecked_entry(kernels.integrate_vector_space)
+    return _integrate_vector_space(q, v, dt, reached)
 
 #: Pinocchio joints whose coordinates form a vector space (``pinocchio.integrate`` is ``q + v``):
 #: 1-DOF revolute (bounded: not the continuous kinds, nq = 2) and prismatic joints
@@ -322,10 +334,13 @@ class Robot:
         """
         if self._vector_space and type(dt) is float:  # the control loop's fast path
             reached = np.empty(self._nq)
-            try:
-                if kernels.integrate_vector_space(q, v, dt, reached):  # finite: so were q, v and dt
-                    return reached
-            except TypeError:  # not float64 vectors (a list, another dtype, a strided view): checked below
+            given_q: Any = q  # (their attributes are read inside the try)
+            given_v: Any = v
+            try:  # float64 vectors (any strides, read-only too): one compiled call, without numba's type check
+                if (given_q.dtype is _FLOAT64 and given_v.dtype is _FLOAT64 and given_q.ndim == 1
+                        and given_v.ndim == 1 and _integrate_vector_space(given_q, given_v, dt, reached)):
+                    return reached  # finite: so were q, v and dt
+            except (AttributeError, TypeError):  # not ndarrays (the entry unboxes ndarrays only): checked below
                 pass
         q = self.check_configuration(q)
         v = self.check_velocity(v)

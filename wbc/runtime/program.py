@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import kernels
-from .kernels.ops import FLAGS, OP_EXTERNAL, PROGRAM_HEADER, Op
+from .kernels.ops import FLAGS, OP_EXTERNAL, PROGRAM_HEADER, PROGRAM_INPUT, PROGRAM_INPUT_SIZE, RUN_FOUND_NAN, Op
+from .native_entry import unchecked_entry
 
 if TYPE_CHECKING:  # pragma: no cover
     from .compiled_op import CompiledOp
@@ -41,6 +42,7 @@ class TickProgram:
         self._program = np.zeros((0, 1), dtype=np.int64)  # the rows, a view into _packed
         self._owners: list[Any] = []
         self._address_list: list[int] = []
+        self._input = (-1, 0)  # operand index and size of the input (set_input; -1: none)
 
     def keep_alive(self, owner: Any) -> None:
         """Keep ``owner`` (which frees memory an op's operands point to) alive as long as this program."""
@@ -57,6 +59,14 @@ class TickProgram:
         self._arrays.append(array)
         self._address_list.append(array.__array_interface__["data"][0])
         return len(self._arrays) - 1
+
+    def set_input(self, array: np.ndarray) -> None:
+        """Make ``array`` (C-contiguous float64, 1-D) the program's *input*: a run given a
+        configuration ``q`` (:meth:`stepper`) first copies it there."""
+        if not (isinstance(array, np.ndarray) and array.ndim == 1):
+            raise TypeError("a program's input is a 1-D array")
+        self._input = (self.array(array), array.size)
+        self._pack()
 
     def add(self, op: Op | CompiledOp, **operands: Any) -> None:
         """Append one op, its operands given by name: one of wbc's (:class:`wbc.runtime.kernels.ops.Op`,
@@ -112,11 +122,14 @@ class TickProgram:
         self._pack()
 
     def _pack(self) -> None:
-        width = max(len(row) for row in self._rows)
+        width = max((len(row) for row in self._rows), default=1)
         rows = [row + [0] * (width - len(row)) for row in self._rows]
-        #: what the native call receives, one array: [rows, width, the flags, the rows..., the addresses...]
-        self._packed = np.array([len(rows), width, *[0] * (PROGRAM_HEADER - 2),
-                                 *(value for row in rows for value in row), *self._address_list], dtype=np.int64)
+        header = [len(rows), width, *[0] * (PROGRAM_HEADER - 2)]
+        header[PROGRAM_INPUT], header[PROGRAM_INPUT_SIZE] = self._input
+        #: what the native call receives, one array: [rows, width, the flags, the input and its size, the
+        #: rows..., the addresses...]
+        self._packed = np.array([*header, *(value for row in rows for value in row), *self._address_list],
+                                dtype=np.int64)
         self._program = self._packed[PROGRAM_HEADER:PROGRAM_HEADER + len(rows) * width].reshape(-1, width)
 
     def drop(self, index: int) -> None:
@@ -130,12 +143,31 @@ class TickProgram:
 
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
-        return kernels.run_program(self._packed, dt)
+        return kernels.run_program(self._packed, _NO_INPUT, dt) == RUN_FOUND_NAN
 
-    def runner(self) -> Callable[[float], bool]:
-        """:meth:`run` as a callable without a Python frame of its own (for the hot path of
-        :meth:`wbc.Controller.step`); it runs the rows added so far."""
-        return functools.partial(kernels.run_program, self._packed)
+    def runner(self) -> Callable[[float], int]:
+        """A callable ``run(dt)`` without a Python frame of its own (for the hot path of
+        :meth:`wbc.Controller.step`): it runs the rows added so far and returns
+        :data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0."""
+        return functools.partial(kernels.run_program, self._packed, _NO_INPUT)
+
+    def stepper(self) -> Callable[[np.ndarray, float], int]:
+        """A callable ``run(q, dt)`` that copies the configuration ``q`` into the program's input
+        (:meth:`set_input`) and runs the rows added so far, in one native call, returning what
+        :meth:`runner`'s does -- the control loop's tick from the caller's ``q`` to the checked answer.
+
+        It calls the compiled code without numba's type check of the arguments
+        (:func:`wbc.runtime.native_entry.unchecked_entry`): ``q`` must be a 1-D float64 ndarray
+        (any strides; read-only too), which the caller checks; a ``q`` of another size than the
+        input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written."""
+        if self._input[0] < 0:
+            raise TypeError("stepper(): the program has no input (set_input)")
+        return functools.partial(unchecked_entry(kernels.run_program), self._packed)
+
+
+#: the ``q`` of a run that copies no configuration
+_NO_INPUT = np.zeros(0)
+_NO_INPUT.flags.writeable = False
 
 
 @functools.cache

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
@@ -11,11 +13,22 @@ from ..core.validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_lim
 from ..model.kinematics import Kinematics, frame_in_joint
 from ..model.robot import Robot
 from ..runtime import kernels
+from ..runtime.native_entry import unchecked_entry
 from ..runtime.program import TickProgram
 from .error_task import ErrorTask, ErrorTaskData
 from .task import _norm
 
 _POSE_OK, _POSE_SHAPE = kernels.POSE_OK, kernels.POSE_SHAPE
+_FLOAT64 = np.dtype(np.float64)
+
+
+def _set_pose(pose: NDArray[np.float64], settings: NDArray[np.float64], tolerance: float) -> int:
+    """:func:`wbc.runtime.kernels.set_frame_pose` through its compiled entry, without numba's type
+    check (``pose`` is checked to be a 2-D float64 array first; any strides, read-only too): this
+    function replaces itself by that entry on its first call (the kernels load lazily)."""
+    global _set_pose
+    _set_pose = unchecked_entry(kernels.set_frame_pose)
+    return _set_pose(pose, settings, tolerance)
 
 
 class FrameTask(ErrorTask):
@@ -94,9 +107,11 @@ class FrameTask(ErrorTask):
                 finite numbers. The previous target is then kept.
         """
         if twist is None:
-            try:  # the control loop's fast path: a float64 4x4 array, checked and copied in one call
-                defect = kernels.set_frame_pose(pose, self._settings, ROTATION_TOLERANCE)
-            except TypeError:  # not a 2-D float64 array
+            given: Any = pose  # (its attributes are read inside the try)
+            try:  # the control loop's fast path: a 2-D float64 array, checked and copied in one compiled call
+                defect = (_set_pose(given, self._settings, ROTATION_TOLERANCE) if given.dtype is _FLOAT64
+                          and given.ndim == 2 else _POSE_SHAPE)
+            except (AttributeError, TypeError):  # not an ndarray (the entry unboxes ndarrays only)
                 defect = _POSE_SHAPE
             if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
                 kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings, ROTATION_TOLERANCE)

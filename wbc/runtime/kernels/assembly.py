@@ -14,8 +14,8 @@ from .ops import FLAG_FOUND_NAN, FLAGS_OPERAND, STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
-@njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=CACHE, nogil=True)
-def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
+@njit(inline="always")
+def _normal_equations_of(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
     """``Hc = [H; c]`` of the least-squares stack ``A = [W J | W r]`` stored transposed.
 
     ``stack_t`` is ``A^T`` ((nv + 1) x rows); rows ``first:last`` of ``A`` are used:
@@ -44,6 +44,12 @@ def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc
     for i in range(nv):  # mirror the upper triangle
         for j in range(i):
             Hc[i, j] = Hc[j, i]
+
+
+@njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=CACHE, nogil=True)
+def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
+    """:func:`_normal_equations_of` on arrays of any strides (called from Python)."""
+    _normal_equations_of(stack_t, first, last, reset, Hc)
 
 
 @njit("float64(float64[:, :], float64[:], float64, int64, int64)", cache=CACHE, nogil=True)
@@ -394,7 +400,7 @@ def lifted_stationarity(lifted: np.ndarray, x: np.ndarray, lam: np.ndarray, scra
 @njit(inline="always")
 def _normal_equations(stack: np.ndarray, nv: int, rows: int, first: int, last: int, reset: int, Hc: np.ndarray,
                       dt: float) -> None:
-    normal_equations(stack, first, last, reset != 0, Hc)
+    _normal_equations_of(stack, first, last, reset != 0, Hc)  # compiled here for the program's C-contiguous arrays
 
 
 #: [H; c] of the stack's rows first:last, added to Hc (or written, reset = 1)

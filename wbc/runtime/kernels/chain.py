@@ -16,8 +16,8 @@ from .ops import Op
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 
-@njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
-def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray) -> None:
+@njit(inline="always")
+def _forward_kinematics_of(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray) -> None:
     """World placement and Jacobian column of every joint of ``chain`` at configuration ``q``.
 
     ``chain`` row j >= 1 (row 0 is the universe): parent joint, kind (revolute / CHAIN_PRISMATIC),
@@ -86,13 +86,19 @@ def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray,
         jacobians_t[iv, 3], jacobians_t[iv, 4], jacobians_t[iv, 5] = wx, wy, wz
 
 
+@njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
+def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray) -> None:
+    """:func:`_forward_kinematics_of` on arrays of any strides (called from Python)."""
+    _forward_kinematics_of(q, chain, placements, jacobians_t)
+
+
 # ------------------------------------------------------- tick-program ops
 
 
 @njit(inline="always")
 def _forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray, nq: int,
                         joints: int, nv: int, dt: float) -> None:
-    forward_kinematics(q, chain, placements, jacobians_t)
+    _forward_kinematics_of(q, chain, placements, jacobians_t)  # compiled here for the program's C-contiguous arrays
 
 
 #: the joint placements and joint Jacobians of a chain of 1-DOF joints (wbc.model.kinematics' native mode)

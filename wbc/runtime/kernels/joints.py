@@ -25,7 +25,7 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 # ---------------------------------------------------------- configuration
 
 
-@njit("boolean(float64[::1], float64[::1], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
+@njit("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
 def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.ndarray) -> bool:
     """``reached = q + v dt`` (``pinocchio.integrate`` on coordinates that form a vector space:
     1-DOF revolute and prismatic joints), the control loop's ``robot.integrate`` in one call.

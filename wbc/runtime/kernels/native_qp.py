@@ -32,7 +32,7 @@ from . import (
     prepare_cache,
 )
 from .assembly import qp_defect
-from .ops import FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
+from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -138,3 +138,15 @@ DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
     FLAGS_OPERAND),
     checks=("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0", "update_ldp != 0",
             "solve != 0", "clock_gettime != 0"))
+
+
+@njit(inline="always")
+def _daqp_accept(control: np.ndarray, tolerance: np.ndarray, flags: np.ndarray, dt: float) -> None:
+    if control[DAQP_CONTROL_EXITFLAG] >= 1.0 and control[DAQP_CONTROL_DEFECT] <= tolerance[0]:
+        flags[FLAG_ACCEPTED] = 1
+
+
+#: the controller's check of a DAQP_SOLVE's answer (``control``, its control vector): the program's flag
+#: FLAG_ACCEPTED when DAQP solved (exit flag >= 1) and the answer's defect is at most ``tolerance[0]``
+DAQP_ACCEPT = Op("DAQP_ACCEPT", _daqp_accept, (
+    ("control", (DAQP_CONTROL_SIZE,)), ("tolerance", (1,)), FLAGS_OPERAND))

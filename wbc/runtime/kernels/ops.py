@@ -24,8 +24,14 @@ Control flow between ops goes through the program's *flags* (:data:`FLAGS`): a b
 that declares the operand ``("flags", (FLAG_COUNT,), "int64")`` receives them (the program
 supplies them, the caller does not): ``flags[FLAG_FOUND_NAN]`` (a NaN screen found a NaN:
 ``run_program`` returns True, and the solves after it are skipped) and
-``flags[FLAG_STOPPED]`` (a level of a hierarchy failed: the levels below it are not solved).
-Both are 0 when a run starts.
+``flags[FLAG_STOPPED]`` (a level of a hierarchy failed: the levels below it are not solved)
+and ``flags[FLAG_ACCEPTED]`` (the program's solve answered within the tolerance of the
+controller's answer check). All are 0 when a run starts; the run returns them
+(:data:`RUN_FOUND_NAN`, :data:`RUN_ACCEPTED`).
+
+**Input.** A program may have an *input* (:meth:`wbc.runtime.program.TickProgram.set_input`:
+the configuration ``q`` its ops read): a run given a non-empty ``q`` first copies it there, so
+the control loop's tick is one native call from the caller's ``q`` to the checked answer.
 """
 
 from __future__ import annotations
@@ -40,14 +46,21 @@ Shape = tuple[int | str, ...] | None
 DTYPES = ("float64", "int64")
 #: the operand through which a built-in op reads and sets the program's flags
 FLAGS = "flags"
-#: the program's flags: a NaN screen found a NaN; a level of a hierarchy failed
-FLAG_FOUND_NAN, FLAG_STOPPED = 0, 1
+#: the program's flags: a NaN screen found a NaN; a level of a hierarchy failed; the solve's answer passed
+#: the controller's check
+FLAG_FOUND_NAN, FLAG_STOPPED, FLAG_ACCEPTED = 0, 1, 2
 #: the number of the program's flags
-FLAG_COUNT = 2
+FLAG_COUNT = 3
 #: the declaration of the flags operand
 FLAGS_OPERAND = (FLAGS, (FLAG_COUNT,), "int64")
-#: words before the rows in the program's packed array: rows, width, the flags
-PROGRAM_HEADER = 2 + FLAG_COUNT
+#: words of the program's packed array after the flags: the operand index of its input (-1: none), its size
+PROGRAM_INPUT, PROGRAM_INPUT_SIZE = 2 + FLAG_COUNT, 3 + FLAG_COUNT
+#: words before the rows in the program's packed array: rows, width, the flags, the input and its size
+PROGRAM_HEADER = 4 + FLAG_COUNT
+#: what a run returns: a NaN screen found a NaN (the solves after it skipped); else the solve's answer
+#: was accepted (flag :data:`FLAG_ACCEPTED`); else 0 -- or, before any row runs, that its ``q`` does not
+#: fit the program's input (another size, or no input: nothing written)
+RUN_FOUND_NAN, RUN_ACCEPTED, RUN_BAD_INPUT = 1, 2, 3
 #: the opcode of a third-party op (a CompiledOp): row [OP_EXTERNAL, callback address, operands...];
 #: wbc's own ops get the opcodes 1, 2, ... (by name) when the kernels load
 OP_EXTERNAL = 0

@@ -120,6 +120,12 @@ class NativeWorkspace:
         program.add(kernels.DAQP_SOLVE, **self.operands())
         program.keep_alive(self)
 
+    def add_accept_op(self, program: TickProgram, tolerance: NDArray[np.float64]) -> None:
+        """Append the check of this workspace's latest solve to ``program`` (after :meth:`add_op`):
+        the program's flag ``FLAG_ACCEPTED`` (its run returns ``RUN_ACCEPTED``) when DAQP solved
+        and the answer's defect is at most ``tolerance[0]``."""
+        program.add(kernels.DAQP_ACCEPT, control=self.control, tolerance=tolerance)
+
     def solve(self) -> tuple[int, float, float]:
         """Solve now (one compiled call): (exit flag, answer defect, solve time [s])."""
         self._program.run(0.0)
