@@ -227,7 +227,8 @@ def test_a_capsule_parallel_to_an_edge_does_not_chatter_into_the_margin(case):
     gripper's cross capsule along the box's top edge with the witness at one end (18.3 mm of the 20
     mm margin), with the witness inside the capsule (the cross capsule along a box edge, the wrist
     reversing at 1.57 rad/s: 17.74 mm) and along an overlapping capsule (19.12 mm). The end rows
-    (a damper per end, :func:`wbc.collision.kernels.corner_rows`) keep the margin and stop it."""
+    (a damper per end, and per overhang point on a box: :func:`wbc.collision.kernels.corner_rows`)
+    keep the margin and stop it."""
     centre = {"witness at an end": EE + (0.28125, 0.0, -0.25), "witness inside": EE + (0.219, -0.039, -0.231),
               "overlapping capsules": EE + (0.198, -0.046, -0.177)}[case]
     if case == "witness at an end":
@@ -245,12 +246,9 @@ def test_a_capsule_parallel_to_an_edge_does_not_chatter_into_the_margin(case):
         commands.append(v)
         closest.append(_closest(oracle, excluded, q))
     assert min(closest) >= MIN_DISTANCE - 5e-4
-    commands = np.array(commands)
-    flips = (commands[1:] * commands[:-1] < 0.0) & (np.abs(commands[1:]) > 0.1) & (np.abs(commands[:-1]) > 0.1)
-    # chatter: a coordinate's command above 0.1 (rad, m)/s reverses twice in a row (+ - +); a single
-    # reversal is left: a capsule lying on a box face and overhanging its edge has no row at the
-    # overhang, a one-tick kick of at most 0.3 mm ("witness inside")
-    assert not np.any(flips[1:] & flips[:-1])
+    late = np.array(commands[100:])
+    flips = (late[1:] * late[:-1] < 0.0) & (np.abs(late[1:]) > 0.1) & (np.abs(late[:-1]) > 0.1)
+    assert not np.any(flips)  # no coordinate reverses a command above 0.1 (rad, m)/s between two ticks
 
 
 def test_moving_obstacle_pushes_the_arm_away():

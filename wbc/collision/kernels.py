@@ -553,7 +553,7 @@ def _across(ex, ey, ez, nx, ny, nz):
 
 @njit(cache=CACHE, nogil=True, inline="always")
 def _end_distance(table, world, capsule, end, other, out, scratch):
-    """The distance of the sphere at the ``end`` (+-1) of ``capsule``'s segment to shape ``other``
+    """The distance of the sphere at parameter ``end`` in [-1, 1] of ``capsule``'s segment to shape ``other``
     into ``out`` as in :func:`segment_segment` (a: the sphere); False for a shape measured by coal."""
     half = table[capsule, HALF_LENGTH] * end
     px = world[capsule, 9] + world[capsule, 2] * half
@@ -572,6 +572,69 @@ def _end_distance(table, world, capsule, end, other, out, scratch):
     return True
 
 
+@njit(cache=CACHE, nogil=True, inline="always")
+def _overhang(table, world, box, capsule, witness, out):
+    """Into ``out`` (2): the parameters in (-1, 1) of ``capsule``'s segment (``c + t half axis``)
+    where it leaves the slab of the box's feature that holds ``witness`` (a face: the two axes
+    along it, an edge: the axis along it), 2.0 where it does not. Where the segment lies (nearly)
+    parallel to that face or edge, its distance is nearly flat over the slab and ties between the
+    slab's ends: an end of the segment or such an overhang point."""
+    half = table[capsule, HALF_LENGTH]
+    lo, hi = -1.0, 1.0
+    for k in range(3):
+        extent = table[box, _HX + k]
+        wk = (world[box, k] * (witness[0] - world[box, 9]) + world[box, 3 + k] * (witness[1] - world[box, 10])
+              + world[box, 6 + k] * (witness[2] - world[box, 11]))
+        if abs(wk) >= extent - 1e-9:  # the witness is on this axis's boundary: not along the feature
+            continue
+        a = (world[box, k] * (world[capsule, 9] - world[box, 9])
+             + world[box, 3 + k] * (world[capsule, 10] - world[box, 10])
+             + world[box, 6 + k] * (world[capsule, 11] - world[box, 11]))
+        b = half * (world[box, k] * world[capsule, 2] + world[box, 3 + k] * world[capsule, 5]
+                    + world[box, 6 + k] * world[capsule, 8])
+        if abs(b) < 1e-12:
+            continue
+        t0, t1 = (-extent - a) / b, (extent - a) / b
+        lo, hi = max(lo, min(t0, t1)), min(hi, max(t0, t1))
+    out[0] = lo if -1.0 < lo < hi else 2.0
+    out[1] = hi if lo < hi < 1.0 else 2.0
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b, support, jacobians_t, G, h, scale,
+             d_min, speed, dt, scratch):
+    """The damper of the sphere at parameter ``t`` of ``capsule``'s segment against ``other`` (the
+    capsule is the pair's a when ``side`` is 0) in row ``row``: 1 if written, 0 if it gets none (no
+    compiled distance, too far beyond ``d`` or too loose to bind, or the pair ``i``'s own row to
+    within :data:`PARALLEL`), -1 if ``G`` has no row left."""
+    if row >= G.shape[0]:
+        return -1
+    out = scratch[40:50]
+    if not _end_distance(table, world, capsule, t, other, out, scratch):
+        return 0
+    gap = out[0]
+    if gap - d > speed * dt or scale * (gap - d_min) > speed:
+        return 0
+    if side == 1:  # the capsule is b
+        _flip(out)
+    points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the point's pair
+    for m in range(3):
+        points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
+    gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t, G[row:row + 1])
+    dot, own, norm = 0.0, 0.0, 0.0
+    for k in range(G.shape[1]):
+        G[row, k] = -G[row, k]
+        dot += G[row, k] * G[i, k]
+        own += G[i, k] * G[i, k]
+        norm += G[row, k] * G[row, k]
+    if dot > 0.0 and dot * dot > PARALLEL * PARALLEL * own * norm:
+        for k in range(G.shape[1]):  # adds no direction to the pair's own row, only degeneracy: inert
+            G[row, k] = 0.0
+        return 0
+    h[row] = scale * (gap - d_min)
+    return 1
+
+
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
@@ -579,7 +642,7 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
                 normal, G, h, settings, dt, speed, corner_slot, scratch):
     """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
     ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
-    ``corner_slot``); returns how many. ``scratch``: >= 59 floats.
+    ``corner_slot``); returns how many. ``scratch``: >= 63 floats.
 
     Why: where a capsule lies parallel to the other shape's face or edge, or along another capsule,
     its closest point ties between points far apart. Its distance is ``d = min(d_0, d_1, d_inner)``,
@@ -590,16 +653,17 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
     full-speed two-tick chatter that creeps into the margin (the witness at one end; also with the
     witness inside, when the capsule is nearly parallel: the wrist reversing at 1.57 rad/s, 2.3 mm
     into the margin). So each end of a capsule in a pair gets a damper of its own, with its own
-    witness points and normal, unless it is the witness (within :data:`END_ZONE` of the segment's
-    length, across the normal) or its row is the pair's own to within :data:`PARALLEL`::
+    witness points and normal, and so does, against a box, each point where the segment leaves the
+    slab of the witness's face or edge (a capsule lying on a face and overhanging its edge ties
+    between an end and the overhang point: :func:`_overhang`), unless the point is the witness
+    (within :data:`END_ZONE` of the segment's length, across the normal) or its row is the pair's
+    own to within :data:`PARALLEL`::
 
         d_e_dot = n_e . (J_b(w_b,e) - J_a(w_a,e)) v  >=  -gain (d_e - d_min) / dt
 
-    d_e >= d, so the row is looser than the pair's own the farther the end is; with the witness
-    row it is the first-order model of d at the tie. Left: a capsule lying on a box face and
-    overhanging its edge ties between an end and the overhang point, which gets no row (a one-tick
-    kick, measured <= 0.3 mm).
-    ``speed`` [m/s]: an end with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
+    d_e >= d, so the row is looser than the pair's own the farther the point is; with the witness
+    row it is the first-order model of d at the tie.
+    ``speed`` [m/s]: a point with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
     one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
     the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
     measured by coal get none. Box vertices get no rows: four coplanar vertices' rows are linearly
@@ -634,40 +698,25 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
             half = table[s, HALF_LENGTH]
             ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
             cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
-            near = END_ZONE * 2.0 * half  # an end this close to the witness (across n) would repeat its row
-            for e in range(2):
-                end = 2.0 * e - 1.0
-                if _across(cx + end * ux, cy + end * uy, cz + end * uz, nx, ny, nz) <= near:
+            near = END_ZONE * 2.0 * half  # a point this close to the witness (across n) would repeat its row
+            other = ends[1 - side]
+            # the points of the segment that may tie with the witness: its ends, and on a box the ends of
+            # the stretch that lies over the witness's face or edge (where the segment overhangs it)
+            points = scratch[59:63]
+            points[0], points[1], points[2], points[3] = -1.0, 1.0, 2.0, 2.0
+            if table[other, KIND] == BOX:
+                _overhang(table, world, other, s, witness_b[i] if side == 0 else witness_a[i], points[2:4])
+            for e in range(4):
+                t = points[e]
+                if not -1.0 <= t <= 1.0 or _across(cx + t * ux, cy + t * uy, cz + t * uz, nx, ny, nz) <= near:
                     continue
-                out = scratch[40:50]
-                if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
-                    continue
-                gap = out[0]
-                if gap - d > speed * dt or scale * (gap - d_min) > speed:
-                    continue
-                if side == 1:  # the capsule is b
-                    _flip(out)
-                row = count + n_rows
-                if n_rows == corner_slot.size or row >= G.shape[0]:
+                added = _tie_row(table, world, s, t, other, side, d, i, count + n_rows, joint_a, joint_b, support,
+                                 jacobians_t, G, h, scale, d_min, speed, dt, scratch)
+                if added < 0 or n_rows == corner_slot.size:
                     return n_rows
-                points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
-                for m in range(3):
-                    points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
-                gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
-                             G[row:row + 1])
-                dot, own, norm = 0.0, 0.0, 0.0
-                for k in range(G.shape[1]):
-                    G[row, k] = -G[row, k]
-                    dot += G[row, k] * G[i, k]
-                    own += G[i, k] * G[i, k]
-                    norm += G[row, k] * G[row, k]
-                if dot * dot > PARALLEL * PARALLEL * own * norm and dot > 0.0:
-                    for k in range(G.shape[1]):  # the pair's own row, to within PARALLEL: adds no direction,
-                        G[row, k] = 0.0  # only degeneracy; the row stays inert
-                    continue
-                h[row] = scale * (gap - d_min)
-                corner_slot[n_rows] = i
-                n_rows += 1
+                if added:
+                    corner_slot[n_rows] = i
+                    n_rows += 1
     return n_rows
 
 
