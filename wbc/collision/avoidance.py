@@ -175,8 +175,8 @@ class CollisionAvoidanceData(ConstraintData):
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
-        #: (detection_distance, min_distance, gain), copied from the constraint every tick
-        self._settings = np.zeros(3)
+        #: (detection_distance, min_distance, gain, dt, CORNER_SPEED): the first four copied every tick
+        self._settings = np.array([0.0, 0.0, 0.0, 0.0, CORNER_SPEED])
         self._G = np.zeros((self.n_inequalities, robot.nv))  # used when the controller's G rows are not C-contiguous
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
@@ -193,6 +193,7 @@ class CollisionAvoidanceData(ConstraintData):
         avoidance, distances, pairs = self.constraint, self.distances, self.pairs
         settings = self._settings
         settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
+        settings[3] = dt
         if kin.native:
             placements, jacobians_t = kin.placements, kin.joint_jacobians.T
         else:
@@ -202,18 +203,19 @@ class CollisionAvoidanceData(ConstraintData):
         if not G.flags.c_contiguous:  # the kernels write C-contiguous rows
             G = self._G
         kernels = distances._kernels
-        packed = kernels.avoidance_rows(distances.table, distances.pairs, placements, jacobians_t, distances._support,
-                                        distances._world, pairs.pair, pairs.distance, pairs.witness_a, pairs.witness_b,
-                                        pairs.normal, pairs.rows, pairs.pending, distances._scratch, G, h, settings, dt)
+        packed, self.corners = kernels.avoidance_rows(distances.table, distances.pairs, placements, jacobians_t,
+                                                      distances._support, distances._world, pairs.index,
+                                                      pairs.distance, pairs.points, pairs.rows, distances._scratch, G,
+                                                      h, settings, self.corner_pair)
         if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
             pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
             kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
+            self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
+                                               jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
+                                               pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
+                                               self.corner_pair, distances._scratch)
         else:
             pairs.count = packed
-        self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
-                                           jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
-                                           pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
-                                           self.corner_pair, distances._scratch)
         active = pairs.count + self.corners
         self._braking.apply(kin.q, G[:active], h[:active], avoidance.gain, dt)
         if G is not rows.G:
