@@ -235,6 +235,28 @@ def test_a_capsule_parallel_to_a_box_edge_does_not_chatter_into_the_margin():
     assert reversals == 0  # no coordinate reverses a command above 0.1 (rad, m)/s between two ticks
 
 
+
+def test_parallel_overlapping_capsules_do_not_chatter_into_the_margin():
+    """A capsule obstacle along y settles parallel to the gripper's capsules, overlapping them
+    along the axis (a case test_random_obstacles_are_never_entered drew): the closest points
+    span the overlap, the distance routine returns the witness interior on the obstacle (opposite
+    the gripper capsule's end), and the overlap's other end, the obstacle's end, got no row; the
+    command reversed every tick, settling at 19.1 mm of the 20 mm margin."""
+    centre, size = EE + (0.198, -0.046, -0.177), 0.057
+    capsule = wbc.Capsule(centre - (0.0, size, 0.0), centre + (0.0, size, 0.0), size / 2)
+    oracle, excluded = Oracle(YOUBOT, [capsule]), _excluded(YOUBOT)
+    controller = _reach(EE + (0.3, 0.0, -0.15), wbc.CollisionAvoidance([capsule]))
+    q, commands, closest = NEUTRAL.copy(), [], []
+    for _ in range(150):
+        v = controller.step(q)
+        q = YOUBOT.integrate(q, v, 0.01)
+        commands.append(v)
+        closest.append(_closest(oracle, excluded, q))
+    assert min(closest) >= MIN_DISTANCE - 1e-4
+    late = np.array(commands[100:])
+    reversals = np.sum((late[1:] * late[:-1] < 0.0) & (np.abs(late[1:]) > 0.1) & (np.abs(late[:-1]) > 0.1))
+    assert reversals == 0  # no coordinate reverses a command above 0.1 (rad, m)/s between two ticks
+
 def test_moving_obstacle_pushes_the_arm_away():
     sphere = wbc.Sphere(EE + (0.3, 0.0, 0.0), 0.05)
     hold = wbc.PostureTask(cost=1e-2, gain=0.5, target=NEUTRAL)

@@ -587,7 +587,11 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
 
     d_e >= d, so the row is looser than the pair's own the farther the end is; with the witness
     row it is the exact first-order model of d at the tie. An interior witness is a smooth point
-    (no row: the pair's row would be a convex combination of the ends', a degenerate active set).
+    (no row: the pair's row would be a convex combination of the ends', a degenerate active set),
+    except against another capsule: two parallel capsules that overlap along their axes are
+    closest along the whole overlap, and the witness the distance routine returns is interior on
+    one (opposite the other's end) while the overlap's other end may be this capsule's own end:
+    its closer end is checked then.
     ``speed`` [m/s]: an end with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
     one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
     the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
@@ -624,32 +628,39 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
             ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
             cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
             if _across(cx + ux, cy + uy, cz + uz, nx, ny, nz) <= WITNESS_AT_END:
-                end = -1.0  # the witness at the + end: the - end's row
+                low = high = -1  # the witness at the + end: the - end's row
             elif _across(cx - ux, cy - uy, cz - uz, nx, ny, nz) <= WITNESS_AT_END:
-                end = 1.0
+                low = high = 1
+            elif table[ends[1 - side], KIND] == CAPSULE:  # an interior witness facing the other capsule's end:
+                out = scratch[40:50]  # the closer end (parallel capsules overlap: it may tie)
+                _end_distance(table, world, s, -1.0, ends[1 - side], out, scratch)
+                gap = out[0]
+                _end_distance(table, world, s, 1.0, ends[1 - side], out, scratch)
+                low = high = -1 if gap <= out[0] else 1
             else:  # an interior witness: the pieces meet there smoothly
                 continue
-            out = scratch[40:50]
-            if not _end_distance(table, world, s, end, ends[1 - side], out, scratch):
-                continue
-            gap = out[0]
-            if gap - d > speed * dt or scale * (gap - d_min) > speed:
-                continue
-            if side == 1:  # the capsule is b
-                _flip(out)
-            row = count + n_rows
-            if n_rows == corner_slot.size or row >= G.shape[0]:
-                return n_rows
-            points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
-            for m in range(3):
-                points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
-            gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
-                         G[row:row + 1])
-            for k in range(G.shape[1]):
-                G[row, k] = -G[row, k]
-            h[row] = scale * (gap - d_min)
-            corner_slot[n_rows] = i
-            n_rows += 1
+            for end in range(low, high + 1, 2):
+                out = scratch[40:50]
+                if not _end_distance(table, world, s, float(end), ends[1 - side], out, scratch):
+                    continue
+                gap = out[0]
+                if gap - d > speed * dt or scale * (gap - d_min) > speed:
+                    continue
+                if side == 1:  # the capsule is b
+                    _flip(out)
+                row = count + n_rows
+                if n_rows == corner_slot.size or row >= G.shape[0]:
+                    return n_rows
+                points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the end's pair
+                for m in range(3):
+                    points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
+                gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t,
+                             G[row:row + 1])
+                for k in range(G.shape[1]):
+                    G[row, k] = -G[row, k]
+                h[row] = scale * (gap - d_min)
+                corner_slot[n_rows] = i
+                n_rows += 1
     return n_rows
 
 
