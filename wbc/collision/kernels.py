@@ -44,10 +44,13 @@ from .layout import (
     BOX,
     CAPSULE,
     COAL,
+    DETECTION,
+    GAIN,
     HALF_EXTENTS,
     HALF_LENGTH,
     JOINT,
     KIND,
+    MIN_DISTANCE,
     PAIR_A,
     PAIR_B,
     PLANE,
@@ -508,8 +511,6 @@ def pair_distances(table, pairs, placements, jacobians_t, support, world, detect
 
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
 INERT = 1.0
-#: slots of the settings vector of :func:`avoidance_rows`
-DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -674,21 +675,21 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
                         normal, G, h, settings, dt, speed, corner_slot, scratch)
 
 
-#: further slots of the settings vector of :func:`avoidance_rows`: the tick [s] and the corner speed [m/s]
-DT, SPEED = 3, 4
+#: slots of the tick vector of :func:`avoidance_rows`: the tick [s] and the corner speed [m/s]
+DT, SPEED = 0, 1
 
 
 @njit("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
-      "float64[:, ::1], float64[::1], float64[::1], int64[::1])", cache=CACHE, nogil=True)
+      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1])", cache=CACHE, nogil=True)
 def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch,
-                   G, h, settings, corner_slot):
+                   G, h, settings, tick, corner_slot):
     """A tick's rows in one call: :func:`pair_distances` and, when no pair waits for coal,
     :func:`damper_rows` and :func:`corner_rows` after them. Fewer arguments than those (each costs
     the call ~40 ns): ``index`` = (the entries' pairs (capacity), pending (one per pair)), ``points``
-    = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain, dt, corner speed).
-    Returns (what :func:`pair_distances` returns, the number of corner rows)."""
-    capacity, dt = distance.size, settings[DT]
+    = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain), ``tick`` = (dt,
+    corner speed). Returns (what :func:`pair_distances` returns, the number of corner rows)."""
+    capacity, dt = distance.size, tick[DT]
     slot_pair, pending = index[:capacity], index[capacity:]
     witness_a, witness_b, normal = points[0], points[1], points[2]
     packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], slot_pair,
@@ -697,7 +698,7 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
         return packed, 0
     _damper_rows(packed, distance, rows, G, h, settings, dt)
     corners = _corner_rows(table, pairs, world, support, jacobians_t, packed, slot_pair, distance, witness_a,
-                           witness_b, normal, G, h, settings, dt, settings[SPEED], corner_slot, scratch)
+                           witness_b, normal, G, h, settings, dt, tick[SPEED], corner_slot, scratch)
     return packed, corners
 
 
