@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -183,7 +184,7 @@ class CollisionAvoidanceData(ConstraintData):
         #: (dt, CORNER_SPEED) of the kernel; dt copied every tick
         self._tick = np.array([0.0, CORNER_SPEED])
         #: (kinematics, rows, the kernel's arguments) of the last tick
-        self._call: tuple[Kinematics, ConstraintRows, tuple] | None = None
+        self._call: tuple[Kinematics, ConstraintRows, tuple[Any, ...]] | None = None
         self._G = np.zeros((self.n_inequalities, robot.nv))  # used when the controller's G rows are not C-contiguous
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
@@ -215,7 +216,7 @@ class CollisionAvoidanceData(ConstraintData):
         if G is not rows.G:
             rows.G[:] = G
 
-    def _arguments(self, kin: Kinematics, rows: ConstraintRows) -> tuple[Kinematics, ConstraintRows, tuple]:
+    def _arguments(self, kin: Kinematics, rows: ConstraintRows) -> tuple[Kinematics, ConstraintRows, tuple[Any, ...]]:
         """The arguments of :func:`~wbc.collision.kernels.avoidance_rows` for these kinematics and
         rows (fixed buffers: built on the first tick, then reused)."""
         distances, pairs = self.distances, self.pairs
@@ -228,7 +229,7 @@ class CollisionAvoidanceData(ConstraintData):
                            distances._world, pairs.index, pairs.distance, pairs.points, pairs.rows,
                            distances._scratch, G, rows.h, self.constraint._settings, self._tick, self.corner_pair)
 
-    def _finish_with_coal(self, packed: int, arguments: tuple, dt: float) -> None:
+    def _finish_with_coal(self, packed: int, arguments: tuple[Any, ...], dt: float) -> None:
         """After a kernel call that left pairs to coal: measure them, then every row."""
         distances, pairs, kernels = self.distances, self.pairs, self.distances._kernels
         settings = self.constraint._settings
