@@ -5,12 +5,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
-from ..core.settings import Setting
+from ..core.settings import Operand
 from ..core.validation import as_flag, as_gain, as_items, as_nonnegative, as_positive
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
@@ -18,6 +20,7 @@ from ..model.tick_context import TickContext
 from .braking import RowBraking
 from .distances import Distances, PairBuffers, fill_kinematics
 from .geometry import RobotGeometry
+from .layout import DETECTION, GAIN, MIN_DISTANCE
 from .obstacles import Obstacle
 
 #: [m/s] a capsule end gets no row (:func:`wbc.collision.kernels.corner_rows`) when its distance exceeds
@@ -37,37 +40,39 @@ INERT = 1.0
 
 class DistanceMargins:
     """The settings ``min_distance`` [m] >= 0 and ``detection_distance`` [m] > ``min_distance`` of an
-    avoidance constraint, validated together (set both first with :meth:`_set_margins`)."""
+    avoidance constraint, validated together (set both first with :meth:`_set_margins`), kept in
+    :attr:`_settings` = (detection_distance, min_distance, gain): the operand the kernels read, so
+    a tick copies nothing (``gain``: the subclass's :class:`~wbc.core.settings.Operand` of slot 2)."""
 
-    _min_distance: float
-    _detection_distance: float
+    _settings: NDArray[np.float64]
 
     def _set_margins(self, min_distance: float, detection_distance: float) -> None:
-        self._min_distance = as_nonnegative(min_distance, "min_distance")
-        self._detection_distance = as_positive(detection_distance, "detection_distance")
-        _check_margins(self._min_distance, self._detection_distance)
+        min_distance = as_nonnegative(min_distance, "min_distance")
+        detection_distance = as_positive(detection_distance, "detection_distance")
+        _check_margins(min_distance, detection_distance)
+        self._settings = np.array([detection_distance, min_distance, 0.0])
 
     @property
     def min_distance(self) -> float:
         """[m] the distance kept; below :attr:`detection_distance`."""
-        return self._min_distance
+        return float(self._settings[MIN_DISTANCE])
 
     @min_distance.setter
     def min_distance(self, value: float) -> None:
         value = as_nonnegative(value, "min_distance")
-        _check_margins(value, self._detection_distance)
-        self._min_distance = value
+        _check_margins(value, self.detection_distance)
+        self._settings[MIN_DISTANCE] = value
 
     @property
     def detection_distance(self) -> float:
         """[m] what is farther gets no row; above :attr:`min_distance`."""
-        return self._detection_distance
+        return float(self._settings[DETECTION])
 
     @detection_distance.setter
     def detection_distance(self, value: float) -> None:
         value = as_positive(value, "detection_distance")
-        _check_margins(self._min_distance, value)
-        self._detection_distance = value
+        _check_margins(self.min_distance, value)
+        self._settings[DETECTION] = value
 
 
 class CollisionAvoidance(DistanceMargins, Constraint):
@@ -92,7 +97,8 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     (the ends' spheres' distances and the inside's) and one witness row is not its first-order
     model: the QP turns the witness away while an end approaches, the witness jumps, the command
     reverses, and a full-speed two-tick chatter creeps into the margin. So each capsule end that is
-    not the witness gets a damper of its own, if within :data:`CORNER_SPEED` ``* dt`` of d
+    not the witness gets a damper of its own (against a box, so does the point where the capsule
+    overhangs the witness's face or edge), if within :data:`CORNER_SPEED` ``* dt`` of d
     (:func:`~wbc.collision.kernels.corner_rows` derives it: with the witness row, the first-order
     model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
     row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
@@ -124,7 +130,7 @@ class CollisionAvoidance(DistanceMargins, Constraint):
             elements (the message says how to add them).
     """
 
-    gain = Setting(as_gain)
+    gain = Operand("_settings", GAIN, as_gain)
     hard = False  # yields to the actuator limits: elastic in the controller's fallback solve
 
     def __init__(self, obstacles: Sequence[Obstacle] = (), self_collision: bool = True, min_distance: float = 0.02,
@@ -176,8 +182,10 @@ class CollisionAvoidanceData(ConstraintData):
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
         self.pairs: PairBuffers = self.distances.buffers()
-        #: (detection_distance, min_distance, gain), copied from the constraint every tick
-        self._settings = np.zeros(3)
+        #: (dt, CORNER_SPEED) of the kernel; dt copied every tick
+        self._tick = np.array([0.0, CORNER_SPEED])
+        #: (kinematics, rows, the kernel's arguments) of the last tick
+        self._call: tuple[Kinematics, ConstraintRows, tuple[Any, ...]] | None = None
         self._G = np.zeros((self.n_inequalities, robot.nv))  # used when the controller's G rows are not C-contiguous
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
@@ -191,34 +199,48 @@ class CollisionAvoidanceData(ConstraintData):
         rows.h[:] = INERT
 
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        avoidance, distances, pairs = self.constraint, self.distances, self.pairs
-        settings = self._settings
-        settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
+        pairs, settings = self.pairs, self.constraint._settings
+        self._tick[0] = dt
+        call = self._call
+        if call is None or call[0] is not kin or call[1] is not rows:
+            call = self._call = self._arguments(kin, rows)
+        _, _, arguments = call
+        if not kin.native:
+            fill_kinematics(kin.data, self._placements, self._jacobians_t)
+        packed, self.corners = self.distances._kernels.avoidance_rows(*arguments)
+        if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
+            self._finish_with_coal(packed, arguments, dt)
+        else:
+            pairs.count = packed
+        G, h = arguments[11], arguments[12]
+        self._braking.apply(kin.q, G, h, settings[GAIN], dt, pairs.count + self.corners)
+        if G is not rows.G:
+            rows.G[:] = G
+
+    def _arguments(self, kin: Kinematics, rows: ConstraintRows) -> tuple[Kinematics, ConstraintRows, tuple[Any, ...]]:
+        """The arguments of :func:`~wbc.collision.kernels.avoidance_rows` for these kinematics and
+        rows (fixed buffers: built on the first tick, then reused)."""
+        distances, pairs = self.distances, self.pairs
         if kin.native:
             placements, jacobians_t = kin.placements, kin.joint_jacobians.T
         else:
             placements, jacobians_t = self._placements, self._jacobians_t
-            fill_kinematics(kin.data, placements, jacobians_t)
-        G, h = rows.G, rows.h
-        if not G.flags.c_contiguous:  # the kernels write C-contiguous rows
-            G = self._G
-        kernels = distances._kernels
-        packed = kernels.avoidance_rows(distances.table, distances.pairs, placements, jacobians_t, distances._support,
-                                        distances._world, pairs.pair, pairs.distance, pairs.witness_a, pairs.witness_b,
-                                        pairs.normal, pairs.rows, pairs.pending, distances._scratch, G, h, settings, dt)
-        if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
-            pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
-            kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
-        else:
-            pairs.count = packed
+        G = rows.G if rows.G.flags.c_contiguous else self._G  # the kernels write C-contiguous rows
+        return kin, rows, (distances.table, distances.pairs, placements, jacobians_t, distances._support,
+                           distances._world, pairs.index, pairs.distance, pairs.points, pairs.rows,
+                           distances._scratch, G, rows.h, self.constraint._settings, self._tick, self.corner_pair)
+
+    def _finish_with_coal(self, packed: int, arguments: tuple[Any, ...], dt: float) -> None:
+        """After a kernel call that left pairs to coal: measure them, then every row."""
+        distances, pairs, kernels = self.distances, self.pairs, self.distances._kernels
+        settings = self.constraint._settings
+        jacobians_t, G, h = arguments[3], arguments[11], arguments[12]
+        pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
+        kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
         self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
                                            self.corner_pair, distances._scratch)
-        active = pairs.count + self.corners
-        self._braking.apply(kin.q, G[:active], h[:active], avoidance.gain, dt)
-        if G is not rows.G:
-            rows.G[:] = G
 
     @property
     def min_distance(self) -> float:

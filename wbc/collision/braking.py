@@ -42,12 +42,14 @@ class RowBraking:
         self._context = context
 
     def apply(self, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64], gain: float,
-              dt: float) -> None:
-        """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``) in place, when the controller has
-        acceleration bounds."""
+              dt: float, count: int | None = None) -> None:
+        """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``; only the first ``count`` when given)
+        in place, when the controller has acceleration bounds."""
         braking = None if self._context is None else self._context.braking
         if braking is None:
             return
+        if count is not None:
+            G, h = G[:count], h[:count]
         n = h.shape[0]
         deceleration, margin, speed, still = self._deceleration[:n], self._margin[:n], self._speed[:n], self._still[:n]
         braking.decelerations(G, q, deceleration)

@@ -52,17 +52,20 @@ class PairBuffers:
     normal: NDArray[np.float64]
     rows: NDArray[np.float64]
     count: int = 0
-    #: entries of pairs that coal measures (internal)
     #: the pairs that coal measures this call (internal; one entry per candidate pair)
     pending: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: (pair, pending) in one array, ``pair`` and ``pending`` its views (internal: one kernel argument)
+    index: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: (witness_a, witness_b, normal) in one array, those three its views (internal: one kernel argument)
+    points: NDArray[np.float64] = field(default_factory=lambda: np.zeros((3, 0, 3)))
 
     @classmethod
     def allocate(cls, capacity: int, nv: int, pairs: int) -> PairBuffers:
         """Buffers for at most ``capacity`` entries of a robot with ``nv`` velocity coordinates and
         ``pairs`` candidate pairs."""
-        return cls(np.zeros(capacity, dtype=np.int64), np.zeros(capacity), np.zeros((capacity, 3)),
-                   np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((capacity, nv)),
-                   pending=np.zeros(max(1, pairs), dtype=np.int64))
+        index, points = np.zeros(capacity + max(1, pairs), dtype=np.int64), np.zeros((3, capacity, 3))
+        return cls(index[:capacity], np.zeros(capacity), points[0], points[1], points[2], np.zeros((capacity, nv)),
+                   pending=index[capacity:], index=index, points=points)
 
     @property
     def capacity(self) -> int:

@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
-from ..core.settings import Setting
+from ..core.settings import Operand
 from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
@@ -18,6 +18,7 @@ from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from .avoidance import INERT, DistanceMargins
 from .braking import RowBraking
+from .layout import GAIN
 
 #: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
 #: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
@@ -132,7 +133,7 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
             a finite (N, 2) array, a distance or gain out of range (named); at bind, a fixed base.
     """
 
-    gain = Setting(as_gain)
+    gain = Operand("_settings", GAIN, as_gain)
     hard = False
 
     def __init__(self, footprint: ArrayLike, points: ArrayLike | None = None,
@@ -151,7 +152,7 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
         self.polygons = [as_polygon(p, f"polygons[{k}]") for k, p in enumerate(polygons or [])]
         self._fixed = (np.concatenate([polygon_boundary_points(p) for p in self.polygons]) if self.polygons
                        else np.zeros((0, 2)))
-        self._cell = 0.5 * self._detection_distance  # grid cell side [m]
+        self._cell = 0.5 * self.detection_distance  # grid cell side [m]
         self._scan = np.zeros((0, 2))  # the current scan, copied (grown when a larger one comes)
         self._n_scan = 0
         self._cell_of = np.zeros(0, dtype=np.int64)

@@ -44,10 +44,13 @@ from .layout import (
     BOX,
     CAPSULE,
     COAL,
+    DETECTION,
+    GAIN,
     HALF_EXTENTS,
     HALF_LENGTH,
     JOINT,
     KIND,
+    MIN_DISTANCE,
     PAIR_A,
     PAIR_B,
     PLANE,
@@ -508,8 +511,6 @@ def pair_distances(table, pairs, placements, jacobians_t, support, world, detect
 
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
 INERT = 1.0
-#: slots of the settings vector of :func:`avoidance_rows`
-DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -635,11 +636,9 @@ def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b,
     return 1
 
 
-@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
-      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
-def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
-                normal, G, h, settings, dt, speed, corner_slot, scratch):
+@njit(cache=CACHE, nogil=True, inline="always")
+def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
+                 normal, G, h, settings, dt, speed, corner_slot, scratch):
     """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
     ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
     ``corner_slot``); returns how many. ``scratch``: >= 63 floats.
@@ -720,19 +719,41 @@ def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, dis
     return n_rows
 
 
-@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], int64[::1], float64[::1], float64[:, ::1], float64[::1], float64[::1], float64)",
-      cache=CACHE, nogil=True)
-def avoidance_rows(table, pairs, placements, jacobians_t, support, world, slot_pair, distance, witness_a,
-                   witness_b, normal, rows, pending, scratch, G, h, settings, dt):
-    """:func:`pair_distances` (``detection = settings[0]``) and, when no pair waits for coal,
-    :func:`damper_rows`, in one call; returns what :func:`pair_distances` returns."""
+@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
+      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
+def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
+                normal, G, h, settings, dt, speed, corner_slot, scratch):
+    """:func:`_corner_rows` (the tie rows of capsule ends), compiled: after the coal path's rows."""
+    return _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
+                        normal, G, h, settings, dt, speed, corner_slot, scratch)
+
+
+#: slots of the tick vector of :func:`avoidance_rows`: the tick [s] and the corner speed [m/s]
+DT, SPEED = 0, 1
+
+
+@njit("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+      "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
+      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1])", cache=CACHE, nogil=True)
+def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch,
+                   G, h, settings, tick, corner_slot):
+    """A tick's rows in one call: :func:`pair_distances` and, when no pair waits for coal,
+    :func:`damper_rows` and :func:`corner_rows` after them. Fewer arguments than those (each costs
+    the call ~40 ns): ``index`` = (the entries' pairs (capacity), pending (one per pair)), ``points``
+    = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain), ``tick`` = (dt,
+    corner speed). Returns (what :func:`pair_distances` returns, the number of corner rows)."""
+    capacity, dt = distance.size, tick[DT]
+    slot_pair, pending = index[:capacity], index[capacity:]
+    witness_a, witness_b, normal = points[0], points[1], points[2]
     packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], slot_pair,
                              distance, witness_a, witness_b, normal, rows, pending, scratch)
-    if packed <= distance.size:
-        _damper_rows(packed, distance, rows, G, h, settings, dt)
-    return packed
+    if packed > capacity:
+        return packed, 0
+    _damper_rows(packed, distance, rows, G, h, settings, dt)
+    corners = _corner_rows(table, pairs, world, support, jacobians_t, packed, slot_pair, distance, witness_a,
+                           witness_b, normal, G, h, settings, dt, tick[SPEED], corner_slot, scratch)
+    return packed, corners
 
 
 @njit("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "

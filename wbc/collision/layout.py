@@ -41,3 +41,7 @@ ROW = 23
 #: Pinocchio GeometryModel's collision pairs (the coal path, and the oracle of the tests)
 PAIR_A, PAIR_B, PAIR_GEOMETRY = 0, 1, 2
 PAIR_COLUMNS = 3
+
+#: slots of an avoidance constraint's settings array (detection distance, min distance, gain), the
+#: operand of :func:`wbc.collision.kernels.avoidance_rows`
+DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
