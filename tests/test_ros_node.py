@@ -150,10 +150,16 @@ def test_tiago_on_its_differential_base_over_dds_tracks_like_the_in_process_run(
     in_process = run(load_scenario(tmp_path / "tiago_reach.toml"), duration=summary["control_ticks"] * DT).summary()
     print(f"tiago: position error RMS: DDS {summary['position_error_rms_m']:.6e} m, "
           f"in process {in_process['position_error_rms_m']:.6e} m ({summary['repeated_state_ticks']} late ticks)")
-    late = max(summary["repeated_state_ticks"], 1) / summary["control_ticks"]
-    step = 0.5 * DT  # [m] the tool's largest advance in one tick (its task's max_speed)
-    assert summary["position_error_rms_m"] <= in_process["position_error_rms_m"] + 3 * step * math.sqrt(late)
-    assert in_process["position_error_rms_m"] <= summary["position_error_rms_m"] + 3 * step * math.sqrt(late)
+    if summary["position_error_rms_m"] != pytest.approx(in_process["position_error_rms_m"], rel=1e-6):
+        # not the same loop: only a state that came late explains it (a repeated joint state, or one
+        # older than a period). One late tick sends the differential base on a slightly different
+        # approach: measured +31 mm of RMS (3 %) for one repeated state, in CI and here alike (with
+        # none the two runs agree to 1e-6); allowed: 5 % per late tick
+        behind = max(0, math.ceil(summary["state_age_max_us"] * 1e-6 / DT - 1e-9) - 1)
+        late = summary["repeated_state_ticks"] + behind
+        assert late >= 1, "the DDS loop differs from the in-process one with no late state to explain it"
+        ratio = summary["position_error_rms_m"] / in_process["position_error_rms_m"]
+        assert 1 / (1 + 0.05 * late) <= ratio <= 1 + 0.05 * late
     assert in_process["final_position_error_m"] < 1e-3  # the loop itself reaches the point
     robot = tiago["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= 0.95 * summary["control_ticks"]
