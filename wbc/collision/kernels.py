@@ -709,9 +709,11 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                 t = points[e]
                 if not -1.0 <= t <= 1.0 or _across(cx + t * ux, cy + t * uy, cz + t * uz, nx, ny, nz) <= near:
                     continue
+                if n_rows == corner_slot.size:  # the budget is spent: no row is written past it
+                    return n_rows
                 added = _tie_row(table, world, s, t, other, side, d, i, count + n_rows, joint_a, joint_b, support,
                                  jacobians_t, G, h, scale, d_min, speed, dt, scratch)
-                if added < 0 or n_rows == corner_slot.size:
+                if added < 0:
                     return n_rows
                 if added:
                     corner_slot[n_rows] = i
