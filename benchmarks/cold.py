@@ -1,6 +1,7 @@
-"""Cold costs: the first tick of a process and of a controller, and building a controller.
+"""Cold costs: the first tick of a process and of a controller, building a controller, and the
+first ``wbc run`` after an install.
 
-    python -m benchmarks.cold [--scenario tasks/youbot_circle.toml] [--processes 5]
+    python -m benchmarks.cold [--scenario tasks/youbot_circle.toml] [--processes 5] [--first-runs 3]
 
 Each measurement runs in a fresh Python process (the first tick of a *process* pays for
 code paths run once: Pinocchio's and numba's dispatch caches, first touches of memory):
@@ -8,14 +9,22 @@ code paths run once: Pinocchio's and numba's dispatch caches, first touches of m
 compiled kernels from numba's cache), its first tick, 2000 steady ticks (median), then 50
 more controllers built (median) and the first tick of 20 of them (median). Ratios are to
 the steady tick of the same process; the table shows the median (min–max) over processes.
+
+``--first-runs N``: N times, ``wbc run --no-progress <scenario>`` with ``NUMBA_CACHE_DIR`` set to
+a fresh empty directory (a fresh install: every kernel the run uses compiles), then once more on
+that cache (warm); wall clock and CPU time (user + system, of the process and its children).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
+import resource
 import subprocess
 import sys
+import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -56,12 +65,43 @@ def measure(scenario: Path) -> dict:
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
+def timed_run(scenario: Path, cache: Path) -> tuple[float, float]:
+    """(wall [s], CPU [s]) of one ``wbc run`` of ``scenario`` in a fresh process on the numba cache ``cache``."""
+    def cpu() -> float:
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    start, start_cpu = time.perf_counter(), cpu()
+    subprocess.run([sys.executable, "-m", "wbc", "run", "--no-progress", str(scenario)], check=True,
+                   capture_output=True, cwd=Path.home(), env={**os.environ, "NUMBA_CACHE_DIR": str(cache)})
+    return time.perf_counter() - start, cpu() - start_cpu
+
+
+def first_runs(scenario: Path, count: int) -> list[tuple[float, float, float, float]]:
+    """``count`` times (first wall, first CPU, warm wall, warm CPU) [s]: a run on an empty numba
+    cache, then one on the cache it left."""
+    results = []
+    for _ in range(count):
+        with tempfile.TemporaryDirectory(prefix="wbc-cold-") as cache:
+            results.append((*timed_run(scenario, Path(cache)), *timed_run(scenario, Path(cache))))
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.cold", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenario", type=Path, default=ROOT / "tasks" / "youbot_circle.toml")
     parser.add_argument("--processes", type=int, default=5)
+    parser.add_argument("--first-runs", type=int, default=0, help="also time N first runs on an empty numba cache")
     args = parser.parse_args(argv)
+    if args.first_runs:
+        runs = first_runs(args.scenario.resolve(), args.first_runs)
+        print(f"wbc run {args.scenario.name}, {args.first_runs} times on an empty numba cache, then warm: "
+              "wall / CPU [s]")
+        for first_wall, first_cpu, warm_wall, warm_cpu in runs:
+            print(f"  first {first_wall:5.1f} / {first_cpu:5.1f}   warm {warm_wall:5.1f} / {warm_cpu:5.1f}")
+    if not args.processes:
+        return 0
     runs = [measure(args.scenario.resolve()) for _ in range(args.processes)]
 
     def spread(values: list[float], unit: float, digits: int = 1) -> str:

@@ -22,8 +22,8 @@ from wbc.runtime.kernels import _cache, tick
 
 @pytest.fixture(scope="module")
 def warm():
-    """The kernels loaded in this process, so that their cache is warm for the subprocesses."""
-    kernels.load()
+    """Every kernel compiled (or loaded) in this process, so that their cache is warm for the subprocesses."""
+    kernels.warm_up()
 
 
 def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> subprocess.CompletedProcess:
@@ -72,13 +72,16 @@ def test_building_a_controller_loads_the_kernels(warm):
     assert result.stderr == ""  # warm cache: no compile message
 
 
-def test_loaded_kernels_are_plain_attributes(warm):
-    """After the first load no lookup goes through the module __getattr__ (the tick path)."""
+def test_fetched_kernels_are_plain_attributes_of_their_declared_signature(warm):
+    """Once fetched (compiled) no lookup goes through the module __getattr__ (the tick path),
+    and a compiled function has its one declared signature (calls convert to it)."""
     namespace = vars(kernels)
     for module, names in kernels.COMPILED.items():
         topic = vars(getattr(kernels, module))
+        kernels.prepare(*names)
         for name in names:
             assert namespace[name] is topic[name]
+            assert len(topic[name].signatures) == 1, name
         # every public compiled function of a topic module is re-exported
         dispatchers = {name for name, value in topic.items() if not name.startswith("_")
                        and hasattr(value, "py_func") and value.__module__ == topic["__name__"]}
@@ -87,18 +90,22 @@ def test_loaded_kernels_are_plain_attributes(warm):
         kernels.no_such_kernel  # noqa: B018
 
 
-def test_the_generated_interpreter_is_loaded_from_the_cache(warm):
-    """run_program, generated from the op declarations, is read from numba's cache by the next
-    process (not compiled again), from the file next to the package's cache."""
+def test_the_interpreter_and_the_generated_callbacks_are_loaded_from_the_cache(warm):
+    """run_program, and an op's callback generated from its declaration, are read from numba's
+    cache by the next process (not compiled again), the callback from the file next to the
+    package's cache."""
     result = _python("""
         from wbc.runtime import kernels
         kernels.load()
-        stats, source = kernels.run_program.stats, kernels.run_program.py_func.__code__.co_filename
-        print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), source)
+        stats = kernels.run_program.stats
+        kernels.callback(kernels.HAS_NAN)
+        compiled = kernels._callbacks["HAS_NAN"]
+        print(sum(stats.cache_hits.values()), sum(stats.cache_misses.values()), compiled.cache_hits,
+              compiled._pyfunc.__code__.co_filename)
     """)
     assert result.returncode == 0, result.stderr
-    hits, misses, source = result.stdout.split()
-    assert (hits, misses) == ("1", "0")
+    hits, misses, callback_hits, source = result.stdout.split()
+    assert (hits, misses, callback_hits) == ("1", "0", "1")
     assert Path(source).parent == kernels.cache_directory and Path(source).name.startswith(tick.GENERATED_PREFIX)
     assert result.stderr == ""
 

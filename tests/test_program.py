@@ -367,8 +367,8 @@ def test_a_new_op_is_its_kernel_file_alone(tmp_path):
 
 
 def _kinematics_rows(controller) -> int:
-    code = kernels.FORWARD_KINEMATICS.code
-    return sum(row[0] == code for row in controller._program._rows)
+    callback = kernels.callback(kernels.FORWARD_KINEMATICS)
+    return sum(row[:2] == [ops.OP_BUILTIN, callback] for row in controller._program._rows)
 
 
 def test_the_kinematics_are_computed_once_per_tick_when_python_items_read_them():

@@ -162,6 +162,8 @@ class AccelerationLimitsData(ConstraintData):
     """:class:`AccelerationLimits` in one controller: the resolved limits, the channels' history
     (``w_prev``, ``w_prev2``) and the viability indices, all preallocated."""
 
+    python_kernels = ("heading_rows",)  # HeadingRows.write's
+
     has_bounds = True
 
     def __init__(self, limits: AccelerationLimits, robot: Robot) -> None:

@@ -50,6 +50,9 @@ class ConstraintData:
     #: soft bounds are clipped into the hard ones every tick, and soft rows become elastic
     #: in the controller's fallback solve
     hard: bool = True
+    #: the compiled functions (names in :mod:`wbc.runtime.kernels`) its Python :meth:`compute`
+    #: may call: a controller computing it in Python compiles them when it is built, not in a tick
+    python_kernels: tuple[str, ...] = ()
 
     def __init__(self, constraint: Constraint) -> None:
         self.constraint, self.name = constraint, constraint.name

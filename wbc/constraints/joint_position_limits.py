@@ -54,6 +54,8 @@ class JointPositionLimits(Constraint):
 class JointPositionLimitsData(ConstraintData):
     """:class:`JointPositionLimits` in one controller: the robot's bounded 1-DOF joints."""
 
+    python_kernels = ("position_limit_bounds",)
+
     has_bounds = True
     constraint: JointPositionLimits
 

@@ -29,6 +29,8 @@ class JointVelocityLimitsData(ConstraintData):
     """:class:`JointVelocityLimits` in one controller: the robot's limits and its base's speed
     rows (:meth:`MobileBase.speed_rows`)."""
 
+    python_kernels = ("heading_rows",)  # HeadingRows.write's
+
     has_bounds = True
 
     def __init__(self, limits: JointVelocityLimits, robot: Robot) -> None:

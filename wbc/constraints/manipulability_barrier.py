@@ -83,6 +83,8 @@ class ManipulabilityBarrierData(BarrierData):
     """:class:`ManipulabilityBarrier` in one controller: ``m`` of the robot's frame and its
     value at the last tick."""
 
+    python_kernels = ("frame_jacobian", "manipulability_gradient")  # Manipulability.compute's
+
     constraint: ManipulabilityBarrier
 
     def __init__(self, barrier: ManipulabilityBarrier, robot: Robot) -> None:

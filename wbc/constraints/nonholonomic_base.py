@@ -33,6 +33,8 @@ class NonholonomicBase(Constraint):
 class NonholonomicBaseData(ConstraintData):
     """:class:`NonholonomicBase` in one controller: the base's no-slip rows."""
 
+    python_kernels = ("heading_rows",)  # HeadingRows.write's
+
     def __init__(self, constraint: NonholonomicBase, robot: Robot) -> None:
         super().__init__(constraint)
         self._no_slip = robot.base.no_slip_rows()

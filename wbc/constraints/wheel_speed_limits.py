@@ -47,6 +47,8 @@ class WheelSpeedLimits(Constraint):
 class WheelSpeedLimitsData(ConstraintData):
     """:class:`WheelSpeedLimits` in one controller: the robot's wheel model and limit."""
 
+    python_kernels = ("heading_rows",)  # HeadingRows.write's
+
     def __init__(self, limits: WheelSpeedLimits, robot: Robot) -> None:
         super().__init__(limits)
         base, wheels = robot.base, robot.base.wheels

@@ -48,6 +48,7 @@ class Fallback:
 
     def __init__(self, soft_rows: np.ndarray, budget: dict[str, Any], strict: bool) -> None:
         self.soft_rows, self.budget, self.strict = soft_rows, budget, strict
+        kernels.prepare("constraint_defect")  # answer() calls it in ticks: compiled now
 
     def answer(self, qp: QP, failed: QPSolution, solver: str, tick: int,
                has_nan: bool) -> tuple[QPSolution, Outcome, str]:

@@ -154,6 +154,7 @@ class Hierarchy:
 
     def __init__(self, buffers: TickBuffers, sizes: Sequence[int], solver: QPSolver, fallback: Fallback) -> None:
         self._buffers = buffers
+        kernels.prepare("qp_defect", "band_rows")  # called in its ticks: compiled now
         nv = buffers.nv
         level: dict[int, int] = {}
         start = 0

@@ -20,7 +20,7 @@ A new mode is a new class of one stage.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -139,6 +139,8 @@ class Assembly:
         self._deferred_kinematics = q_screened and context.kinematics.native
         self._unready = list(unready)  # checked every tick until each one is ready
         self._tasks, self._constraints, self._run = tasks, constraints, program.runner()
+        _prepare_kernels(item for item, _ in constraints)
+        _prepare_kernels(item for item, *_ in tasks)
         self._qp = buffers.qp
         self._q_screened, self._q_weights = q_screened, q_weights  # q is finite iff q . weights is
         self._prepare = inputs.prepare if inputs is not None and inputs.prepares else None
@@ -205,6 +207,7 @@ class SplitAssembly(Assembly):
         self._first, self._kinematics, self._preview = first, first._kinematics, buffers.preview
         self._deferred_kinematics = first._deferred_kinematics
         self._preview_tasks, self._after = preview_tasks, after.runner()
+        _prepare_kernels(item for item, *_ in preview_tasks)
         self._prepare = inputs.prepare if inputs.prepares else None
 
     def run(self, q: NDArray[np.float64], dt: float, v_measured: ArrayLike | None) -> bool:
@@ -215,6 +218,12 @@ class SplitAssembly(Assembly):
         has_nan = self._after(dt) == RUN_FOUND_NAN
         prepare = self._prepare
         return has_nan if prepare is None else prepare(q, has_nan)
+
+
+def _prepare_kernels(items: Iterable[TaskData | ConstraintData]) -> None:
+    """Compile the kernels the Python ``compute`` of ``items`` may call (``python_kernels``) now,
+    when the controller is built, not in its first tick."""
+    kernels.prepare(*sorted({name for item in items for name in item.python_kernels}))
 
 
 # --------------------------------------------------------------------- solve
@@ -240,6 +249,7 @@ class BackendSolve:
 
     def __init__(self, solver: QPSolver, qp: QP) -> None:
         self.solver, self.qp = solver, qp  #: the backend, and the QP it sees (``controller.qp``)
+        kernels.prepare("qp_defect")  # checked() calls it in ticks: compiled now
         #: the control loop's fast path, called with :data:`~wbc.control.fallback.ANSWER_TOLERANCE`:
         #: ``(x, solve time [s])`` of a solve that ran in the program and checked there (its
         #: defect at most the tolerance); None: take :meth:`checked`

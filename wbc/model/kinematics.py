@@ -44,9 +44,11 @@ class Kinematics:
     """
 
     def __init__(self, robot: Robot) -> None:
-        # whatever reads a Kinematics runs the compiled kernels: load (or compile) them now,
-        # when a controller is built, not in its first tick
+        # whatever reads a Kinematics runs the compiled kernels: load them now, when a controller
+        # is built, not in its first tick (its ops compile when added to its program); and the
+        # control loop's robot.integrate (on vector-space robots)
         kernels.load()
+        kernels.prepare("integrate_vector_space")
         self.robot = robot
         self.model = robot.model
         self._data = robot.model.createData()

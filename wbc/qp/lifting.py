@@ -78,6 +78,7 @@ class LiftedQP:
         self.qp = QP(source.n + k, source.n_ineq, source.n_eq + k)  #: what the solver sees
         self._scratch = np.zeros(2 * source.n)  # of the certificate
         self.dense_ticks = 0  #: ticks whose lifted answer was not certified: the dense QP answered
+        kernels.prepare("normal_equations", "normalise_cost")  # fill_dense calls them in ticks: compiled now
 
     def add_check_op(self, program: TickProgram, workspace: SolvedWorkspace) -> None:
         """Append the certificate of the answer of ``workspace`` (the native DAQP solve of

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import kernels
-from .kernels.ops import FLAGS, OP_EXTERNAL, PROGRAM_HEADER, PROGRAM_INPUT, PROGRAM_INPUT_SIZE, RUN_FOUND_NAN, Op
+from .kernels.ops import FLAGS, OP_BUILTIN, OP_EXTERNAL, PROGRAM_HEADER, PROGRAM_INPUT, PROGRAM_INPUT_SIZE, RUN_FOUND_NAN, Op
 from .native_entry import unchecked_entry
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -33,7 +33,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 
 class TickProgram:
-    """Rows ``[opcode, operands...]`` over registered arrays (see :mod:`wbc.runtime.kernels.tick`)."""
+    """Rows ``[kind, callback, operands...]`` over registered arrays (see :mod:`wbc.runtime.kernels.tick`)."""
 
     def __init__(self) -> None:
         self._arrays: list[np.ndarray] = []
@@ -82,7 +82,7 @@ class TickProgram:
             if op.code <= 0:
                 raise TypeError(f"{op.spec.name} op: not one of wbc.runtime.kernels' ops (declare a built-in op as "
                                 "an attribute of its kernel module there; a third-party op is a CompiledOp)")
-            row = [op.code]
+            row = [OP_BUILTIN, kernels.callback(op)]  # compiled now, when the controller is built
         elif hasattr(op, "address"):  # a CompiledOp: its callback's address in the row
             row = [OP_EXTERNAL, op.address]
         else:

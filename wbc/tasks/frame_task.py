@@ -155,6 +155,7 @@ class FrameTaskData(ErrorTaskData):
         self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
         self._frame[kernels.FRAME_LOCAL] = local
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
+        kernels.prepare("set_frame_pose", "set_frame_target", "pose_defect")  # set_target's, in the control loop
 
     def compute_error_and_jacobian(self, kin: Kinematics, error: np.ndarray, jacobian: np.ndarray) -> None:
         """``e = (p* - p, log3(R* R^T))`` and the frame's world-aligned Jacobian (Pinocchio's)."""

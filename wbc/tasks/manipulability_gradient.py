@@ -71,6 +71,8 @@ class ManipulabilityGradientData(LinearCostData):
     """A :class:`ManipulabilityGradient` in one controller: ``m`` of the robot's frame and its
     value at the last tick."""
 
+    python_kernels = ("frame_jacobian", "manipulability_gradient")  # Manipulability.compute's
+
     task: ManipulabilityGradient
 
     def __init__(self, task: ManipulabilityGradient, robot: Robot) -> None:

@@ -87,6 +87,8 @@ class ManipulabilityTaskData(ErrorTaskData):
     """A :class:`ManipulabilityTask` in one controller: ``m`` of the robot's frame, and its
     value and log-ratio error at the last tick."""
 
+    python_kernels = ("frame_jacobian", "manipulability_gradient")  # Manipulability.compute's
+
     task: ManipulabilityTask
 
     def __init__(self, task: ManipulabilityTask, robot: Robot) -> None:

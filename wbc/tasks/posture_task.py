@@ -89,6 +89,8 @@ class PostureTaskData(TaskData):
     """A :class:`PostureTask` in one controller: the selected coordinates of the robot, their
     weights and reference, and the error of the last tick."""
 
+    python_kernels = ("posture_rows",)
+
     diagonal_rows = True  # row i is W_i e_j for the i-th selected coordinate j
     task: PostureTask
     lm_damped = False  # q moves exactly as the rows say: the linear model makes no overshoot

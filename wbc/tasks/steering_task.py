@@ -89,6 +89,8 @@ class SteeringTaskData(TaskData):
     """A :class:`SteeringTask` in one controller: the base coordinates and the heading error
     of the last tick."""
 
+    python_kernels = ("steering_row",)
+
     dim = 1
     uses_preview = True
     task: SteeringTask

@@ -55,6 +55,9 @@ class TaskData:
     #: current by the task; the error-scaled damping sees only the rest of ``W r``, the feedback
     #: of the error. None: the whole target is feedback
     feedforward: np.ndarray | None = None
+    #: the compiled functions (names in :mod:`wbc.runtime.kernels`) its Python :meth:`compute`
+    #: may call: a controller computing it in Python compiles them when it is built, not in a tick
+    python_kernels: tuple[str, ...] = ()
 
     def __init__(self, task: Task) -> None:
         self.task, self.name = task, task.name

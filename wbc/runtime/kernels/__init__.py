@@ -14,20 +14,25 @@ PositionTask rows), :mod:`.joints` (posture, steering, position-limit and headin
 normalisation, NaN screen, answer check), :mod:`.hierarchy` (the levels of strict
 priorities), ... -- each with the declarations of its tick-program ops (:class:`.ops.Op`:
 operands, checks, kernel; every ``*.py`` file of this package not starting with ``_`` is a
-topic module). :func:`load` imports them on the first access of a compiled function or an op
+topic module). :func:`load` imports them on the first access of an op or ``run_program``
 (``kernels.run_program``, ``kernels.FRAME_TASK``; :class:`~wbc.model.kinematics.Kinematics` calls
-:func:`load`, so building a controller does), never ``import wbc``; it numbers the ops,
-generates the interpreter ``run_program`` from their declarations (:mod:`.tick`) and binds
-every compiled function and op into this namespace, so later ``kernels.x`` lookups are plain
-attribute hits (the module ``__getattr__`` runs only before the first load).
+:func:`load`, so building a controller does), never ``import wbc``; it numbers the ops and binds
+them and the interpreter ``run_program`` (:mod:`.tick`) into this namespace.
 
-Each kernel has one explicit signature, so it compiles when its module is imported --
-never inside a control tick -- and is cached on disk (``cache=CACHE``): only the first load
-after an install pays the compilation (~20 s, announced by one line on stderr; ``wbc
-warmup`` pays it up front); later loads read the machine code (~0.3 s). Where numba finds no
-writable cache directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR``
-unset, the package's ``__pycache__`` and the user cache not writable), ``CACHE`` is False:
-the kernels compile in memory at every load, said once on stderr with the fix
+**When the kernels compile.** Only what a controller uses, when it is built -- never inside a
+control tick: a kernel compiled lazily in a tick would stall the loop for seconds. An op's C
+callback (:func:`callback`: the op's kernel and the kernels it calls) compiles when a program first
+adds the op; a compiled function (``kernels.posture_rows``, declared with its signature:
+:mod:`._lazy`) compiles when first fetched here, which the objects calling it in ticks do when
+they are built (:func:`prepare`; items computed in Python list theirs in ``python_kernels``).
+Importing a kernel module compiles nothing but the interpreter, which every program needs
+(``tests/test_no_compile_in_ticks.py`` checks that no tick compiles). Everything compiled is
+cached on disk (``cache=CACHE``): after an install the first start of a controller compiles its
+own kernels once (a few seconds, announced by one line on stderr; ``wbc warmup`` compiles all of
+them up front, ~20 s); later starts read the machine code. Where numba finds no writable cache
+directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR`` unset, the package's
+``__pycache__`` and the user cache not writable), ``CACHE`` is False: the kernels compile in
+memory at every start, said once on stderr with the fix
 (``wbc.runtime.kernels._cache.NO_CACHE_MESSAGE``).
 
 **Cache rule.** numba keys a cached function on its *own* source file only: a callee in
@@ -37,9 +42,9 @@ stale (tested). Before any topic module compiles, :func:`prepare_cache` therefor
 every ``*.py`` file of this package (and the numba version), compares the hash with the
 one recorded in numba's cache directory for the package (:func:`wbc.runtime.kernels._cache.cache_dir`)
 and, when they differ, deletes all of the package's cache entries: a change to any kernel
-file recompiles every kernel. The generated interpreter is a file named by the hash of its
-source, which holds that stamp: a changed kernel file gives a new interpreter file, compiled
-afresh (:func:`.tick.interpreter`). Kernel code belongs in this package only (a jitted function
+file recompiles every kernel. The generated op callbacks are a file named by the hash of its
+source, which holds that stamp: a changed kernel file gives a new file, compiled afresh
+(:func:`.tick.callbacks`). Kernel code belongs in this package only (a jitted function
 elsewhere that calls these kernels is not covered by the rule).
 
 Conventions: as in :mod:`wbc.model.robot` -- world-aligned axes, twists (linear; angular),
@@ -52,7 +57,11 @@ import importlib
 import pkgutil
 import sys
 from pathlib import Path
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .ops import Op
 
 # ------------------------------------------------------------- validation
 
@@ -138,12 +147,14 @@ COMPILED = {
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),
 }
-#: the modules of this package that hold no cached kernel (the declaration format, the interpreter's generator)
-_UNCACHED = ("ops", "tick")
-_MODULE_OF = {name: module for module, names in COMPILED.items() for name in names} | {"run_program": "tick"}
+_MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}
 
 _prepared = False
 _loaded = False
+_stamp = ""  #: the package's source stamp (set by :func:`load`), in the generated callbacks' header
+_ops: list[Op] = []  #: every declared op, by name (set by :func:`load`)
+_callbacks: dict[str, Any] = {}  #: the compiled callback of each op used in this process, by name
+_callback_module: ModuleType | None = None  #: the generated module of the callbacks (:mod:`.tick`)
 #: numba's cache directory of this package, known after the first :func:`prepare_cache`
 #: (None: numba found no writable place and compiles on every load)
 cache_directory: Path | None = None
@@ -163,18 +174,17 @@ def prepare_cache() -> bool:
     if not _prepared:
         from . import _cache
 
-        modules = topic_modules()
-        cache_directory = _cache.prepare(Path(__file__).parent, modules,
-                                         cold=tuple(name for name in modules if name not in _UNCACHED))
+        # cold: the interpreter, which every program needs, has no cache entry (the other kernels
+        # compile when a controller first uses them)
+        cache_directory = _cache.prepare(Path(__file__).parent, topic_modules(), cold=("tick",))
         _prepared = True
     return cache_directory is not None
 
 
 def load() -> None:
-    """Import (compile or load from the cache) every kernel module, bind its compiled functions
-    and its declared ops (:class:`.ops.Op`, opcodes 1, 2, ... by name) into this namespace, and
-    generate the interpreter ``run_program`` for those ops (:mod:`.tick`)."""
-    global _loaded
+    """Import every kernel module (nothing is compiled but the interpreter ``run_program``), and
+    bind its declared ops (:class:`.ops.Op`, numbered 1, 2, ... by name) into this namespace."""
+    global _loaded, _stamp
     if _loaded:
         return
     prepare_cache()
@@ -187,35 +197,77 @@ def load() -> None:
     declared: dict[str, Op] = {}
     for module_name in topic_modules():
         module = importlib.import_module(f"{__name__}.{module_name}")
-        for name in COMPILED.get(module_name, ()):
-            namespace[name] = getattr(module, name)
         for name, value in vars(module).items():
             if not isinstance(value, Op) or declared.get(name) is value:  # not an op, or imported from another module
                 continue
-            if value.spec.name != name or name in declared or name in namespace:
+            if value.spec.name != name or name in declared or name in namespace or name in _MODULE_OF:
                 raise TypeError(f"op {value.spec.name} ({module.__name__}.{name}): an op is declared once, as the "
                                 f"module attribute of its own name, unique among the ops and names of {__name__}")
             declared[name] = value
     ops = [declared[name] for name in sorted(declared)]
-    for op in ops:  # the generated interpreter imports each kernel by its module and name
+    for op in ops:  # the generated callbacks import each kernel by its module and name
         kernel = getattr(op.kernel, "py_func", None)
         if kernel is None or getattr(sys.modules[kernel.__module__], kernel.__name__, None) is not op.kernel:
             raise TypeError(f"op {op.spec.name}: its kernel must be an @njit function defined at module level in "
                             f"a module of {__name__}")
     for code, op in enumerate(ops, start=1):
         op.code = code
-    from .tick import interpreter
-
-    stamp = _cache.source_stamp(Path(__file__).parent, numba.__version__)
-    namespace["run_program"] = interpreter(ops, stamp, cache_directory)
+    _ops[:] = ops
+    _stamp = _cache.source_stamp(Path(__file__).parent, numba.__version__)
+    namespace["run_program"] = importlib.import_module(f"{__name__}.tick").run_program
     namespace.update(declared)
     _loaded = True
 
 
+def callback(op: Op) -> int:
+    """The address of ``op``'s C callback (:mod:`.tick`), compiled -- or read from numba's cache --
+    on the first call for the op in this process: when a program first adds it."""
+    global _callback_module
+    load()
+    compiled = _callbacks.get(op.spec.name)
+    if compiled is None:
+        from numba import cfunc
+
+        from ._lazy import compile_callees
+        from .tick import BUILTIN_SIGNATURE, callbacks
+
+        compile_callees(op.kernel)
+        if _callback_module is None:
+            _callback_module = callbacks(_ops, _stamp, cache_directory)
+        function = getattr(_callback_module, f"op_{op.spec.name}")
+        compiled = _callbacks[op.spec.name] = cfunc(BUILTIN_SIGNATURE, cache=cache_directory is not None)(function)
+    return int(compiled.address)
+
+
+def prepare(*names: str) -> None:
+    """Compile (or read from numba's cache) the compiled functions ``names`` now: the objects of a
+    controller that call them in its ticks do so when they are built (:mod:`._lazy`)."""
+    for name in names:
+        if name not in globals():
+            __getattr__(name)
+
+
+def warm_up() -> None:
+    """Compile every kernel and op callback of the package now (``wbc warmup``)."""
+    load()
+    prepare(*_MODULE_OF)
+    for op in _ops:
+        callback(op)
+
+
 def __getattr__(name: str) -> Any:
-    """A compiled function or a declared op (an upper-case name), loading the kernels on first
-    access (PEP 562)."""
-    if name in _MODULE_OF or (name.isupper() and not _loaded):
+    """A compiled function, compiled for its declared signature on first access (:mod:`._lazy`),
+    or a declared op (an upper-case name) or ``run_program``, loading the kernels on first access
+    (PEP 562)."""
+    if name in _MODULE_OF:
+        load()
+        from ._lazy import compile_declared
+
+        function = getattr(sys.modules[f"{__name__}.{_MODULE_OF[name]}"], name)
+        compile_declared(function)
+        globals()[name] = function  # later lookups are plain attribute hits
+        return function
+    if name == "run_program" or (name.isupper() and not _loaded):
         load()
         if name in globals():
             return globals()[name]

@@ -23,11 +23,13 @@ from typing import TextIO
 
 #: the record of the sources the cached entries were compiled from, in numba's cache directory
 STAMP_FILE = "wbc-kernel-sources.sha256"
-COLD_MESSAGE = "wbc: compiling the numba kernels once after install (~20 s; cached afterwards)"
-CHANGED_MESSAGE = "wbc: the kernel sources or numba changed: recompiling the numba kernels (~20 s; cached afterwards)"
+COLD_MESSAGE = ("wbc: compiling the numba kernels after install, each once when a controller first uses it "
+                "(seconds; cached afterwards)")
+CHANGED_MESSAGE = ("wbc: the kernel sources or numba changed: recompiling the numba kernels, each when a controller "
+                   "first uses it (seconds; cached afterwards)")
 NO_CACHE_MESSAGE = ("wbc: numba finds no writable cache directory (the package folder {folder} and the user cache are "
-                    "read-only): compiling the numba kernels in memory, ~20 s at every start; set NUMBA_CACHE_DIR to a "
-                    "writable directory to cache them")
+                    "read-only): compiling the numba kernels in memory, seconds at every start; set NUMBA_CACHE_DIR to "
+                    "a writable directory to cache them")
 
 
 def source_stamp(folder: Path, numba_version: str) -> str:

@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit
 
 from . import DAQP_CONTROL_DEFECT, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_SIZE, prepare_cache
+from ._lazy import declared
 from .ops import FLAG_FOUND_NAN, FLAGS_OPERAND, STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -46,13 +47,13 @@ def _normal_equations_of(stack_t: np.ndarray, first: int, last: int, reset: bool
             Hc[i, j] = Hc[j, i]
 
 
-@njit("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], int64, int64, boolean, float64[:, :])", cache=CACHE, nogil=True)
 def normal_equations(stack_t: np.ndarray, first: int, last: int, reset: bool, Hc: np.ndarray) -> None:
     """:func:`_normal_equations_of` on arrays of any strides (called from Python)."""
     _normal_equations_of(stack_t, first, last, reset, Hc)
 
 
-@njit("float64(float64[:, :], float64[:], float64, int64, int64)", cache=CACHE, nogil=True)
+@declared("float64(float64[:, :], float64[:], float64, int64, int64)", cache=CACHE, nogil=True)
 def lm_curvature(stack_t: np.ndarray, feedforward: np.ndarray, dt: float, start: int, dim: int) -> float:
     """``|dt (W r - W xi)| max_j |(W J) e_j|`` of the task whose rows of ``A = [W J | W r] =
     stack_t^T`` are ``start:start + dim`` (``W xi``: their feed-forward part, ``feedforward``):
@@ -76,7 +77,7 @@ def lm_curvature(stack_t: np.ndarray, feedforward: np.ndarray, dt: float, start:
     return math.sqrt(step) * math.sqrt(lever)
 
 
-@njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def lm_damping_rows(damping_rows_t: np.ndarray, damping: float, mu: float) -> None:
     """The damping rows ``sqrt(max(damping, mu)) I`` of one weighted level (``damping_rows_t``:
     their nv x nv block of the stack ``A^T``): the damping raised to the tasks' ``mu`` where that
@@ -86,7 +87,7 @@ def lm_damping_rows(damping_rows_t: np.ndarray, damping: float, mu: float) -> No
         damping_rows_t[j, j] = value
 
 
-@njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
     """Raise the damping ``damping`` that one level of a hierarchy has (``Hc = [H; c]``) to its
     tasks' ``mu``: add ``max(mu - damping, 0) I`` to its H."""
@@ -96,7 +97,7 @@ def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
             Hc[j, j] += extra
 
 
-@njit("boolean(float64[:, :], float64[:, :], float64[:])", cache=CACHE, nogil=True)
+@declared("boolean(float64[:, :], float64[:, :], float64[:])", cache=CACHE, nogil=True)
 def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
     """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (``factor``: nv x nv scratch).
     Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
@@ -128,7 +129,7 @@ def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bo
     return True
 
 
-@njit("void(float64[:, :], int64, float64[:], float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], int64, float64[:], float64[:])", cache=CACHE, nogil=True)
 def merge_bounds(bounds: np.ndarray, n_hard: int, upper: np.ndarray, lower: np.ndarray) -> None:
     """The QP's bounds from every bounded constraint's own pair (:class:`wbc.qp.bounds.BoundPolicy`).
 
@@ -158,7 +159,7 @@ def merge_bounds(bounds: np.ndarray, n_hard: int, upper: np.ndarray, lower: np.n
             lower[i] = min(max(soft_lower, hard_lower), hard_upper)
 
 
-@njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
     """Scale ``[H; c]`` so that ``max_i H_ii = 1`` (the minimiser is unchanged), then raise the
     damping to at least ``damping_floor`` of that scale.
@@ -183,7 +184,7 @@ def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None
                 Hc[i, i] += missing
 
 
-@njit("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
+@declared("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
 def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
     """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
     :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
@@ -210,7 +211,7 @@ def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np
     return worst
 
 
-@njit("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)
+@declared("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)
 def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
     """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.problem.QP`'s
     flat buffer: H (n x n), c (n), C (rows x n), upper, lower (n + rows each), so
@@ -226,7 +227,7 @@ def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
     return constraint_defect(C, upper, lower, x)
 
 
-@njit("boolean(float64[:])", cache=CACHE, nogil=True)
+@declared("boolean(float64[:])", cache=CACHE, nogil=True)
 def has_nan(data: np.ndarray) -> bool:
     """True when some entry of ``data`` is NaN (infinite entries are allowed: open bounds)."""
     for value in data:
@@ -235,7 +236,7 @@ def has_nan(data: np.ndarray) -> bool:
     return False
 
 
-@njit("boolean(float64[:])", cache=CACHE, nogil=True)
+@declared("boolean(float64[:])", cache=CACHE, nogil=True)
 def has_non_finite(data: np.ndarray) -> bool:
     """True when some entry of ``data`` is NaN or infinite."""
     for value in data:
@@ -244,8 +245,8 @@ def has_non_finite(data: np.ndarray) -> bool:
     return False
 
 
-@njit("boolean(float64[:, :], float64[:], float64[::1], float64[::1], int64, int64, int64, int64, float64, float64)",
-      cache=CACHE, nogil=True)
+@declared("boolean(float64[:, :], float64[:], float64[::1], float64[::1], int64, int64, int64, int64, float64, "
+          "float64)", cache=CACHE, nogil=True)
 def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifted: np.ndarray, nv: int, k: int,
             p: int, e: int, damping: float, damping_floor: float) -> bool:
     """The lifted form of the QP (:mod:`wbc.qp.lifting`): its dense stack rows as ``k`` auxiliary
@@ -341,8 +342,8 @@ def lift_qp(stack_t: np.ndarray, diagonal: np.ndarray, source: np.ndarray, lifte
     return False
 
 
-@njit("float64(float64[::1], float64[::1], float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE,
-      nogil=True)
+@declared("float64(float64[::1], float64[::1], float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE,
+          nogil=True)
 def lifted_stationarity(lifted: np.ndarray, x: np.ndarray, lam: np.ndarray, scratch: np.ndarray, nv: int, k: int,
                         p: int, e: int) -> float:
     """How far the v part of a lifted QP's answer (:func:`lift_qp`'s buffer ``lifted``, answer

@@ -11,6 +11,7 @@ import numpy as np
 from numba import njit
 
 from . import CHAIN_COLUMNS, CHAIN_PRISMATIC, prepare_cache
+from ._lazy import declared
 from .ops import Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -86,7 +87,7 @@ def _forward_kinematics_of(q: np.ndarray, chain: np.ndarray, placements: np.ndar
         jacobians_t[iv, 3], jacobians_t[iv, 4], jacobians_t[iv, 5] = wx, wy, wz
 
 
-@njit("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
+@declared("void(float64[:], float64[:, :], float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
 def forward_kinematics(q: np.ndarray, chain: np.ndarray, placements: np.ndarray, jacobians_t: np.ndarray) -> None:
     """:func:`_forward_kinematics_of` on arrays of any strides (called from Python)."""
     _forward_kinematics_of(q, chain, placements, jacobians_t)

@@ -39,6 +39,7 @@ from . import (
     POSITION_WEIGHTS,
     prepare_cache,
 )
+from ._lazy import declared
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -46,7 +47,7 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 # -------------------------------------------------------------------- SO(3)
 
 
-@njit("void(float64[:], float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:], float64[:])", cache=CACHE, nogil=True)
 def log3(R: np.ndarray, out: np.ndarray) -> None:
     """``out = log(R)``: the rotation vector (axis * angle, angle in [0, pi]) of the rotation
     ``R`` given row-major as 9 numbers.
@@ -87,7 +88,7 @@ def log3(R: np.ndarray, out: np.ndarray) -> None:
 # ------------------------------------------------------------- validation
 
 
-@njit("int64(float64[:, :], float64)", cache=CACHE, nogil=True)
+@declared("int64(float64[:, :], float64)", cache=CACHE, nogil=True)
 def pose_defect(pose: np.ndarray, tolerance: float) -> int:
     """What is wrong with the 4x4 homogeneous transform ``pose``: POSE_OK, POSE_NOT_FINITE,
     POSE_LAST_ROW (not [0, 0, 0, 1] within 1e-12) or POSE_NOT_ROTATION
@@ -114,8 +115,8 @@ def pose_defect(pose: np.ndarray, tolerance: float) -> int:
 
 # ------------------------------------------------------------------- tasks
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])", cache=CACHE,
-      nogil=True)
+@declared("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:])",
+          cache=CACHE, nogil=True)
 def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                    local: np.ndarray, support: np.ndarray, jacobian: np.ndarray, origin: np.ndarray) -> None:
     """World-aligned Jacobian (6 x nv) at the origin ``p = R_i p_f + p_i`` of a frame placed at
@@ -162,7 +163,7 @@ def _write_target(pose: np.ndarray, twist: np.ndarray, has_twist: bool, settings
 
 
 # the setters hold the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
-@njit("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE)
+@declared("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE)
 def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
     empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose``
@@ -174,7 +175,7 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
     return defect
 
 
-@njit("int64(float64[:, :], float64[:], float64)", cache=CACHE)
+@declared("int64(float64[:, :], float64[:], float64)", cache=CACHE)
 def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """:func:`set_frame_target` without a feed-forward twist (zero): one argument fewer to pass,
     for the control loop's ``set_target(pose)``."""
@@ -184,8 +185,8 @@ def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> 
     return defect
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:], float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
+          "float64[:, :], float64[:], float64[:])", cache=CACHE, nogil=True)
 def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                     support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
                     jacobian: np.ndarray, target: np.ndarray, weighted_feedforward: np.ndarray) -> None:
@@ -228,8 +229,8 @@ def frame_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joi
 
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
-      "float64[:, :], float64[:], float64[:, :], float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:], float64, float64[:], "
+          "float64[:, :], float64[:], float64[:, :], float64[:])", cache=CACHE, nogil=True)
 def position_task_rows(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                        support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
                        jacobian: np.ndarray, target: np.ndarray, frame_jacobian_scratch: np.ndarray,

@@ -15,6 +15,7 @@ import numpy as np
 from numba import njit
 
 from . import DAQP_CONTROL_DEFECT, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_SIZE, prepare_cache
+from ._lazy import declared
 from .assembly import normalise_cost
 from .manipulability import _jacobi_eigenvectors
 from .ops import FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, STACK, Op
@@ -22,7 +23,7 @@ from .ops import FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, STACK, Op
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 
-@njit("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE, nogil=True)
+@declared("void(float64[::1], float64[::1], int64, int64, int64, int64)", cache=CACHE, nogil=True)
 def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e: int, band: int) -> None:
     """Copy the bounds and rows of the QP in ``source`` (n variables, p inequality and e equality
     rows) into the QP in ``target`` (p + band inequality rows, then the same e equality rows):
@@ -42,7 +43,7 @@ def level_constraints(source: np.ndarray, target: np.ndarray, n: int, p: int, e:
             target[dst + n + p + band + i] = source[src + n + p + i]
 
 
-@njit("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64, float64)", cache=CACHE, nogil=True)
 def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> None:
     """:func:`wbc.runtime.kernels.normalise_cost` of one level's ``[H; c]``; a level whose rows are all
     zero this tick (H = 0, hence c = 0) gets ``H = I``: every feasible point is optimal for it
@@ -79,8 +80,8 @@ def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upp
     data[h + 1] = width - value
 
 
-@njit("void(float64[:, :], int64, int64, int64, int64, float64[:], float64[:], float64[:], float64, float64[::1], "
-      "int64, int64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], int64, int64, int64, int64, float64[:], float64[:], float64[:], float64, float64[::1], "
+          "int64, int64)", cache=CACHE, nogil=True)
 def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, last_preview: int, x: np.ndarray,
               lower: np.ndarray, upper: np.ndarray, relative: float, data: np.ndarray, row: int, h: int) -> None:
     """The band that holds a solved level's task values for the levels below it.
@@ -105,7 +106,7 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
         slot += 1
 
 
-@njit("void(float64[:, :], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
 def hierarchy_preview(stack_t: np.ndarray, ranges: np.ndarray, floor: float, preview: np.ndarray) -> None:
     """Holonomic relaxation of a hierarchy: its levels solved in order without constraints.
 

@@ -18,6 +18,7 @@ from . import (
     STEERING_WEIGHT,
     prepare_cache,
 )
+from ._lazy import declared
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -25,7 +26,7 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 # ---------------------------------------------------------- configuration
 
 
-@njit("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
+@declared("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
 def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.ndarray) -> bool:
     """``reached = q + v dt`` (``pinocchio.integrate`` on coordinates that form a vector space:
     1-DOF revolute and prismatic joints), the control loop's ``robot.integrate`` in one call.
@@ -46,8 +47,8 @@ def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.
 # ------------------------------------------------------------------- tasks
 
 
-@njit("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=CACHE,
-      nogil=True)
+@declared("void(float64[:], float64[:], float64[:], float64[:], float64, float64[:], float64[:])", cache=CACHE,
+          nogil=True)
 def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, settings: np.ndarray, dt: float,
                  error: np.ndarray, target: np.ndarray) -> None:
     """:class:`~wbc.PostureTask` on a block of 1-DOF joints: ``e = q* - q``, ``target = W gain/dt e``
@@ -58,8 +59,8 @@ def posture_rows(q: np.ndarray, reference: np.ndarray, weights: np.ndarray, sett
         target[i] = weights[i] * scale * error[i]
 
 
-@njit("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
-      cache=CACHE, nogil=True)
+@declared("void(float64[:], float64[:], int64, int64, int64, float64[:], float64, float64[:], float64[:], float64[:])",
+          cache=CACHE, nogil=True)
 def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: int, parameters: np.ndarray,
                  dt: float, error: np.ndarray, jacobian: np.ndarray, target: np.ndarray) -> None:
     """Row of :class:`~wbc.SteeringTask` from the holonomic ``preview`` velocity:
@@ -82,7 +83,7 @@ def steering_row(preview: np.ndarray, q: np.ndarray, x: int, y: int, heading: in
 # ------------------------------------------------------------- constraints
 
 
-@njit("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=CACHE, nogil=True)
+@declared("void(float64[:], float64[:], float64[:], float64, float64, float64[:], float64[:])", cache=CACHE, nogil=True)
 def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: np.ndarray, gain: float,
                           dt: float, lower: np.ndarray, upper: np.ndarray) -> None:
     """Velocity-damper bounds of :class:`~wbc.JointPositionLimits`: inside the limits the
@@ -97,7 +98,7 @@ def position_limit_bounds(q: np.ndarray, lower_limit: np.ndarray, upper_limit: n
         upper[i] = scale * high
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:, :], float64[:], int64, float64[:, :], int64, int64)", cache=CACHE, nogil=True)
 def heading_rows(cos_part: np.ndarray, sin_part: np.ndarray, q: np.ndarray, heading: int, G: np.ndarray,
                  x: int, y: int) -> None:
     """Base-frame rows: columns ``x, y`` of ``G`` = ``cos(q[heading]) A + sin(q[heading]) B``."""

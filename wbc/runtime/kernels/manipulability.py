@@ -10,12 +10,13 @@ import numpy as np
 from numba import njit
 
 from . import BARRIER_GAIN, BARRIER_MIN_VALUE, BARRIER_SETTINGS, GRAM_CONDITION, prepare_cache
+from ._lazy import declared
 from .frames import frame_jacobian
 from .ops import Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
-@njit("void(float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:, :])", cache=CACHE, nogil=True)
 def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
     """Cyclic Jacobi on the symmetric ``A`` (overwritten, ends diagonal): eigenvectors into the
     columns of ``V``. Accurate to ~eps / (eigenvalue gap) in the vectors, like LAPACK, and
@@ -56,7 +57,7 @@ def _jacobi_eigenvectors(A: np.ndarray, V: np.ndarray) -> None:
                     V[k, p], V[k, r] = c * vkp - s * vkr, s * vkp + c * vkr
 
 
-@njit("float64(float64[:, :], float64[:, :], boolean, float64[:, :])", cache=CACHE, nogil=True)
+@declared("float64(float64[:, :], float64[:, :], boolean, float64[:, :])", cache=CACHE, nogil=True)
 def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np.ndarray) -> float:
     """``G = sum_l c_l u_l v_l^T`` (``c_l``: product of the other singular values) near a
     singularity; returns ``m``. The singular vectors on the Gram side come from its
@@ -118,8 +119,8 @@ def _svd_weights(selected: np.ndarray, gram: np.ndarray, wide: bool, weights: np
     return value
 
 
-@njit("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])",
-      cache=CACHE, nogil=True)
+@declared("float64(float64[:, :], float64[:, :], float64[:], float64[:], float64[:, :], int64, int64, float64[:])",
+          cache=CACHE, nogil=True)
 def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, origin: np.ndarray,
                             support: np.ndarray, ancestor: np.ndarray, first_row: int, last_row: int,
                             gradient: np.ndarray) -> float:
@@ -224,9 +225,9 @@ def manipulability_gradient(joint_jacobians: np.ndarray, jacobian: np.ndarray, o
     return value
 
 
-@njit("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], "
-      "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)",
-      cache=CACHE, nogil=True)
+@declared("void(float64[:, :], float64[:, :], float64[:], float64[:], float64[:], float64[:, :], float64[:, :], "
+          "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], int64, int64, float64)",
+          cache=CACHE, nogil=True)
 def barrier_row(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                 local: np.ndarray, support: np.ndarray, ancestor: np.ndarray, jacobian: np.ndarray,
                 origin: np.ndarray, gradient: np.ndarray, G: np.ndarray, h: np.ndarray, settings: np.ndarray,

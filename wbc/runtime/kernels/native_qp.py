@@ -31,6 +31,7 @@ from . import (
     DAQP_WORKSPACE_WORDS,
     prepare_cache,
 )
+from ._lazy import declared
 from .assembly import qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
@@ -83,8 +84,8 @@ def _now_ns(typingctx, function, clock_id):
     return signature, codegen
 
 
-@njit("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, int64, "
-      "int64, int64, int64)", cache=CACHE, nogil=True)
+@declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], int64, int64, "
+          "int64, int64, int64)", cache=CACHE, nogil=True)
 def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
                data: np.ndarray, x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
                steady_mask: int) -> None:

@@ -15,15 +15,15 @@ that order, then ``dt``::
 :meth:`wbc.runtime.program.TickProgram.add` takes the operands by name, checks every array
 against its declared shape and dtype (C-contiguous) and every check, and packs the row in
 this order -- so a misnamed, misshapen or out-of-range operand raises when the controller
-is built, never corrupts memory at tick time. The interpreter that reads the rows back
-(``run_program``) is *generated* from these declarations (:mod:`.tick`), so no second copy
-of an operand order exists. An :class:`Op` is found by :func:`wbc.runtime.kernels.load` as a
-module attribute of its own name; its opcode is assigned there.
+is built, never corrupts memory at tick time. The C callback of each op that reads its row
+back (called by the interpreter ``run_program``) is *generated* from these declarations
+(:mod:`.tick`), so no second copy of an operand order exists. An :class:`Op` is found by
+:func:`wbc.runtime.kernels.load` as a module attribute of its own name; its number is assigned there.
 
 Control flow between ops goes through the program's *flags* (:data:`FLAGS`): a built-in op
 that declares the operand ``("flags", (FLAG_COUNT,), "int64")`` receives them (the program
 supplies them, the caller does not): ``flags[FLAG_FOUND_NAN]`` (a NaN screen found a NaN:
-``run_program`` returns True, and the solves after it are skipped) and
+``run_program`` returns RUN_FOUND_NAN, and the solves after it are skipped),
 ``flags[FLAG_STOPPED]`` (a level of a hierarchy failed: the levels below it are not solved)
 and ``flags[FLAG_ACCEPTED]`` (the program's solve answered within the tolerance of the
 controller's answer check). All are 0 when a run starts; the run returns them
@@ -61,9 +61,9 @@ PROGRAM_HEADER = 4 + FLAG_COUNT
 #: was accepted (flag :data:`FLAG_ACCEPTED`); else 0 -- or, before any row runs, that its ``q`` does not
 #: fit the program's input (another size, or no input: nothing written)
 RUN_FOUND_NAN, RUN_ACCEPTED, RUN_BAD_INPUT = 1, 2, 3
-#: the opcode of a third-party op (a CompiledOp): row [OP_EXTERNAL, callback address, operands...];
-#: wbc's own ops get the opcodes 1, 2, ... (by name) when the kernels load
-OP_EXTERNAL = 0
+#: the row of a third-party op (a CompiledOp): [OP_EXTERNAL, callback address, operands...]; of one of
+#: wbc's ops: [OP_BUILTIN, callback address, operands...] (its callback also receives the flags)
+OP_EXTERNAL, OP_BUILTIN = 0, 1
 #: the task stack A^T ((nv + 1) x rows: W J in rows :nv, W r in row nv), an operand of many ops
 STACK = ("stack", ("nv + 1", "rows"))
 #: names the generated decoders use for themselves

@@ -1,0 +1,88 @@
+"""No kernel is compiled -- nor read from numba's cache -- inside a tick or the control loop.
+
+The kernels compile when first used (wbc.runtime.kernels._lazy): an op when a program adds it,
+a kernel of a Python path when the object that calls it in ticks is built. A kernel missed
+there would stall a control loop for the seconds of its compilation after an install. In a fresh
+process (every dispatcher empty, the cache warm or not), every registered item's controllers --
+flat with native DAQP and with a qpsolvers backend (the answer checked in Python), two priority
+levels, the fallback answering -- are built, then stepped, their targets set and their commands
+integrated as in the README's loop: no compiled function gains a signature in the loop.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+TESTS = Path(__file__).parent
+
+_CHILD = textwrap.dedent("""
+    import sys
+    import numpy as np
+    import wbc
+    from item_registry import CASES, CONFIGURATIONS, load
+
+    def signatures():
+        found = {}
+        for name, module in list(sys.modules.items()):
+            if name.startswith("wbc."):
+                for attribute, value in list(vars(module).items()):
+                    if hasattr(value, "py_func") and hasattr(value, "overloads"):
+                        found[f"{name}.{attribute}"] = len(value.overloads)
+        return found
+
+    def controllers(robot, item):
+        regularisation = wbc.KineticEnergyRegularization(1e-3)
+        if isinstance(item, wbc.Task):
+            shapes = [([item, regularisation], []), ([[item], [regularisation]], []),
+                      ([[regularisation], [item]], [])]
+        else:
+            shapes = [([regularisation], [item]), ([[wbc.PostureTask(1e-2)], [regularisation]], [item])]
+        for tasks, constraints in shapes:
+            for solver in ("daqp", "quadprog"):
+                try:
+                    yield wbc.Controller(robot, tasks, constraints, solver=solver, dt=0.01)
+                except wbc.WbcError:
+                    continue  # not a valid stack for this item (e.g. a linear cost above the last level)
+
+    built = 0
+    for case in CASES:
+        robot = load(case.robot)
+        q0, q1 = CONFIGURATIONS[case.robot]
+        item = case.make(robot, q1)
+        for controller in controllers(robot, item):
+            built += 1
+            before = signatures()
+            q = q0.copy()
+            for _ in range(3):
+                if isinstance(item, wbc.FrameTask):
+                    item.set_target(robot.frame_pose(q1, item.frame))
+                v = controller.step(q)
+                q = robot.integrate(q, v, 0.01)
+            after = signatures()
+            new = sorted(name for name, count in after.items() if count != before.get(name, 0))
+            assert not new, f"{case.name} on {case.robot}, {controller.levels} ({controller.solver.name}): {new}"
+    # the fallback answering (infeasible equality rows) calls its own kernel
+    robot = load("youbot")
+    clash = wbc.LinearConstraint([[0, 0, 0, 1, 0, 0, 0, 0], [0, 0, 0, 1, 0, 0, 0, 0]], b=[0.1, -0.1])
+    controller = wbc.Controller(robot, [wbc.KineticEnergyRegularization(1e-3)], [clash], dt=0.01)
+    before = signatures()
+    controller.step(robot.neutral())
+    assert controller.last.status != "optimal"
+    assert signatures() == before
+    print(built)
+""")
+
+
+@pytest.mark.slow  # every item's controllers in a fresh process: ~1 min (more when the kernels compile)
+def test_no_kernel_compiles_in_a_tick():
+    result = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, timeout=1800,
+                            cwd=TESTS, env={**os.environ, "PYTHONPATH": os.pathsep.join(
+                                [str(TESTS), os.environ.get("PYTHONPATH", "")])})
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert int(result.stdout.split()[-1]) > 2 * 30  # the controllers were built (two per item at least)
