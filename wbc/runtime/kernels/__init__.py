@@ -235,7 +235,8 @@ def callback(op: Op) -> int:
         if _callback_module is None:
             _callback_module = callbacks(_ops, _stamp, cache_directory)
         function = getattr(_callback_module, f"op_{op.spec.name}")
-        compiled = _callbacks[op.spec.name] = cfunc(BUILTIN_SIGNATURE, cache=cache_directory is not None)(function)
+        cache = getattr(_callback_module, "__file__", None) is not None  # not when built in memory
+        compiled = _callbacks[op.spec.name] = cfunc(BUILTIN_SIGNATURE, cache=cache)(function)
     return int(compiled.address)
 
 
