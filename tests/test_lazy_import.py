@@ -232,3 +232,21 @@ def test_changed_callee_in_another_file_is_recompiled(tmp_path, where):
     changed = _python(run, env, cwd=tmp_path)
     assert changed.returncode == 0, changed.stderr
     assert (changed.stdout.strip(), changed.stderr.strip()) == ("30.0", _cache.CHANGED_MESSAGE)
+
+
+def test_an_op_compiles_after_its_generated_file_was_replaced(tmp_path):
+    """Another wbc version sharing the cache directory replaces the generated callbacks file
+    (its own sources): an op first added afterwards still compiles (was numba's 'cannot cache
+    function ... no locator' RuntimeError), and the file is written again."""
+    result = _python("""
+        import glob, os
+        from wbc.runtime import kernels
+        kernels.callback(kernels.HAS_NAN)
+        generated = glob.glob(os.path.join(str(kernels.cache_directory), "wbc_tick_ops_*.py"))
+        for path in generated:
+            os.remove(path)
+        kernels.callback(kernels.POSTURE)
+        print(len(generated), all(os.path.isfile(path) for path in generated))
+    """, {"NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["1", "True"]

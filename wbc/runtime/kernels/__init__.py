@@ -232,11 +232,17 @@ def callback(op: Op) -> int:
         from .tick import BUILTIN_SIGNATURE, callbacks
 
         compile_callees(op.kernel)
-        if _callback_module is None:
+        source = getattr(_callback_module, "__file__", None)
+        if _callback_module is None or (source is not None and not Path(source).is_file()):
+            # (again when another wbc version sharing the cache directory replaced the generated file)
             _callback_module = callbacks(_ops, _stamp, cache_directory)
         function = getattr(_callback_module, f"op_{op.spec.name}")
-        cache = getattr(_callback_module, "__file__", None) is not None  # not when built in memory
-        compiled = _callbacks[op.spec.name] = cfunc(BUILTIN_SIGNATURE, cache=cache)(function)
+        try:
+            cache = getattr(_callback_module, "__file__", None) is not None  # not when built in memory
+            compiled = cfunc(BUILTIN_SIGNATURE, cache=cache)(function)
+        except RuntimeError:  # numba cannot cache it (the file went away meanwhile): in memory
+            compiled = cfunc(BUILTIN_SIGNATURE)(function)
+        _callbacks[op.spec.name] = compiled
     return int(compiled.address)
 
 
