@@ -86,3 +86,35 @@ def test_no_kernel_compiles_in_a_tick():
                                 [str(TESTS), os.environ.get("PYTHONPATH", "")])})
     assert result.returncode == 0, result.stderr[-3000:]
     assert int(result.stdout.split()[-1]) > 2 * 30  # the controllers were built (two per item at least)
+
+
+_ENTRIES_CHILD = textwrap.dedent("""
+    import sys
+    import numpy as np
+    import wbc.model.robot as robot_module
+    import wbc.tasks.frame_task as frame_task_module
+    from numba.core.dispatcher import Dispatcher
+    from wbc.app.scenario import load_scenario
+
+    scenario = load_scenario(sys.argv[1])  # the README's loop: native DAQP, the tick in one native call
+    robot, task = scenario.robot, scenario.reference_task
+    controller = scenario.make_controller("daqp")
+    q = scenario.q0.copy()
+    for _ in range(3):
+        task.set_target(np.asarray(robot.frame_pose(q, task.frame)))
+        q = robot.integrate(q, controller.step(q), scenario.dt)
+    bound = {"set_target": frame_task_module._set_pose, "integrate": robot_module._integrate_vector_space,
+             "step": controller._native_step.func}
+    print(sorted(name for name, function in bound.items() if isinstance(function, Dispatcher)))
+""")
+
+
+@pytest.mark.slow  # a fresh process (the lazily compiled kernels not yet fetched): ~10 s
+def test_the_control_loop_calls_compiled_entries():
+    """The control loop's set_target(pose), robot.integrate and the native tick call their kernels'
+    compiled entries (wbc.runtime.native_entry.unchecked_entry), not numba's dispatchers: the
+    kernels, compiled lazily, are compiled when the entries are bound (else the type check stays)."""
+    result = subprocess.run([sys.executable, "-c", _ENTRIES_CHILD, str(TESTS.parent / "tasks" / "youbot_circle.toml")],
+                            capture_output=True, text=True, timeout=900, cwd=TESTS)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stdout.split("\n")[-2] == "[]"

@@ -25,7 +25,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import kernels
-from .kernels.ops import FLAGS, OP_BUILTIN, OP_EXTERNAL, PROGRAM_HEADER, PROGRAM_INPUT, PROGRAM_INPUT_SIZE, RUN_FOUND_NAN, Op
+from .kernels.ops import (
+    FLAGS,
+    OP_BUILTIN,
+    OP_EXTERNAL,
+    PROGRAM_HEADER,
+    PROGRAM_INPUT,
+    PROGRAM_INPUT_SIZE,
+    RUN_FOUND_NAN,
+    Op,
+)
 from .native_entry import unchecked_entry
 
 if TYPE_CHECKING:  # pragma: no cover
