@@ -92,6 +92,15 @@ TASKS = ROOT / "tasks"
 NEUTRAL = tempfile.gettempdir()
 
 
+def child_environment(*paths: Path | str) -> dict[str, str]:
+    """``os.environ`` for a Python subprocess, with ``paths`` and then the folder of the ``wbc`` this
+    process imported first on its PYTHONPATH: the child runs the wbc under test, also when the venv
+    installs another checkout's (a venv editable on one worktree, pytest run from another)."""
+    under_test = Path(wbc.__file__).resolve().parents[1]
+    inherited = os.environ.get("PYTHONPATH", "")
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [*map(str, paths), str(under_test), inherited]))}
+
+
 @pytest.fixture(scope="session")
 def youbot() -> wbc.Robot:
     return wbc.load_robot("youbot")

@@ -7,7 +7,6 @@ any kernel source changes: checked here on a small package with a cross-file cal
 stale cache numba alone would load.
 """
 
-import os
 import subprocess
 import sys
 import textwrap
@@ -15,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import NEUTRAL
+from conftest import NEUTRAL, child_environment
 from wbc.runtime import kernels
 from wbc.runtime.kernels import _cache, tick
 
@@ -28,7 +27,7 @@ def warm():
 
 def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
-                          env={**os.environ, **(env or {})}, cwd=cwd, timeout=300)
+                          env={**child_environment(), **(env or {})}, cwd=cwd, timeout=300)
 
 
 def test_import_does_not_import_numba():

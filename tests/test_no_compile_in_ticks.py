@@ -11,13 +11,14 @@ integrated as in the README's loop: no compiled function gains a signature in th
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 import textwrap
 from pathlib import Path
 
 import pytest
+
+from conftest import child_environment
 
 TESTS = Path(__file__).parent
 
@@ -82,8 +83,7 @@ _CHILD = textwrap.dedent("""
 @pytest.mark.slow  # every item's controllers in a fresh process: ~1 min (more when the kernels compile)
 def test_no_kernel_compiles_in_a_tick():
     result = subprocess.run([sys.executable, "-c", _CHILD], capture_output=True, text=True, timeout=1800,
-                            cwd=TESTS, env={**os.environ, "PYTHONPATH": os.pathsep.join(
-                                [str(TESTS), os.environ.get("PYTHONPATH", "")])})
+                            cwd=TESTS, env=child_environment(TESTS))
     assert result.returncode == 0, result.stderr[-3000:]
     assert int(result.stdout.split()[-1]) > 2 * 30  # the controllers were built (two per item at least)
 
@@ -115,6 +115,6 @@ def test_the_control_loop_calls_compiled_entries():
     compiled entries (wbc.runtime.native_entry.unchecked_entry), not numba's dispatchers: the
     kernels, compiled lazily, are compiled when the entries are bound (else the type check stays)."""
     result = subprocess.run([sys.executable, "-c", _ENTRIES_CHILD, str(TESTS.parent / "tasks" / "youbot_circle.toml")],
-                            capture_output=True, text=True, timeout=900, cwd=TESTS)
+                            capture_output=True, text=True, timeout=900, cwd=TESTS, env=child_environment())
     assert result.returncode == 0, result.stderr[-3000:]
     assert result.stdout.split("\n")[-2] == "[]"

@@ -4,7 +4,6 @@ exactly the arrays and ints TickProgram.add was given, and TickProgram.add refus
 else when the controller is built."""
 
 import importlib
-import os
 import shutil
 import subprocess
 import sys
@@ -14,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import child_environment
 from wbc.runtime import kernels
 from wbc.runtime.compiled_op import CompiledOp
 from wbc.runtime.kernels import ops
@@ -360,8 +360,8 @@ def test_a_new_op_is_its_kernel_file_alone(tmp_path):
         print(stack[2].tolist())
     """)
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=900,
-                            cwd=tmp_path, env={**os.environ, "PYTHONPATH": str(tmp_path),
-                                               "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
+                            cwd=tmp_path,
+                            env={**child_environment(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "cache")})
     assert result.returncode == 0, result.stderr
     assert result.stdout.split("\n")[-2] == str([0.0, 0.5 / 0.1 * -1.0, 0.5 / 0.1 * -2.0, 0.0])
 
