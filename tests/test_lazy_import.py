@@ -124,7 +124,7 @@ def test_generated_sources_are_written_once_and_replace_the_stale_ones(tmp_path)
 
 def test_warmup_command(warm):
     result = subprocess.run([sys.executable, "-m", "wbc.app.cli", "warmup"], capture_output=True, text=True,
-                            timeout=300, cwd=NEUTRAL)
+                            timeout=300, cwd=NEUTRAL, env=child_environment())
     assert result.returncode == 0, result.stderr
     assert result.stdout.startswith("numba kernels ready in ")
     assert result.stderr == ""
