@@ -443,6 +443,36 @@ def test_live_view_plays_and_the_slider_pauses_it(circle_run):
     assert not player.is_alive()
 
 
+def test_a_slider_move_while_the_view_writes_the_time_is_not_lost(circle_run, monkeypatch):
+    """The user moves the slider after the play loop looked at it and before it writes its own
+    time (here: from another thread, while the scene is drawn). Before, the loop compared the
+    slider with the value it read back after its write, and the move was overwritten unseen:
+    playing went on (CI hit the window once)."""
+    stop, moved = threading.Event(), threading.Event()
+    with view.LiveView([circle_run], port=free_port()) as live:
+        show = live.scene.show
+
+        def show_then_move(t):
+            show(t)
+            if t > 0.0 and not moved.is_set():
+                moved.set()
+                user = threading.Thread(target=lambda: setattr(live.time, "value", 0.5))
+                user.start()
+                user.join()
+
+        monkeypatch.setattr(live.scene, "show", show_then_move)
+        player = threading.Thread(target=live.serve, args=(stop,))
+        player.start()
+        try:
+            wait_until(lambda: moved.is_set())
+            wait_until(lambda: not live.playing.value, timeout=10.0)
+            wait_until(lambda: live.time.value == 0.5, timeout=10.0)
+        finally:
+            stop.set()
+            player.join(timeout=60)
+    assert not player.is_alive()
+
+
 def wait_until(condition, timeout: float = 60.0) -> None:
     deadline = time.monotonic() + timeout
     while not condition():

@@ -26,6 +26,7 @@ import math
 import threading
 import time
 import warnings
+from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -621,6 +622,11 @@ class LiveView:
         self.time = gui.add_slider("time [s]", min=0.0, max=max(self.scene.duration, 1e-3), step=1.0 / fps,
                                    initial_value=0.0)
         self.speed = gui.add_dropdown("speed", ("0.25", "0.5", "1", "2", "4"), initial_value="1")
+        #: the slider's last position set by someone else than the view (a user in the browser, or
+        #: code): taken by :meth:`serve`; a deque because appending and popping are atomic
+        self._moves: deque[float] = deque(maxlen=1)
+        self._writer: int | None = None  #: the thread setting the slider as the view, while it does
+        self.time.on_update(self._note_move)
 
     @property
     def url(self) -> str:
@@ -652,7 +658,7 @@ class LiveView:
                 return
             t = k * track.dt
             self.scene.show(t)
-            _assign(self.time, t)
+            self._show_time(t)
             self.status.content = f"**live**: {name}, {t:.2f} / {end:.2f} s"
             while not self.playing.value:
                 sleep(1.0 / self.scene.fps)
@@ -670,19 +676,34 @@ class LiveView:
         end; moving the slider pauses and shows that time."""
         self.time.disabled = False
         self.status.content = "**replay** of the run(s)"
-        t, written, last = 0.0, self.time.value, time.perf_counter()
+        t, last = 0.0, time.perf_counter()
+        self._moves.clear()
         while not stop.wait(1.0 / self.scene.fps):
             now = time.perf_counter()
-            if self.time.value != written:  # the user moved the slider
-                t = self.time.value
+            if self._moves:  # the user moved the slider (only this loop pops)
+                t = self._moves.pop()
                 _assign(self.playing, False)
             elif self.playing.value:
                 t += (now - last) * float(self.speed.value)
                 t = 0.0 if t > self.scene.duration + 1.0 else t  # hold the end 1 s, then loop
             last = now
             self.scene.show(t)
-            _assign(self.time, min(t, self.scene.duration))
-            written = self.time.value
+            self._show_time(min(t, self.scene.duration))
+
+    def _show_time(self, t: float) -> None:
+        """Set the slider to ``t`` as the view does (not a move of the user's)."""
+        self._writer = threading.get_ident()
+        try:
+            _assign(self.time, t)
+        finally:
+            self._writer = None
+
+    def _note_move(self, event: viser.GuiEvent) -> None:
+        """The slider changed: a move of the user's unless the view itself is setting it in this
+        thread. (Compared with a value written back, a move made while the view writes is never
+        lost: the view's write cannot overwrite it unseen.)"""
+        if self._writer != threading.get_ident():
+            self._moves.append(float(event.target.value))
 
     def close(self) -> None:
         """Stop the server."""
