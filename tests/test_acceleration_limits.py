@@ -278,6 +278,13 @@ def test_the_braking_speed_is_the_largest_that_stops_in_time(distance, a_max):
     assert v == pytest.approx(np.sqrt(2 * a_max * distance), abs=a_max * dt)  # ~ sqrt(2 a d)
 
 
+def test_the_braking_speed_beyond_a_limit_and_without_one():
+    """Beyond the limit (d < 0) the speed that lands on it in one tick, d / dt; no limit on that
+    side (d = inf, a one-sided position range): no bound (was an OverflowError of math.floor)."""
+    out = braking_speed(np.array([-0.02, np.inf]), np.array([3.0, 3.0]), 0.01, np.empty(2))
+    assert out[0] == pytest.approx(-2.0) and out[1] == np.inf
+
+
 @pytest.mark.parametrize("solver", ["daqp", "osqp"])
 @pytest.mark.parametrize("gain", [None, 0.5])
 def test_a_joint_driven_at_its_limit_brakes_in_time_and_never_overshoots(youbot, solver, gain):

@@ -47,6 +47,9 @@ from ..core.errors import InvalidInputError
 from ..model.kinematics import Kinematics
 from ..model.robot import AccelerationTable, Robot
 from ..model.tick_context import TickContext
+from ..runtime import kernels
+from ..runtime.kernels import BASE_SIZE, BASE_X, BASE_Y, BASE_YAW, BASE_YAW_CHANNEL
+from ..runtime.native_entry import unchecked_entry
 from .constraint import Constraint, ConstraintData, ConstraintRows
 from .heading_rows import HeadingRows
 
@@ -71,16 +74,10 @@ def braking_speed(distance: NDArray[np.float64], a_max: NDArray[np.float64], dt:
                   out: NDArray[np.float64]) -> NDArray[np.float64]:
     """The largest speed toward a limit ``distance`` away from which braking at ``a_max`` per tick
     stops short of it (the exact inverse of the braking distance, see the module docstring); for a
-    negative distance (beyond the limit) ``distance / dt``, the speed that lands on it in one tick."""
-    step = a_max * dt
-    for i in range(distance.size):
-        d = distance[i]
-        if d < 0.0:
-            out[i] = d / dt
-            continue
-        delta = d / (step[i] * dt)
-        m = math.floor((math.sqrt(8.0 * delta + 1.0) - 1.0) / 2.0)
-        out[i] = step[i] * (delta / (m + 1) + 0.5 * m)
+    negative distance (beyond the limit) ``distance / dt``, the speed that lands on it in one tick;
+    inf for an infinite distance. Compiled (:func:`wbc.runtime.kernels.acceleration.braking_speed`);
+    returns ``out``."""
+    kernels.braking_speed(distance, a_max, dt, out)
     return out
 
 
@@ -162,7 +159,7 @@ class AccelerationLimitsData(ConstraintData):
     """:class:`AccelerationLimits` in one controller: the resolved limits, the channels' history
     (``w_prev``, ``w_prev2``) and the viability indices, all preallocated."""
 
-    python_kernels = ("heading_rows",)  # HeadingRows.write's
+    python_kernels = ("heading_rows", "acceleration_bounds", "braking_speed")  # (braking_speed: RowBraking's)
 
     has_bounds = True
 
@@ -202,16 +199,17 @@ class AccelerationLimitsData(ConstraintData):
             self._accel[n_joints + 2:] = wheel_accel
             assert wheels is not None
             self._speed[n_joints + 2:] = wheels.max_speed
-        self._neg_speed = -self._speed
         self._prev, self._prev2 = np.zeros(n), np.zeros(n)  # w_prev, w_prev2: from rest
-        self._lower, self._upper = np.empty(n), np.empty(n)
-        self._jerk_lower, self._jerk_upper = np.empty(n), np.empty(n)
-        self._jerk_step, self._center = np.empty(n), np.empty(n)
-        self._twist = np.zeros(3)  # (v_x, v_y, omega) of the reference velocity
+        # the base's indices for the kernel (BASE_X < 0: no base channels), its speed limits
+        self._base = np.full(BASE_SIZE, -1, dtype=np.int64)
+        self._twist_speed, self._wheel_speed = np.full(3, np.inf), np.inf
         if base.is_mobile:
-            self._twist_speed = speed[[self._x, self._y, self._yaw]].copy()
-            self._yaw_channel = int(np.flatnonzero(self._joints == self._yaw)[0])
+            self._twist_speed[:] = speed[[self._x, self._y, self._yaw]]
             self._wheel_speed = np.inf if base.wheels is None else base.wheels.max_speed
+            if base_channels:
+                self._base[[BASE_X, BASE_Y, BASE_YAW]] = self._x, self._y, self._yaw
+                self._base[BASE_YAW_CHANNEL] = int(np.flatnonzero(self._joints == self._yaw)[0])
+        self._joints = self._joints.astype(np.int64)
         self._zero = np.zeros(nv)
         self._seen: object = None  # the context's previous command at the last compute (one shift per tick)
         self._started = False  # computed once already
@@ -261,12 +259,12 @@ class AccelerationLimitsData(ConstraintData):
                 q_index.append(i)
                 lower.append(robot.lower[i])
                 upper.append(robot.upper[i])
-        self._viable = np.array(channel, dtype=int)
-        self._viable_q = np.array(q_index, dtype=int)
-        self._position_lower, self._position_upper = np.array(lower), np.array(upper)
-        k = len(channel)
-        self._distance, self._braking, self._q = np.empty(k), np.empty(k), np.empty(k)
-        self._viable_accel = self._accel[self._viable].copy()
+        self._viable = np.array(channel, dtype=np.int64)
+        self._viable_q = np.array(q_index, dtype=np.int64)
+        self._position_lower = np.array(lower, dtype=np.float64)
+        self._position_upper = np.array(upper, dtype=np.float64)
+        self._scratch = np.empty(2 * self._accel.size + 3 * len(channel))  # acceleration_bounds'
+        self._bounds = unchecked_entry(kernels.acceleration_bounds)  # called with this data's own arrays
 
     def use_context(self, context: TickContext) -> None:
         self.context = context
@@ -307,104 +305,31 @@ class AccelerationLimitsData(ConstraintData):
                 rows.G[offset:offset + n, self._yaw] = self._H0[:, 2]
                 rows.G[offset + n:, self._yaw] = -self._H0[:, 2]
 
-    def _shift_history(self, q: NDArray[np.float64]) -> None:
-        """``w_prev2 <- w_prev``, ``w_prev <-`` the channels of the reference velocity (the measured
-        one, else the previous command, else rest), clipped into the speed limits."""
-        context = self.context
+    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
+        """The bounds of this tick (:func:`wbc.runtime.kernels.acceleration.acceleration_bounds`): the
+        channels' reference is the measured velocity, else the previous command (at the heading it
+        was computed for), else rest; the history shifts once per tick."""
+        context, q = self.context, kin.q
         previous, measured = context.previous, context.measured
-        if previous is not self._seen:  # a new tick (the context holds a new array each tick)
-            self._prev2[:] = self._prev
-            self._seen = previous
+        new_tick = previous is not self._seen  # the context holds a new array each tick
+        self._seen = previous
         if measured is not None:
             v, heading = measured, q[self._yaw] if self._n_base else 0.0
         elif previous is not None:
             v, heading = previous, self._heading
         else:
             v, heading = self._zero, 0.0
-        prev, n_joints = self._prev, self._n_joints
-        np.take(v, self._joints, out=prev[:n_joints])
+        # a copy or pickle of a running controller: no earlier command known, the last acceleration zero
+        restart = not self._started and previous is not None
+        self._started = True
+        self._bounds(v, float(heading), new_tick, restart, q, dt, self._joints, self._base, self._twist_speed,
+                     self._H0, self._wheel_speed, self._accel, self._jerk, self._speed, self._prev, self._prev2,
+                     self._viable, self._viable_q, self._position_lower, self._position_upper, self._scratch,
+                     rows.lower, rows.upper, rows.h, self._base_rows)
         if self._n_base:
-            self._base_reference(v, heading, prev)
-            self._heading = q[self._yaw]
-        np.clip(prev, -self._speed, self._speed, out=prev)
-        if not self._started:
-            self._started = True
-            if previous is not None:  # a copy or pickle of a running controller: no earlier command known,
-                self._prev2[:] = prev  # take the last acceleration as zero (not as a jump from rest)
-
-    def _base_reference(self, v: NDArray[np.float64], heading: float, prev: NDArray[np.float64]) -> None:
-        """The base channels' reference: the twist ``(v_x, v_y, omega)`` of ``v`` at ``heading``,
-        scaled as a whole into the base and wheel speed limits (so that it satisfies all of them
-        at once: a command equal to it meets every box and every speed row), and its wheel speeds."""
-        c, s = math.cos(heading), math.sin(heading)
-        twist, n_joints = self._twist, self._n_joints
-        twist[0], twist[1], twist[2] = c * v[self._x] + s * v[self._y], -s * v[self._x] + c * v[self._y], v[self._yaw]
-        scale = 1.0
-        for k in range(3):
-            if abs(twist[k]) > self._twist_speed[k]:
-                scale = min(scale, self._twist_speed[k] / abs(twist[k]))
-        wheels = prev[n_joints + 2:]
-        if self.n_wheels:
-            np.matmul(self._H0, twist, out=wheels)
-            fastest = np.abs(wheels).max()
-            if fastest > self._wheel_speed:
-                scale = min(scale, self._wheel_speed / fastest)
-        if scale < 1.0:
-            twist *= scale
-            wheels *= scale
-        prev[n_joints:n_joints + 2] = twist[:2]
-        prev[self._yaw_channel] = twist[2]
-
-    def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        self._shift_history(kin.q)
-        lower, upper, prev = self._lower, self._upper, self._prev
-        # the acceleration box
-        np.multiply(self._accel, dt, out=upper)
-        np.subtract(prev, upper, out=lower)
-        np.add(prev, upper, out=upper)
-        np.maximum(lower, self._neg_speed, out=lower)  # meets the speed limits: prev is inside them
-        np.minimum(upper, self._speed, out=upper)
-        # viability, clipped into the box
-        if self._viable.size:
-            np.take(kin.q, self._viable_q, out=self._q)
-            channels, distance, braking = self._viable, self._distance, self._braking
-            np.subtract(self._position_upper, self._q, out=distance)
-            braking_speed(distance, self._viable_accel, dt, braking)
-            upper[channels] = np.minimum(upper[channels], np.maximum(braking, lower[channels]))
-            np.subtract(self._q, self._position_lower, out=distance)
-            braking_speed(distance, self._viable_accel, dt, braking)
-            np.negative(braking, out=braking)
-            lower[channels] = np.maximum(lower[channels], np.minimum(braking, upper[channels]))
-        # the jerk box 2 w_prev - w_prev2 +- j dt^2, clipped into the rest
-        jerk_lower, jerk_upper = self._jerk_lower, self._jerk_upper
-        jerk_step, center = self._jerk_step, self._center
-        np.multiply(self._jerk, dt * dt, out=jerk_step)
-        np.multiply(prev, 2.0, out=center)
-        np.subtract(center, self._prev2, out=center)
-        np.add(center, jerk_step, out=jerk_upper)
-        np.subtract(center, jerk_step, out=jerk_lower)
-        np.minimum(np.maximum(jerk_lower, lower, out=jerk_lower), upper, out=jerk_lower)
-        np.maximum(np.minimum(jerk_upper, upper, out=jerk_upper), lower, out=jerk_upper)
-        self._write(rows, jerk_lower, jerk_upper, kin.q)
-
-    def _write(self, rows: ConstraintRows, lower: NDArray[np.float64], upper: NDArray[np.float64],
-               q: NDArray[np.float64]) -> None:
-        n_joints = self._n_joints
-        rows.lower[self._joints] = lower[:n_joints]
-        rows.upper[self._joints] = upper[:n_joints]
-        if not self.n_inequalities:
-            return
-        self._heading_rows.write(q, rows.G)
-        h, row = rows.h, 0
-        if self._base_rows:  # rows +v_x, -v_x, +v_y, -v_y
-            h[0], h[1] = upper[n_joints], -lower[n_joints]
-            h[2], h[3] = upper[n_joints + 1], -lower[n_joints + 1]
-            row = 4
-        n = self.n_wheels
-        if n:
-            wheels = slice(n_joints + 2, n_joints + 2 + n)
-            h[row:row + n] = upper[wheels]
-            np.negative(lower[wheels], out=h[row + n:row + 2 * n])
+            self._heading = float(q[self._yaw])
+        if self.n_inequalities:
+            self._heading_rows.write(q, rows.G)
 
     def row_labels(self) -> list[str]:
         base = ["base a_x upper", "base a_x lower", "base a_y upper", "base a_y lower"] if self._base_rows else []

@@ -103,6 +103,11 @@ STEERING_SETTINGS = 3
 BARRIER_GAIN, BARRIER_MIN_VALUE = 0, 1  # gain in (0, 1], m_min > 0
 BARRIER_SETTINGS = 2
 
+#: layout of the ``base`` indices of the AccelerationLimits kernel (acceleration_bounds): the velocity
+#: indices of the base's x, y and heading rate, the channel of the heading rate (BASE_X < 0: no base channels)
+BASE_X, BASE_Y, BASE_YAW, BASE_YAW_CHANNEL = range(4)
+BASE_SIZE = 4
+
 # ---------------------------------------------------------- manipulability
 
 #: closed form accepted while det(gram) > GRAM_CONDITION * (mean eigenvalue)^size
@@ -146,6 +151,7 @@ COMPILED = {
     "native_qp": ("daqp_solve",),
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),
+    "acceleration": ("braking_speed", "acceleration_bounds"),
 }
 _MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}
 
