@@ -698,7 +698,7 @@ class LiveView:
         finally:
             self._writer = None
 
-    def _note_move(self, event: viser.GuiEvent) -> None:
+    def _note_move(self, event: viser.GuiEvent[viser.GuiSliderHandle[float]]) -> None:
         """The slider changed: a move of the user's unless the view itself is setting it in this
         thread. (Compared with a value written back, a move made while the view writes is never
         lost: the view's write cannot overwrite it unseen.)"""
