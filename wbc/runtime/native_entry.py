@@ -11,6 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 
 def unchecked_entry(function: Any) -> Callable[..., Any]:
     """The compiled entry of ``function`` (an ``@njit`` dispatcher compiled for exactly one
@@ -29,3 +31,19 @@ def unchecked_entry(function: Any) -> Callable[..., Any]:
         return function
     entry = getattr(function.overloads.get(signatures[0]), "entry_point", None)
     return function if entry is None else entry
+
+
+def fits_signature(function: Any, arguments: tuple[Any, ...]) -> bool:
+    """Whether ``arguments`` are exactly what the one compiled signature of ``function`` takes
+    when they are all arrays: each an ndarray of its dtype and dimensions, C-contiguous where the
+    signature says so -- what :func:`unchecked_entry`'s callers must ensure. False when
+    ``function`` has not exactly one signature, or an argument is not an array."""
+    signatures: Any = getattr(function, "signatures", ())
+    if len(signatures) != 1 or len(signatures[0]) != len(arguments):
+        return False
+    for argument, kind in zip(arguments, signatures[0], strict=True):
+        if not (isinstance(argument, np.ndarray) and hasattr(kind, "ndim") and argument.ndim == kind.ndim
+                and argument.dtype == np.dtype(str(kind.dtype))
+                and (kind.layout != "C" or argument.flags.c_contiguous)):
+            return False
+    return True
