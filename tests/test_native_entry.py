@@ -62,3 +62,33 @@ def test_arguments_that_do_not_fit_the_signature_are_refused(fault):
 
 def test_a_function_without_exactly_one_signature_does_not_fit():
     assert not fits_signature(lambda x: x, (np.zeros(1),))
+
+
+def test_a_tick_with_a_pair_left_to_coal_gets_coals_distance(monkeypatch):
+    """A box obstacle overlapping the youBot's platform box (coal measures overlapping boxes): the
+    kernel's bound entry hands the pair over and the tick's entry is coal's distance (oracle: the
+    platform's URDF box and the obstacle as coal shapes, measured here)."""
+    from test_collision_distances import Oracle
+
+    robot = YOUBOT
+    kin = Kinematics(robot)
+    kin.update(NEUTRAL)
+    geometry = wbc.collision.RobotGeometry(robot)
+    platform = next(i for i, link in enumerate(geometry.links) if geometry.table[i, 0] == 3)  # the box (layout.BOX)
+    pose = np.eye(4)
+    pose[:3, 3] = robot.frame_pose(NEUTRAL, geometry.links[platform])[:3, 3] + (0.25, 0.0, 0.0)
+    box = wbc.Box(pose, (0.2, 0.2, 0.2))  # its centre inside the platform's edge: the boxes overlap
+    data = wbc.CollisionAvoidance([box], self_collision=False).bind(robot)
+    n, nv = data.n_inequalities, robot.nv
+    rows = ConstraintRows(np.zeros(nv), np.zeros(nv), np.zeros((n, nv)), np.zeros(n), np.zeros((0, nv)), np.zeros(0))
+    handed_over = []
+    finish = data.distances.finish_with_coal
+    monkeypatch.setattr(data.distances, "finish_with_coal", lambda *a: handed_over.append(a[1]) or finish(*a))
+    data.compute(kin, 0.01, rows)
+    assert handed_over  # the kernel left a pair to coal
+    labels = data.active_labels()
+    entry = labels.index(f"{geometry.links[platform]}↔box0")
+    expected = Oracle(robot, [box]).distances(NEUTRAL)[frozenset((geometry.links[platform], "obstacle0"))]
+    assert expected < 0.0  # overlapping: only coal measures it
+    assert data.pairs.distance[entry] == pytest.approx(expected, abs=1e-6)
+    assert data._call[3].func is not kernels.avoidance_rows  # through the compiled entry
