@@ -119,6 +119,48 @@ def test_native_answers_are_the_bindings_and_optimal(rng, warm_start):
     assert infeasible < 200  # the equalities with bounds make some infeasible: both paths must say so
 
 
+@pytest.mark.parametrize("warm_start", [True, False])
+def test_a_feasible_unconstrained_minimiser_is_the_answer_without_daqp(rng, warm_start):
+    """A QP without equality rows whose minimiser -H^-1 c (numpy's solve, written out here)
+    lies inside every bound and row is answered by it when DAQP's working set is empty: 0 DAQP
+    iterations, multipliers 0, defect 0, the binding's answer. Pushed out of the box (c scaled
+    up) DAQP answers (iterations > 0, a bound active, KKT); back inside, a warm DAQP answers once
+    (its working set held the bounds), then the minimiser again. With an equality row DAQP answers."""
+    library = daqp_probe.native()
+    for _ in range(50):
+        n, p = int(rng.integers(1, 10)), int(rng.integers(0, 5))
+        qp = random_qp(rng, n, p, 0)
+        qp.C[...] = 0.1 * rng.standard_normal(qp.C.shape)
+        qp.h[...] = 10.0  # the rows far away: only the bounds can bind
+        inside_c = qp.H @ rng.uniform(-0.05, 0.05, n)  # the minimiser -H^-1 c well inside the box
+        workspace = NativeWorkspace(library, qp, {}, warm_start=warm_start)
+        limits_were_active = False
+        for c in (inside_c, 1000.0 * inside_c, inside_c, inside_c):
+            qp.c[...] = c
+            exitflag, defect, elapsed = workspace.solve()
+            minimiser = np.linalg.solve(qp.H, -qp.c)
+            inside = np.all(minimiser <= qp.ub) and np.all(minimiser >= qp.lb) and np.all(qp.C @ minimiser <= qp.h)
+            assert exitflag == 1 and 0.0 < elapsed < 0.1
+            np.testing.assert_allclose(workspace.x, binding_answer(qp)[0], rtol=0, atol=1e-9)
+            assert_kkt(qp, workspace.x, workspace.lam)
+            if not inside:
+                assert workspace.iterations > 0 and np.abs(workspace.lam).max() > 0.0
+            elif warm_start and limits_were_active:
+                assert workspace.iterations > 0 and not workspace.lam.any()
+            else:
+                assert workspace.iterations == 0 and defect == 0.0
+                np.testing.assert_allclose(workspace.x, minimiser, rtol=0, atol=1e-10)
+                assert not workspace.lam.any()
+            limits_were_active = bool(workspace.lam.any())
+        assert workspace.iterations == 0  # the last pass: the minimiser again
+    qp = random_qp(rng, 4, 0, 1)
+    qp.A[...] = 0.0  # an equality row 0 = 0: every x satisfies it, but DAQP answers QPs with equality rows
+    qp.sync_equalities()
+    qp.c[...] = qp.H @ rng.uniform(-0.05, 0.05, 4)
+    workspace = NativeWorkspace(library, qp, {}, warm_start=True)
+    assert workspace.solve()[0] == 1 and workspace.iterations > 0
+
+
 def test_settings_reach_the_c_solver():
     rng = np.random.default_rng(3)
     qp = random_qp(rng, 10, 8, 0)

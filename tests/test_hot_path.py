@@ -109,11 +109,13 @@ def test_heading_rows_are_the_base_frame_limits(youbot, rng):
                                    atol=1e-12)
 
 
-def _loop_controller(youbot, **options) -> tuple[wbc.Controller, wbc.FrameTask]:
-    """A youBot controller whose whole tick is compiled (the control loop's native path)."""
+def _loop_controller(youbot, barrier: bool = False, **options) -> tuple[wbc.Controller, wbc.FrameTask]:
+    """A youBot controller whose whole tick is compiled (the control loop's native path); with
+    ``barrier`` a manipulability barrier too (a soft row: compiled on the youBot)."""
     task = wbc.FrameTask("ee", 1.0, 0.5)
     task.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
     limits = [wbc.JointVelocityLimits(), wbc.JointPositionLimits(), wbc.MecanumWheelLimits()]
+    limits += [wbc.ManipulabilityBarrier("ee", 0.01, 0.5)] if barrier else []
     return wbc.Controller(youbot, [task, wbc.PostureTask(1e-2)], limits, **options), task
 
 
@@ -123,24 +125,37 @@ def _huge(youbot, index: int) -> np.ndarray:
     return q
 
 
-@pytest.mark.parametrize("options", [{}, {"solver_options": {"iter_limit": 1}}, {"strict": False, "damping": 0.0}])
-def test_the_native_tick_is_the_assembly_pipeline(youbot, options):
+def _straight(youbot) -> np.ndarray:
+    """The arm stretched straight (manipulability ~0): the barrier's row asks more than the
+    speed limits allow -- DAQP answers infeasible, the elastic fallback answers."""
+    q = youbot.neutral()
+    q[3:] = 0.0
+    return q
+
+
+@pytest.mark.parametrize("barrier", [False, True])
+@pytest.mark.parametrize("options", [{}, {"solver_options": {"iter_limit": 2}}, {"strict": False, "damping": 0.0}])
+def test_the_native_tick_is_the_assembly_pipeline(youbot, options, barrier):
     """step(q) -- after its first tick one native call from q to the checked answer -- gives
     what the assembly pipeline (taken with v_measured, which no item here reads) gives: the same
     commands, outcomes and statuses tick by tick, on a circle with the fallback's cases mixed in
-    (a NaN in the QP from the kinematics, an infeasible QP, an iteration limit)."""
-    native, native_task = _loop_controller(youbot, **options)
-    pipeline, pipeline_task = _loop_controller(youbot, **options)
+    (a NaN in the QP from the kinematics, an infeasible QP, soft rows made elastic, an iteration
+    limit), slow stretches where no limit is active (the unconstrained minimiser answers,
+    wbc.runtime.kernels.native_qp) between fast ones where limits are (DAQP answers)."""
+    native, native_task = _loop_controller(youbot, barrier, **options)
+    pipeline, pipeline_task = _loop_controller(youbot, barrier, **options)
+    assert native._stepper is not None  # (the barrier is compiled on the youBot: the native tick is taken)
     zero = np.zeros(youbot.nv)
     q_native, q_pipeline = youbot.neutral(), youbot.neutral()
     centre = youbot.frame_pose(youbot.neutral(), "ee")
-    outcomes = set()
+    outcomes, statuses, by_minimiser, by_daqp = set(), set(), 0, 0
     for k in range(120):
+        radius, rate = (0.02, 0.05) if k // 20 % 2 == 0 else (0.15, 0.2)  # slow, then fast, ...
         target = centre.copy()
-        target[:3, 3] += 0.15 * np.array([np.sin(0.2 * k), np.cos(0.2 * k) - 1.0, 0.0])
+        target[:3, 3] += radius * np.array([np.sin(rate * k), np.cos(rate * k) - 1.0, 0.0])
         native_task.set_target(target)
         pipeline_task.set_target(target)
-        odd = {40: _huge(youbot, 0), 41: _huge(youbot, 3)}.get(k)
+        odd = {40: _huge(youbot, 0), 41: _huge(youbot, 3), 60: _straight(youbot), 61: _straight(youbot)}.get(k)
         v = native.step(q_native if odd is None else odd)
         w = pipeline.step(q_pipeline if odd is None else odd, v_measured=zero)
         np.testing.assert_array_equal(v, w)
@@ -148,11 +163,22 @@ def test_the_native_tick_is_the_assembly_pipeline(youbot, options):
         assert (a.tick, a.outcome, a.status, a.solver) == (b.tick, b.outcome, b.status, b.solver)
         np.testing.assert_array_equal(native.qp.data, pipeline.qp.data)
         outcomes.add(a.outcome)
+        statuses.add(a.status)
+        if a.outcome is wbc.Outcome.OPTIMAL:
+            iterations = native.solver.bound.iterations
+            assert iterations == pipeline.solver.bound.iterations
+            by_minimiser, by_daqp = by_minimiser + (iterations == 0), by_daqp + (iterations > 0)
         if odd is None:
             q_native, q_pipeline = youbot.integrate(q_native, v, 0.01), youbot.integrate(q_pipeline, w, 0.01)
     assert wbc.Outcome.ZERO in outcomes  # the odd ticks went through the fallback chain
-    if "solver_options" in options:
+    if barrier:  # the stretched arm: the barrier's row conflicts with the speed limits
         assert wbc.Outcome.ELASTIC in outcomes
+    else:
+        assert by_minimiser > 0
+    if "solver_options" in options:
+        assert any("iteration limit" in status for status in statuses)
+    else:
+        assert by_daqp > 0
 
 
 def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):

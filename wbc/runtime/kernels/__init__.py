@@ -135,6 +135,10 @@ DAQP_CONTROL_SIZE = 5
 DAQP_CONTROL_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)
 #: exit flag of a solve that a NaN screen earlier in the program skipped
 DAQP_SKIPPED = 0
+#: DAQP's exit flag of an optimal answer (EXIT_OPTIMAL), also the unconstrained minimiser's (native_qp.daqp_solve)
+DAQP_OPTIMAL = 1
+#: the bit of an active constraint in DAQP's constraint states (DAQP's ACTIVE)
+DAQP_SENSE_ACTIVE = 1
 
 # ------------------------------------------------------- compiled functions
 

@@ -97,10 +97,11 @@ def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
             Hc[j, j] += extra
 
 
-@declared("boolean(float64[:, :], float64[:, :], float64[:])", cache=CACHE, nogil=True)
-def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
-    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (``factor``: nv x nv scratch).
-    Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
+@njit(inline="always")
+def minimiser(Hc: np.ndarray, factor: np.ndarray, x: np.ndarray) -> bool:
+    """``x = -H^-1 c``, the unconstrained minimiser of ``1/2 x^T H x + c^T x`` (``Hc = [H; c]``),
+    by Cholesky ``H = L L^T`` (``factor``: n x n scratch, L in its lower triangle). Returns False,
+    with ``x = 0``, when H is not positive definite."""
     nv = Hc.shape[1]
     for j in range(nv):
         pivot = Hc[j, j]
@@ -108,7 +109,7 @@ def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bo
             pivot -= factor[j, p] * factor[j, p]
         if not pivot > 0.0:
             for i in range(nv):
-                preview[i] = 0.0
+                x[i] = 0.0
             return False
         factor[j, j] = math.sqrt(pivot)
         for a in range(j + 1, nv):
@@ -119,14 +120,21 @@ def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bo
     for a in range(nv):  # L y = -c
         total = -Hc[nv, a]
         for p in range(a):
-            total -= factor[a, p] * preview[p]
-        preview[a] = total / factor[a, a]
+            total -= factor[a, p] * x[p]
+        x[a] = total / factor[a, a]
     for a in range(nv - 1, -1, -1):  # L^T x = y
-        total = preview[a]
+        total = x[a]
         for p in range(a + 1, nv):
-            total -= factor[p, a] * preview[p]
-        preview[a] = total / factor[a, a]
+            total -= factor[p, a] * x[p]
+        x[a] = total / factor[a, a]
     return True
+
+
+@declared("boolean(float64[:, :], float64[:, :], float64[:])", cache=CACHE, nogil=True)
+def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
+    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (:func:`minimiser`; ``factor``: nv x nv
+    scratch). Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
+    return minimiser(Hc, factor, preview)
 
 
 @declared("void(float64[:, :], int64, float64[:], float64[:])", cache=CACHE, nogil=True)
@@ -425,7 +433,7 @@ LINEAR_COST = Op("LINEAR_COST", _linear_cost, (
 
 @njit(inline="always")
 def _preview(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray, nv: int, dt: float) -> None:
-    preview_solve(Hc, factor, preview)
+    minimiser(Hc, factor, preview)
 
 
 #: the holonomic preview H^-1 c (factor: scratch)

@@ -12,6 +12,15 @@ warm start. With ``warm_start`` the problem's ``sense`` pointer is the workspace
 array, so each tick starts from the previous working set; without it, it is a fresh copy
 of the initial states (equality rows active), so each tick starts cold.
 
+**The unconstrained minimiser first.** On a QP without equality rows, when DAQP's working set
+holds no active constraint (the last answer met no limit: always, without warm start), the
+compiled solve first tries ``x = -H^-1 c`` (one Cholesky factorisation): when it satisfies every
+bound and row exactly it is the QP's answer (H is positive definite: a feasible unconstrained
+minimiser is the constrained one), with multipliers 0 and 0 iterations, and DAQP is not called
+(its working set stays empty). Otherwise DAQP solves as below. A tick where no limit is active
+(most ticks of a tracking task) then costs a factorisation instead of DAQP's update and solve;
+a run of ticks at a limit does not try it.
+
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
 that runs the op keeps alive); DAQP's own allocations are freed when the object is
 collected (``weakref.finalize``) and re-made by :meth:`NativeWorkspace.reset`.
@@ -50,6 +59,7 @@ class NativeWorkspace:
         n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
+        self._factor = np.zeros((n, n))  # the Cholesky factor of H when the unconstrained minimiser is tried (scratch)
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
         self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
         # the initial constraint states (equality rows active), what a cold tick re-reads;
@@ -77,6 +87,8 @@ class NativeWorkspace:
         self._finalizer = weakref.finalize(self, _free, library.lib, self.work)
         self._program = TickProgram()  # the solve alone, for solve()
         self._program.add(kernels.DAQP_SOLVE, **self.operands())
+        self._neutral_solve = TickProgram()  # DAQP's solve alone (never the minimiser), for reset()
+        self._neutral_solve.add(kernels.DAQP_SOLVE, **{**self.operands(), "unconstrained_first": 0})
         self.reset()
 
     def reset(self) -> None:
@@ -94,7 +106,7 @@ class NativeWorkspace:
             raise RuntimeError(f"DAQP could not set up a {qp.n}-variable workspace (exit flag {flag})")
         # one solve of the neutral problem: DAQP's memory is touched now, not in the first tick
         self.control[DAQP_CONTROL_MASK] = daqp_abi.COLD_UPDATE
-        self._program.run(0.0)
+        self._neutral_solve.run(0.0)
         self._point(qp.H, qp.c, qp.C, qp.upper, qp.lower)
         if self.warm_start:
             problem.sense = self.work.sense  # the working set carries over from tick to tick
@@ -110,9 +122,11 @@ class NativeWorkspace:
         """The operands of the compiled solve (the declaration of `wbc.runtime.kernels.native_qp.DAQP_SOLVE`)."""
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
-                    control=self.control, data=self.qp.data, x=self.x, n=self.qp.n, size=self.qp.data.size,
-                    update_ldp=entry.update_ldp, solve=entry.solve, clock_gettime=entry.clock_gettime,
-                    clock_id=entry.clock_id, steady_mask=daqp_abi.WARM_UPDATE)
+                    control=self.control, data=self.qp.data, x=self.x, factor=self._factor, lam=self.lam,
+                    n=self.qp.n, size=self.qp.data.size, m=self.lam.size, update_ldp=entry.update_ldp,
+                    solve=entry.solve, clock_gettime=entry.clock_gettime, clock_id=entry.clock_id,
+                    steady_mask=daqp_abi.WARM_UPDATE, unconstrained_first=int(self.qp.n_eq == 0),
+                    sense_word=Problem.sense.offset // 8)
 
     def add_op(self, program: TickProgram) -> None:
         """Append the solve to ``program``: it runs after the program's NaN screen, and only
