@@ -1,6 +1,7 @@
 """The shortcuts of the control tick compute what the plain formulas compute."""
 
 import re
+import time
 
 import daqp
 import numpy as np
@@ -10,6 +11,7 @@ import wbc
 from conftest import TASKS, random_youbot_configurations
 from wbc.app.scenario import load_scenario
 from wbc.qp.problem import QP
+from wbc.runtime import kernels
 from wbc.solvers import DaqpBackend
 
 
@@ -202,6 +204,48 @@ def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):
     assert len(calls) == 3 and controller.context.measured is None
     controller.step(q)
     assert len(calls) == 3
+
+
+def test_the_native_tick_records_every_diagnostic(youbot):
+    """On the control loop's path step records (v, solve time, tick time) only; ``last`` reads
+    every field as the pipeline's full record does: tick, solver, outcome, status, v and u (the
+    returned array itself), the solve time DAQP's op wrote, a tick time between it and the time
+    around the call, the lazy fields. A step that raises keeps the latest tick's diagnostics;
+    a new solver (a rebuilt program) does not rename the latest tick's."""
+    native, native_task = _loop_controller(youbot)
+    pipeline, pipeline_task = _loop_controller(youbot)
+    zero, q = np.zeros(youbot.nv), youbot.neutral()
+    centre = youbot.frame_pose(q, "ee")
+    for k in range(6):
+        target = centre.copy()
+        target[:3, 3] += 0.02 * np.array([np.sin(0.1 * k), np.cos(0.1 * k) - 1.0, 0.0])
+        native_task.set_target(target)
+        pipeline_task.set_target(target)
+        start = time.perf_counter()
+        v = native.step(q)
+        elapsed = time.perf_counter() - start
+        solve_time = float(native.solver.bound.control[kernels.DAQP_CONTROL_TIME])
+        w = pipeline.step(q, v_measured=zero)
+        assert len(native._record) == (8 if k == 0 else 3)  # the first tick is the assembly's
+        a, b = native.last, pipeline.last
+        assert a is native.last  # built once per tick
+        expected = (k + 1, "daqp", wbc.Outcome.OPTIMAL, "optimal", True)
+        assert (a.tick, a.solver, a.outcome, a.status, a.success) == expected
+        assert (b.tick, b.solver, b.outcome, b.status, b.success) == (a.tick, a.solver, a.outcome, a.status, a.success)
+        assert a.v is v and a.u is v and native.context.previous is v
+        np.testing.assert_array_equal(a.v, w)
+        assert a.solve_time == solve_time and 0.0 < a.solve_time <= a.tick_time <= elapsed
+        assert a.task_errors == b.task_errors and a.active_constraints == b.active_constraints
+        assert a.max_violation == b.max_violation
+        q = youbot.integrate(q, v, 0.01)
+    with pytest.raises(wbc.InvalidInputError):
+        native.step(q[:-1])
+    assert native.last is a and native.last.tick == 6
+    v = native.step(q)  # (last not read before the solver changes)
+    native.solver = wbc.solvers.make_solver("quadprog")
+    assert (native.last.tick, native.last.solver) == (7, "daqp") and native.last.v is v
+    native.step(q)
+    assert (native.last.tick, native.last.solver) == (8, "quadprog")
 
 
 def test_a_task_without_target_is_refused_before_the_native_tick(youbot):

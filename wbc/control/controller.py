@@ -43,7 +43,7 @@ from ..qp.lifting import LiftedQP, dense_rows, worth_lifting
 from ..qp.problem import QP
 from ..qp.reduction import InputReduction
 from ..runtime import kernels
-from ..runtime.kernels.ops import RUN_ACCEPTED, RUN_FOUND_NAN
+from ..runtime.kernels.ops import RUN_ACCEPTED, RUN_BAD_INPUT, RUN_FOUND_NAN
 from ..runtime.program import TickProgram, ops_follow_compute
 from ..solvers import DaqpBackend, QPSolution, QPSolver, make_solver
 from ..tasks.task import Task, TaskData
@@ -177,9 +177,11 @@ class Controller:
         self._solver: QPSolver = solver()
         self._q_shape = (robot.nq,)
         self._last: TickDiagnostics | None = None  # (read through the property last)
-        #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u): what
-        #: ``last`` is built from when read (a record object per tick would cost ~4 % of a tick)
-        self._record: TickRecord | None = None
+        #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
+        #: control loop's path (v, solve time, tick time) (:meth:`_full_record`): what ``last`` is
+        #: built from when read (a record object per tick would cost ~4 % of a tick)
+        self._record: TickRecord | NativeRecord | None = None
+        self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
         self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
         self._answer_tolerance = np.array([ANSWER_TOLERANCE])  # operand of the program's check of DAQP's answer
         self._allocate()
@@ -240,9 +242,22 @@ class Controller:
         last, record = self._last, self._record
         if record is None:
             raise NoTickYetError("controller.last: no tick yet; call controller.step(q) first")
-        if last is None or last.tick != record[0]:  # built on the first read after a step
-            last = self._last = TickDiagnostics(self._buffers, *record)
+        if last is None or self._last_record is not record:  # built on the first read after a step
+            last = self._last = TickDiagnostics(self._buffers, *self._full_record())
+            self._last_record = record
         return last
+
+    def _full_record(self) -> TickRecord:
+        """The latest tick's record: the control loop's path records (v, solve time, tick time)
+        only -- the rest of it is the same on every tick of that path: the tick is the
+        counter's (a step that raised neither counted nor recorded), the solver this program's,
+        optimal, v = u."""
+        record = self._record
+        if record is not None and len(record) == 3:
+            v, solve_time, tick_time = record
+            return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", solve_time, tick_time, v, v)
+        assert record is not None  # (read after the first step)
+        return record
 
     @property
     def dt(self) -> float:
@@ -479,6 +494,8 @@ class Controller:
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
         if not self._q_screened and self._kinematics_op is not None:  # Kinematics.update computes them already
             program.drop(self._kinematics_op)
+        if self._record is not None:  # a rebuilt program (another solver): the latest tick's record as it was
+            self._record = self._full_record()
         split = self._program_after_preview is not None
         bound = self._solver.bound if type(solve) is ProgramSolve and isinstance(self._solver, DaqpBackend) else None
         if bound is not None and not split:  # the program checks DAQP's answer itself (see _native_tick)
@@ -525,26 +542,30 @@ class Controller:
                 diagnostics are stale afterwards.
             SolverError: with ``strict=True``, when the QP cannot be solved.
         """
-        start = time.perf_counter()
-        if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
-                and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
-            q = self.robot.check_configuration(q)
+        start = _clock()
         native = self._native_step
         if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
-            run = native(q, self._dt)  # q copied in, the program run, DAQP's answer checked (_finish_program)
+            if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.ndim == 1):  # (what the entry does not check)
+                q = self.robot.check_configuration(q)
+            # q copied in (its size checked: RUN_BAD_INPUT, nothing run; its finiteness by the program's screen),
+            # the program run, DAQP's answer checked (_finish_program)
+            run = native(q, self._dt)
             self.kinematics.current = NOTHING_CURRENT  # (the program wrote q: Pinocchio's data is stale)
             if run == RUN_ACCEPTED:
-                buffers = self._buffers
-                buffers.tick += 1
+                self._buffers.tick += 1
                 v = self._answer_copy()
                 self._context.previous = v
-                self._record = (buffers.tick, self._solver_name, _OPTIMAL, "optimal", self._outcome[_SOLVE_TIME],
-                                time.perf_counter() - start, v, v)
+                self._record = (v, self._outcome[_SOLVE_TIME], _clock() - start)  # (see _full_record)
                 return v
+            if run == RUN_BAD_INPUT:
+                self.robot.check_configuration(q)  # raises: q has the wrong size
             has_nan, answer = run == RUN_FOUND_NAN, None
             if has_nan:
                 self._assembly.screen(q)  # raises for a non-finite q, as the assembly does
         else:  # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
+            if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
+                    and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
+                q = self.robot.check_configuration(q)
             self._native_step = None  # (a tick with v_measured: the next one clears the context's on this path)
             has_nan = self._assemble(q, self._dt, v_measured)
             answer = None if has_nan else self._fast(ANSWER_TOLERANCE)  # solved and checked in the program already
@@ -559,7 +580,7 @@ class Controller:
         command = self._command  # None: v = u = x (a holonomic or fixed base, the QP over v)
         v, u = (x, x) if command is None else command(x)
         self._context.previous = v
-        self._record = (buffers.tick, self._solver_name, outcome, status, solve_time, time.perf_counter() - start, v, u)
+        self._record = (buffers.tick, self._solver_name, outcome, status, solve_time, _clock() - start, v, u)
         return v
 
     def _answer(self, has_nan: bool) -> tuple[NDArray[np.float64], float, Outcome, str]:
@@ -591,6 +612,7 @@ class Controller:
 
 _FLOAT64 = np.dtype(np.float64)
 _OPTIMAL = Outcome.OPTIMAL
+_clock = time.perf_counter  # step's tick time
 _SOLVE_TIME = kernels.DAQP_CONTROL_TIME
 
 
@@ -633,6 +655,8 @@ def _velocity_names(robot: Robot) -> list[str]:
 
 #: what one step records for its diagnostics (:class:`TickDiagnostics`' arguments after the buffers)
 TickRecord = tuple[int, str, Outcome, str, float, float, NDArray[np.float64], NDArray[np.float64]]
+#: what a step on the control loop's path records: (v, solve time, tick time) (:meth:`Controller._full_record`)
+NativeRecord = tuple[NDArray[np.float64], float, float]
 
 
 class WarmState(NamedTuple):
