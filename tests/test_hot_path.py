@@ -111,14 +111,17 @@ def test_heading_rows_are_the_base_frame_limits(youbot, rng):
                                    atol=1e-12)
 
 
-def _loop_controller(youbot, barrier: bool = False, **options) -> tuple[wbc.Controller, wbc.FrameTask]:
+def _loop_controller(youbot, barrier: bool = False, levels: bool = False,
+                     **options) -> tuple[wbc.Controller, wbc.FrameTask]:
     """A youBot controller whose whole tick is compiled (the control loop's native path); with
-    ``barrier`` a manipulability barrier too (a soft row: compiled on the youBot)."""
+    ``barrier`` a manipulability barrier too (a soft row: compiled on the youBot); with
+    ``levels`` the posture strictly below the gripper (two levels: the cascade in the program)."""
     task = wbc.FrameTask("ee", 1.0, 0.5)
     task.set_target(youbot.frame_pose(youbot.neutral(), "ee"))
     limits = [wbc.JointVelocityLimits(), wbc.JointPositionLimits(), wbc.MecanumWheelLimits()]
     limits += [wbc.ManipulabilityBarrier("ee", 0.01, 0.5)] if barrier else []
-    return wbc.Controller(youbot, [task, wbc.PostureTask(1e-2)], limits, **options), task
+    posture = wbc.PostureTask(1e-2)
+    return wbc.Controller(youbot, [[task], [posture]] if levels else [task, posture], limits, **options), task
 
 
 def _huge(youbot, index: int) -> np.ndarray:
@@ -135,18 +138,21 @@ def _straight(youbot) -> np.ndarray:
     return q
 
 
+@pytest.mark.parametrize("levels", [False, True])
 @pytest.mark.parametrize("barrier", [False, True])
 @pytest.mark.parametrize("options", [{}, {"solver_options": {"iter_limit": 2}}, {"strict": False, "damping": 0.0}])
-def test_the_native_tick_is_the_assembly_pipeline(youbot, options, barrier):
+def test_the_native_tick_is_the_assembly_pipeline(youbot, options, barrier, levels):
     """step(q) -- after its first tick one native call from q to the checked answer -- gives
     what the assembly pipeline (taken with v_measured, which no item here reads) gives: the same
     commands, outcomes and statuses tick by tick, on a circle with the fallback's cases mixed in
     (a NaN in the QP from the kinematics, an infeasible QP, soft rows made elastic, an iteration
     limit), slow stretches where no limit is active (the unconstrained minimiser answers,
-    wbc.runtime.kernels.native_qp) between fast ones where limits are (DAQP answers)."""
-    native, native_task = _loop_controller(youbot, barrier, **options)
-    pipeline, pipeline_task = _loop_controller(youbot, barrier, **options)
+    wbc.runtime.kernels.native_qp) between fast ones where limits are (DAQP answers); with one
+    QP and with two strict levels (the cascade in the program: its level errors read the same)."""
+    native, native_task = _loop_controller(youbot, barrier, levels, **options)
+    pipeline, pipeline_task = _loop_controller(youbot, barrier, levels, **options)
     assert native._stepper is not None  # (the barrier is compiled on the youBot: the native tick is taken)
+    assert (native._native_collect is not None) == levels
     zero = np.zeros(youbot.nv)
     q_native, q_pipeline = youbot.neutral(), youbot.neutral()
     centre = youbot.frame_pose(youbot.neutral(), "ee")
@@ -164,11 +170,14 @@ def test_the_native_tick_is_the_assembly_pipeline(youbot, options, barrier):
         a, b = native.last, pipeline.last
         assert (a.tick, a.outcome, a.status, a.solver) == (b.tick, b.outcome, b.status, b.solver)
         np.testing.assert_array_equal(native.qp.data, pipeline.qp.data)
+        if levels and odd is None:
+            assert a.level_errors == b.level_errors and a.solve_time > 0.0
         outcomes.add(a.outcome)
         statuses.add(a.status)
         if a.outcome is wbc.Outcome.OPTIMAL:
-            iterations = native.solver.bound.iterations
-            assert iterations == pipeline.solver.bound.iterations
+            first = native._daqp_workspaces()[0]  # (level 0's with priorities: the one that may skip DAQP)
+            iterations = first.iterations
+            assert iterations == pipeline._daqp_workspaces()[0].iterations
             by_minimiser, by_daqp = by_minimiser + (iterations == 0), by_daqp + (iterations > 0)
         if odd is None:
             q_native, q_pipeline = youbot.integrate(q_native, v, 0.01), youbot.integrate(q_pipeline, w, 0.01)

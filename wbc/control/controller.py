@@ -230,6 +230,7 @@ class Controller:
     _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
     _answer_copy: Callable[[], NDArray[np.float64]]  # the native tick's: a copy of DAQP's answer (with _stepper)
     _outcome: memoryview  # the native tick's: DAQP's control vector (kernels.DAQP_CONTROL_*; with _stepper)
+    _native_collect: Callable[[], tuple[NDArray[np.float64], float]] | None  # the native tick's, with priorities
 
     @property
     def last(self) -> TickDiagnostics:
@@ -497,8 +498,11 @@ class Controller:
         if self._record is not None:  # a rebuilt program (another solver): the latest tick's record as it was
             self._record = self._full_record()
         split = self._program_after_preview is not None
+        # the workspace whose answer is the command when the program solves: the one QP's, or the last level's
         bound = self._solver.bound if type(solve) is ProgramSolve and isinstance(self._solver, DaqpBackend) else None
-        if bound is not None and not split:  # the program checks DAQP's answer itself (see _native_tick)
+        if type(solve) is CascadeInProgram and self._hierarchy is not None:
+            bound = self._hierarchy.workspaces[-1]  # (the BAND ops stop the levels below a failed one)
+        if bound is not None and not split:  # the program checks DAQP's answer itself (see step)
             bound.add_accept_op(program, self._answer_tolerance)
         if self._kinematics_op is not None and self._q_screened:
             program.set_input(self.kinematics.q)  # q copied in by the program (the native tick's stepper)
@@ -517,6 +521,8 @@ class Controller:
                 and self._kinematics_op is not None and self._q_screened):
             self._stepper = program.stepper()
             self._answer_copy, self._outcome = bound.x.copy, bound.control_view
+            #: with priorities, what collects the cascade's accepted answer and solve time (None: one QP)
+            self._native_collect = None if self._hierarchy is None else self._hierarchy.collect_accepted
         self._solver_name = self._solver.name
 
     # --------------------------------------------------------------- hot path
@@ -553,9 +559,13 @@ class Controller:
             self.kinematics.current = NOTHING_CURRENT  # (the program wrote q: Pinocchio's data is stale)
             if run == RUN_ACCEPTED:
                 self._buffers.tick += 1
-                v = self._answer_copy()
+                collect = self._native_collect
+                if collect is None:  # one QP
+                    v, solve_time = self._answer_copy(), self._outcome[_SOLVE_TIME]
+                else:  # the cascade of strict priorities: its last level's answer
+                    v, solve_time = collect()
                 self._context.previous = v
-                self._record = (v, self._outcome[_SOLVE_TIME], _clock() - start)  # (see _full_record)
+                self._record = (v, solve_time, _clock() - start)  # (see _full_record)
                 return v
             if run == RUN_BAD_INPUT:
                 self.robot.check_configuration(q)  # raises: q has the wrong size

@@ -277,13 +277,18 @@ class Hierarchy:
         program's BAND ops allow only after every level above did the same, with
         :data:`wbc.control.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
         level failed)."""
-        exitflag, defect, elapsed = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
-        if exitflag >= 1.0 and defect <= tolerance:
-            for control in self._upper_controls:
-                elapsed += control.item(DAQP_CONTROL_TIME)
-            self.answers = self.solutions = self._native_answers
-            return self._last_answer.copy(), elapsed
-        return None
+        exitflag, defect, _ = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
+        return self.collect_accepted() if exitflag >= 1.0 and defect <= tolerance else None
+
+    def collect_accepted(self) -> tuple[NDArray[np.float64], float]:
+        """``(x, solve time [s])`` of a cascade whose last level's answer was accepted (by
+        :meth:`collect_optimal`, or by the program's DAQP_ACCEPT op on the last workspace: the
+        controller's native tick): a copy of the last level's answer, the levels' solve times summed."""
+        elapsed = self._last_control.item(DAQP_CONTROL_TIME)
+        for control in self._upper_controls:
+            elapsed += control.item(DAQP_CONTROL_TIME)
+        self.answers = self.solutions = self._native_answers
+        return self._last_answer.copy(), elapsed
 
     # -------------------------------------------------------------------- tick
     def solve(self) -> QPSolution:
