@@ -98,7 +98,7 @@ def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
 
 
 @njit(inline="always")
-def minimiser(Hc: np.ndarray, factor: np.ndarray, x: np.ndarray) -> bool:
+def _minimiser(Hc: np.ndarray, factor: np.ndarray, x: np.ndarray) -> bool:
     """``x = -H^-1 c``, the unconstrained minimiser of ``1/2 x^T H x + c^T x`` (``Hc = [H; c]``),
     by Cholesky ``H = L L^T`` (``factor``: n x n scratch, L in its lower triangle). Returns False,
     with ``x = 0``, when H is not positive definite."""
@@ -132,9 +132,9 @@ def minimiser(Hc: np.ndarray, factor: np.ndarray, x: np.ndarray) -> bool:
 
 @declared("boolean(float64[:, :], float64[:, :], float64[:])", cache=CACHE, nogil=True)
 def preview_solve(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray) -> bool:
-    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (:func:`minimiser`; ``factor``: nv x nv
+    """Holonomic relaxation ``preview = -H^-1 c`` by Cholesky (:func:`_minimiser`; ``factor``: nv x nv
     scratch). Returns False, with ``preview = 0``, when H is not positive definite (no damping)."""
-    return minimiser(Hc, factor, preview)
+    return _minimiser(Hc, factor, preview)
 
 
 @declared("void(float64[:, :], int64, float64[:], float64[:])", cache=CACHE, nogil=True)
@@ -433,7 +433,7 @@ LINEAR_COST = Op("LINEAR_COST", _linear_cost, (
 
 @njit(inline="always")
 def _preview(Hc: np.ndarray, factor: np.ndarray, preview: np.ndarray, nv: int, dt: float) -> None:
-    minimiser(Hc, factor, preview)
+    _minimiser(Hc, factor, preview)
 
 
 #: the holonomic preview H^-1 c (factor: scratch)

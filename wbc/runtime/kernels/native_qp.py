@@ -34,7 +34,7 @@ from . import (
     prepare_cache,
 )
 from ._lazy import declared
-from .assembly import minimiser, qp_defect
+from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -96,7 +96,7 @@ def _now_ns(typingctx, function, clock_id):
 
 
 @njit(inline="always")
-def no_active_constraint(problem: np.ndarray, sense_word: int, m: int) -> bool:
+def _no_active_constraint(problem: np.ndarray, sense_word: int, m: int) -> bool:
     """Whether DAQP's working set -- the constraint states its problem points to (word
     ``sense_word`` of ``problem``), the next solve's warm start -- holds no active constraint."""
     address = problem.view(np.int64)[sense_word]
@@ -110,14 +110,14 @@ def no_active_constraint(problem: np.ndarray, sense_word: int, m: int) -> bool:
 
 
 @njit(inline="always")
-def unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray) -> bool:
-    """``x = -H^-1 c`` (:func:`wbc.runtime.kernels.assembly.minimiser`) for the QP stored in ``data``
+def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray) -> bool:
+    """``x = -H^-1 c`` (:func:`wbc.runtime.kernels.assembly._minimiser`) for the QP stored in ``data``
     (:func:`wbc.runtime.kernels.qp_defect`'s layout) when that satisfies every bound and row exactly
     (defect 0): then it is the QP's minimiser (H positive definite: the unconstrained minimiser,
     feasible, is the constrained one), no constraint is active and every multiplier is 0
     (``lam``). False otherwise (x then holds scratch)."""
     n = x.shape[0]
-    if not minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or qp_defect(data, x) != 0.0:
+    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or qp_defect(data, x) != 0.0:
         return False
     for i in range(lam.shape[0]):
         lam[i] = 0.0
@@ -133,8 +133,8 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
 
     With ``unconstrained_first`` (a QP without equality rows) and no active constraint in DAQP's
-    working set (:func:`no_active_constraint`: the last answer met no limit), the unconstrained
-    minimiser ``-H^-1 c`` is tried first (:func:`unconstrained_answer`, ``factor``: n x n
+    working set (:func:`_no_active_constraint`: the last answer met no limit), the unconstrained
+    minimiser ``-H^-1 c`` is tried first (:func:`_unconstrained_answer`, ``factor``: n x n
     scratch): when it satisfies every bound and row it is the answer (exit flag 1, defect 0, 0
     iterations, multipliers ``lam`` 0), DAQP is not called and its working set stays empty.
     Otherwise ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
@@ -143,8 +143,8 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     bounds and rows) is written, inf when x is not finite. The next tick's mask is ``steady_mask``.
     """
     start = _now_ns(clock_gettime, clock_id)
-    if (unconstrained_first and no_active_constraint(problem, sense_word, lam.shape[0])
-            and unconstrained_answer(data, x, factor, lam)):
+    if (unconstrained_first and _no_active_constraint(problem, sense_word, lam.shape[0])
+            and _unconstrained_answer(data, x, factor, lam)):
         control[DAQP_CONTROL_EXITFLAG] = DAQP_OPTIMAL
         control[DAQP_CONTROL_DEFECT] = 0.0
         control[DAQP_CONTROL_ITERATIONS] = 0
