@@ -560,6 +560,7 @@ class Controller:
             if run == RUN_ACCEPTED:
                 self._buffers.tick += 1
                 collect = self._native_collect
+                solve_time: float  # (a memoryview item: DAQP's control vector)
                 if collect is None:  # one QP
                     v, solve_time = self._answer_copy(), self._outcome[_SOLVE_TIME]
                 else:  # the cascade of strict priorities: its last level's answer
