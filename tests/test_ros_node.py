@@ -160,7 +160,9 @@ def test_tiago_on_its_differential_base_over_dds_tracks_like_the_in_process_run(
         assert late >= 1, "the DDS loop differs from the in-process one with no late state to explain it"
         ratio = summary["position_error_rms_m"] / in_process["position_error_rms_m"]
         assert 1 / (1 + 0.05 * late) <= ratio <= 1 + 0.05 * late
-    assert in_process["final_position_error_m"] < 1e-3  # the loop itself reaches the point
+    # the loop itself reaches the point (over the scenario's whole duration: a loaded machine gives the
+    # DDS run fewer ticks than that, CI once 362 of 600)
+    assert run(load_scenario(tmp_path / "tiago_reach.toml")).summary()["final_position_error_m"] < 1e-3
     robot = tiago["robot"]
     assert robot["returncode"] == 0 and robot["output"]["steps"] >= 0.95 * summary["control_ticks"]
 
