@@ -1,12 +1,16 @@
 """The compiled forward kinematics (wbc.model.kinematics native mode, wbc.runtime.kernels.forward_kinematics)
 against Pinocchio: joint placements and Jacobians, and the commands of whole controllers."""
 
+import subprocess
+import sys
+import textwrap
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import wbc
-from conftest import TASKS
+from conftest import NEUTRAL, TASKS, child_environment
 from wbc.app.scenario import load_scenario
 from wbc.model import kinematics
 from wbc.model.kinematics import Kinematics, native_chain
@@ -97,3 +101,33 @@ def test_controller_commands_match_the_pinocchio_path(scenario_file, monkeypatch
     reference, controller = run()
     assert not controller.kinematics.native
     np.testing.assert_allclose(native, reference, rtol=0, atol=1e-10)
+
+
+def test_a_new_kinematics_holds_the_neutral_configuration(robots):
+    """Built, a Kinematics holds the neutral configuration's placements and Jacobians (computed by
+    Pinocchio, not the compiled chain): those the compiled chain gives for it."""
+    for robot in robots:
+        kin = Kinematics(robot)
+        placements, jacobians = kin.placements.copy(), kin.joint_jacobians.copy()
+        kin.update(pin.neutral(robot.model))  # the compiled chain
+        np.testing.assert_allclose(placements, kin.placements, rtol=0, atol=1e-12, err_msg=robot.name)
+        np.testing.assert_allclose(jacobians, kin.joint_jacobians, rtol=0, atol=1e-12, err_msg=robot.name)
+
+
+def test_a_native_controller_does_not_compile_the_python_forward_kinematics():
+    """Its tick program runs the chain (op FORWARD_KINEMATICS): the Python entry
+    kernels.forward_kinematics is compiled only for controllers whose Python items read the
+    kinematics before the program (and there when they are built: test_no_compile_in_ticks)."""
+    code = """
+        import wbc
+        from wbc.runtime import kernels
+        robot = wbc.load_robot("youbot")
+        controller = wbc.Controller(robot, tasks=[wbc.FrameTask("ee", 1.0, 0.5), wbc.PostureTask(cost=1e-3)])
+        native = "forward_kinematics" in vars(kernels)
+        wbc.Controller(robot, tasks=[wbc.ManipulabilityTask("ee", cost=1e-3, target=0.05), wbc.PostureTask(cost=1e-3)])
+        print(native, "forward_kinematics" in vars(kernels))
+    """
+    result = subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True,
+                            env=child_environment(), cwd=NEUTRAL, timeout=600)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["False", "True"]

@@ -15,12 +15,12 @@ from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
 from ..core.validation import as_flag, as_gain, as_items, as_nonnegative, as_positive
-from ..model.kinematics import Kinematics
+from ..model.kinematics import Kinematics, fill_kinematics
 from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..runtime.native_entry import fits_signature, unchecked_entry
 from .braking import RowBraking
-from .distances import Distances, PairBuffers, fill_kinematics
+from .distances import Distances, PairBuffers
 from .geometry import RobotGeometry
 from .layout import DETECTION, GAIN, MIN_DISTANCE
 from .obstacles import Obstacle

@@ -22,8 +22,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.errors import InvalidInputError
 from ..core.validation import as_items, as_positive
-from ..model.kinematics import Kinematics
+from ..model.kinematics import Kinematics, fill_kinematics
 from ..model.robot import Robot
+from ..runtime import kernels as runtime_kernels
 from . import layout
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
@@ -128,6 +129,7 @@ class Distances:
         self._entry = np.zeros(10)  # one pair measured by coal: (d, w_a, w_b, normal)
         self._kinematics = Kinematics(robot)
         if self._kinematics.native:
+            runtime_kernels.prepare("forward_kinematics")  # compute() calls it (kinematics.update): compiled now
             self._placements = self._kinematics.placements
             self._jacobians_t = self._kinematics.joint_jacobians.T
         else:
@@ -255,14 +257,6 @@ def _support(model: pin.Model) -> NDArray[np.float64]:
                 start = model.joints[ancestor].idx_v
                 support[joint, start:start + model.joints[ancestor].nv] = 1.0
     return support
-
-
-def fill_kinematics(data: pin.Data, placements: NDArray[np.float64], jacobians_t: NDArray[np.float64]) -> None:
-    """Pinocchio's joint placements and Jacobians in the layouts of :class:`wbc.model.kinematics.Kinematics`."""
-    for joint, placement in enumerate(data.oMi):
-        placements[joint, :9] = placement.rotation.ravel(order="F")
-        placements[joint, 9:] = placement.translation
-    jacobians_t[:] = data.J.T
 
 
 __all__ = ["Distances", "PairBuffers"]

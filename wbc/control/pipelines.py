@@ -137,6 +137,8 @@ class Assembly:
         self._context, self._kinematics, self._robot, self._buffers = context, context.kinematics, robot, buffers
         # with no Python reader before the program, the kinematics are left to its first op
         self._deferred_kinematics = q_screened and context.kinematics.native
+        if context.kinematics.native and not self._deferred_kinematics:
+            kernels.prepare("forward_kinematics")  # kinematics.update calls it in ticks: compiled now
         self._unready = list(unready)  # checked every tick until each one is ready
         self._tasks, self._constraints, self._run = tasks, constraints, program.runner()
         _prepare_kernels(item for item, _ in constraints)

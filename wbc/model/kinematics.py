@@ -13,6 +13,8 @@ from ..runtime import kernels
 from .robot import Robot
 
 if TYPE_CHECKING:  # pragma: no cover
+    from numpy.typing import NDArray
+
     from ..runtime.program import TickProgram
 
 _LWA = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
@@ -74,8 +76,14 @@ class Kinematics:
         else:
             self.joint_jacobians = self._data.J
         self._joint_views: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
-        self.update(pin.neutral(self.model))  # touches the buffers now, not in the first tick
-        _ = self.data
+        # the neutral configuration, by Pinocchio (touches the buffers now, not in the first tick): the
+        # compiled forward_kinematics compiles only for whoever calls update in its ticks, when it is
+        # built (a controller's tick program runs the chain itself, in its first op)
+        self.q[:] = pin.neutral(self.model)
+        pin.computeJointJacobians(self.model, self._data, self.q)
+        if self.chain is not None:
+            fill_kinematics(self._data, self.placements, self._jacobians_t)
+        self.current = PINOCCHIO_CURRENT
 
     @property
     def native(self) -> bool:
@@ -376,3 +384,11 @@ def _hessian_buffer_is_column_major() -> bool:
         if np.allclose(_hessian_tensor(raw, column_major), reference, rtol=0.0, atol=1e-6):
             return column_major
     raise ModelError(f"pinocchio {pin.__version__}: kinematic Hessian matches neither memory layout")
+
+
+def fill_kinematics(data: pin.Data, placements: NDArray[np.float64], jacobians_t: NDArray[np.float64]) -> None:
+    """Pinocchio's joint placements and Jacobians in the layouts of :class:`wbc.model.kinematics.Kinematics`."""
+    for joint, placement in enumerate(data.oMi):
+        placements[joint, :9] = placement.rotation.ravel(order="F")
+        placements[joint, 9:] = placement.translation
+    jacobians_t[:] = data.J.T
