@@ -263,7 +263,8 @@ class AccelerationLimitsData(ConstraintData):
         self._viable_q = np.array(q_index, dtype=np.int64)
         self._position_lower = np.array(lower, dtype=np.float64)
         self._position_upper = np.array(upper, dtype=np.float64)
-        self._scratch = np.empty(2 * self._accel.size + 3 * len(channel))  # acceleration_bounds'
+        self._viable_accel = self._accel[self._viable]  # their braking rate
+        self._scratch = np.empty(2 * (self._accel.size + len(channel)))  # acceleration_bounds'
         self._bounds = unchecked_entry(kernels.acceleration_bounds)  # called with this data's own arrays
 
     def use_context(self, context: TickContext) -> None:
@@ -324,8 +325,8 @@ class AccelerationLimitsData(ConstraintData):
         self._started = True
         self._bounds(v, float(heading), new_tick, restart, q, dt, self._joints, self._base, self._twist_speed,
                      self._H0, self._wheel_speed, self._accel, self._jerk, self._speed, self._prev, self._prev2,
-                     self._viable, self._viable_q, self._position_lower, self._position_upper, self._scratch,
-                     rows.lower, rows.upper, rows.h, self._base_rows)
+                     self._viable, self._viable_q, self._viable_accel, self._position_lower, self._position_upper,
+                     self._scratch, rows.lower, rows.upper, rows.h, self._base_rows)
         if self._n_base:
             self._heading = float(q[self._yaw])
         if self.n_inequalities:

@@ -42,13 +42,15 @@ def braking_speed(distance: np.ndarray, a_max: np.ndarray, dt: float, out: np.nd
 
 @declared("void(float64[:], float64, boolean, boolean, float64[:], float64, int64[:], int64[:], float64[:], "
           "float64[:, :], float64, float64[:], float64[:], float64[:], float64[:], float64[:], int64[:], int64[:], "
-          "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], boolean)", cache=CACHE, nogil=True)
+          "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], boolean)",
+          cache=CACHE, nogil=True)
 def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: bool, q: np.ndarray, dt: float,
                         joints: np.ndarray, base: np.ndarray, twist_speed: np.ndarray, H0: np.ndarray,
                         wheel_speed: float, accel: np.ndarray, jerk: np.ndarray, speed: np.ndarray,
                         prev: np.ndarray, prev2: np.ndarray, viable: np.ndarray, viable_q: np.ndarray,
-                        position_lower: np.ndarray, position_upper: np.ndarray, scratch: np.ndarray,
-                        lower: np.ndarray, upper: np.ndarray, h: np.ndarray, base_rows: bool) -> None:
+                        viable_accel: np.ndarray, position_lower: np.ndarray, position_upper: np.ndarray,
+                        scratch: np.ndarray, lower: np.ndarray, upper: np.ndarray, h: np.ndarray,
+                        base_rows: bool) -> None:
     """One tick of :class:`wbc.AccelerationLimits`.
 
     History: on a ``new_tick`` ``w_prev2 <- w_prev``; then ``w_prev <-`` the channels of ``v`` (the
@@ -57,12 +59,13 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
     (no earlier command known). Bounds per channel, each clipped into the ones before::
 
         box:        max(w_prev - a dt, -speed) <= w <= min(w_prev + a dt, speed)
-        viability:  -braking_speed(q - q_lower) <= w <= braking_speed(q_upper - q)   (channels ``viable``)
+        viability:  -braking_speed(q - q_lower) <= w <= braking_speed(q_upper - q)   (channels ``viable``,
+                    braking at ``viable_accel``: their ``accel``)
         jerk:       |w - (2 w_prev - w_prev2)| <= j dt^2
 
     Written: the joint channels into ``lower[joints]``, ``upper[joints]``; into ``h`` the base rows
     ``+v_x, -v_x, +v_y, -v_y`` (if ``base_rows``), then the wheels' forward rows, then backward.
-    ``scratch``: >= 2 channels + 2 viable floats.
+    ``scratch``: >= 2 (channels + viable channels) floats.
     """
     n, n_joints, n_wheels = prev.size, joints.size, H0.shape[0]
     if new_tick:
@@ -102,15 +105,12 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
     distance, braking = scratch[2 * n:2 * n + k], scratch[2 * n + k:2 * n + 2 * k]
     for j in range(k):
         distance[j] = position_upper[j] - q[viable_q[j]]
-    braking_accel = scratch[2 * n + 2 * k:2 * n + 3 * k]
-    for j in range(k):
-        braking_accel[j] = accel[viable[j]]
-    braking_speed(distance, braking_accel, dt, braking)
+    braking_speed(distance, viable_accel, dt, braking)
     for j in range(k):
         i = viable[j]
         box_upper[i] = min(box_upper[i], max(braking[j], box_lower[i]))
         distance[j] = q[viable_q[j]] - position_lower[j]
-    braking_speed(distance, braking_accel, dt, braking)
+    braking_speed(distance, viable_accel, dt, braking)
     for j in range(k):
         i = viable[j]
         box_lower[i] = max(box_lower[i], min(-braking[j], box_upper[i]))
