@@ -265,7 +265,9 @@ class AccelerationLimitsData(ConstraintData):
         self._position_upper = np.array(upper, dtype=np.float64)
         self._viable_accel = self._accel[self._viable]  # their braking rate
         self._scratch = np.empty(2 * (self._accel.size + len(channel)))  # acceleration_bounds'
-        self._bounds = unchecked_entry(kernels.acceleration_bounds)  # called with this data's own arrays
+        # without numba's dispatch: every array it gets is a 1-D float64 (int64 indices) of this data, the
+        # controller's rows, q, or the context's velocity (a command, or the checked v_measured)
+        self._bounds = unchecked_entry(kernels.acceleration_bounds)
 
     def use_context(self, context: TickContext) -> None:
         self.context = context
