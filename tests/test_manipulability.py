@@ -83,6 +83,7 @@ def test_gradient_matches_central_differences(model, frame, rows, rng):
 
 def test_value_is_sqrt_det_for_wide_and_tall_jacobians(youbot, rng):
     tall = wbc.Robot(name="five_joints", model=_arm(pin.JointModelRZ()))  # 6 x 5: tall with rows="all"
+    pin.seed(int(rng.integers(2**31)))  # pin.randomConfiguration's generator: the same configurations every run
     for robot, frame in ((youbot, "ee"), (tall, "ee")):
         for _ in range(20):
             q = pin.randomConfiguration(robot.model, -np.ones(robot.nq), np.ones(robot.nq))
@@ -138,6 +139,7 @@ def _arm(root) -> pin.Model:
 def test_gradient_with_multi_dof_and_prismatic_roots(root, rng):
     """Planar (nq 4, nv 3) and free-flyer (nq 7, nv 6) roots: grad m is along the tangent space."""
     robot = wbc.Robot(name="arm_on_" + root.shortname(), model=_arm(root))
+    pin.seed(int(rng.integers(2**31)))  # pin.randomConfiguration's generator: the same configurations every run
     for _ in range(10):
         q = pin.randomConfiguration(robot.model, -np.ones(robot.nq), np.ones(robot.nq))
         for rows in ROWS:
