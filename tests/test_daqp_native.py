@@ -16,6 +16,7 @@ from conftest import TASKS
 from wbc.app.scenario import load_scenario
 from wbc.qp.problem import QP
 from wbc.runtime import kernels
+from wbc.runtime.kernels import native_qp
 from wbc.solvers import DaqpBackend
 from wbc.solvers.daqp import abi as daqp_abi
 from wbc.solvers.daqp import probe as daqp_probe
@@ -159,6 +160,81 @@ def test_a_feasible_unconstrained_minimiser_is_the_answer_without_daqp(rng, warm
     qp.c[...] = qp.H @ rng.uniform(-0.05, 0.05, 4)
     workspace = NativeWorkspace(library, qp, {}, warm_start=True)
     assert workspace.solve()[0] == 1 and workspace.iterations > 0
+
+
+def test_the_last_working_set_answers_when_it_is_still_optimal(rng):
+    """A warm workspace whose last answer had active constraints tries them first as equalities
+    (wbc.runtime.kernels.native_qp._working_set_answer): after a small change of c the active
+    set is the same, the answer comes without DAQP (0 iterations) and is the binding's, with
+    multipliers that meet the KKT conditions written out; DAQP's working set is unchanged. When
+    c turns round (the multipliers change sign) DAQP answers (iterations > 0), as right."""
+    library = daqp_probe.native()
+    answered = 0
+    for _ in range(80):
+        n, p, e = int(rng.integers(2, 9)), int(rng.integers(0, 5)), int(rng.integers(0, 3))
+        e = min(e, n - 1)
+        qp = random_qp(rng, n, p, e)
+        workspace = NativeWorkspace(library, qp, {}, warm_start=True)
+        if workspace.solve()[0] != 1:
+            continue
+        active = workspace.working_set & kernels.DAQP_SENSE_ACTIVE
+        if not active.any():
+            continue
+        before = workspace.working_set
+        qp.c[...] += 1e-6 * rng.standard_normal(n)  # the same active set, other multipliers
+        exitflag, defect, _ = workspace.solve()
+        reference, reference_flag = binding_answer(qp)
+        assert exitflag == 1 == reference_flag
+        np.testing.assert_allclose(workspace.x, reference, rtol=0, atol=1e-9)
+        assert_kkt(qp, workspace.x, workspace.lam)
+        assert defect == kernels.qp_defect(qp.data, workspace.x) <= 1e-9
+        if workspace.iterations == 0:
+            answered += 1
+            np.testing.assert_array_equal(workspace.working_set, before)
+        qp.c[...] = -qp.c  # pulled the other way: the last set is no longer optimal
+        exitflag, _, _ = workspace.solve()
+        reference, reference_flag = binding_answer(qp)
+        assert (exitflag == 1) == (reference_flag == 1)
+        if exitflag == 1:
+            np.testing.assert_allclose(workspace.x, reference, rtol=0, atol=1e-9)
+            assert_kkt(qp, workspace.x, workspace.lam)
+    assert answered >= 60  # (of at most 80: the set stays optimal after a 1e-6 change but near degenerate sets)
+
+
+def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    n = qp.n
+    x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((3 * n + 4, n))
+    defect = native_qp._working_set_answer(qp.data, sense.astype(np.int32), x, scratch[:n], lam, scratch[n:])
+    return defect, x, lam
+
+
+def test_the_working_set_try_refuses_what_is_not_an_answer():
+    """The try of a working set returns -1 (DAQP then solves) for a set whose multipliers have
+    the wrong sign, whose minimiser violates another constraint, with two copies of one row
+    (dependent: S singular), with a bit it does not know (soft), or on a semidefinite H; and
+    the right set gives the binding's answer."""
+    qp = QP(3, 2, 0)
+    qp.H[...] = np.diag([1.0, 2.0, 3.0])
+    qp.c[...] = [-4.0, 0.0, 0.0]  # the unconstrained minimiser x = (4, 0, 0)
+    qp.C[...] = [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    qp.ub[...], qp.lb[...] = 10.0, -10.0
+    qp.h[...] = 1.0  # x0 <= 1 twice: the answer (1, 0, 0), multiplier 3 on one of the rows
+    qp.sync_equalities()
+    reference = binding_answer(qp)[0]
+    np.testing.assert_allclose(reference, [1.0, 0.0, 0.0], atol=1e-12)
+    A = kernels.DAQP_SENSE_ACTIVE
+    defect, x, lam = _kernel_answer(qp, np.array([0, 0, 0, A, 0]))
+    assert 0.0 <= defect <= 1e-12
+    np.testing.assert_allclose(x, reference, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lam, [0.0, 0.0, 0.0, 3.0, 0.0], rtol=0, atol=1e-12)
+    assert _kernel_answer(qp, np.array([0, 0, 0, A, A]))[0] == -1.0  # the same row twice
+    assert _kernel_answer(qp, np.array([0, 0, 0, A | kernels.DAQP_SENSE_LOWER, 0]))[0] == -1.0  # wrong side
+    assert _kernel_answer(qp, np.array([A, 0, 0, 0, 0]))[0] == -1.0  # x0 <= 10 active: -mu < 0, and row 1 violated
+    assert _kernel_answer(qp, np.array([0, 0, 0, A | 8, 0]))[0] == -1.0  # soft (DAQP's SOFT bit)
+    qp.h[...] = [1.0, 0.5]
+    assert _kernel_answer(qp, np.array([0, 0, 0, A, 0]))[0] == -1.0  # x0 = 1 violates x0 <= 0.5
+    qp.H[2, 2] = 0.0
+    assert _kernel_answer(qp, np.array([0, 0, 0, 0, A]))[0] == -1.0  # H only semidefinite
 
 
 def test_settings_reach_the_c_solver():

@@ -39,7 +39,7 @@ INTS = {
                  target_rows=8),
     "DAQP_ACCEPT": {},
     "DAQP_SOLVE": dict(n=3, size=9 + 9 + 2 * 5, m=5, update_ldp=1, solve=1, clock_gettime=1, clock_id=1,
-                       steady_mask=0, unconstrained_first=1, sense_word=7),
+                       steady_mask=0, working_set_first=1, sense_word=7),
     "FORWARD_KINEMATICS": dict(nq=2, joints=3, nv=2),
     "FRAME_TASK": dict(start=2, nv=4, rows=9),
     "HAS_NAN": dict(size=7, infinite=1),

@@ -137,8 +137,9 @@ DAQP_CONTROL_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)
 DAQP_SKIPPED = 0
 #: DAQP's exit flag of an optimal answer (EXIT_OPTIMAL), also the unconstrained minimiser's (native_qp.daqp_solve)
 DAQP_OPTIMAL = 1
-#: the bit of an active constraint in DAQP's constraint states (DAQP's ACTIVE)
-DAQP_SENSE_ACTIVE = 1
+#: bits of DAQP's constraint states: active, at its lower side, immutable (an equality row)
+#: (DAQP's ACTIVE, LOWER, IMMUTABLE; its other bits mark soft and binary constraints and its own use)
+DAQP_SENSE_ACTIVE, DAQP_SENSE_LOWER, DAQP_SENSE_IMMUTABLE = 1, 2, 4
 
 # ------------------------------------------------------- compiled functions
 

@@ -29,6 +29,8 @@ from . import (
     DAQP_RESULT_ITERATIONS,
     DAQP_RESULT_WORDS,
     DAQP_SENSE_ACTIVE,
+    DAQP_SENSE_IMMUTABLE,
+    DAQP_SENSE_LOWER,
     DAQP_SKIPPED,
     DAQP_WORKSPACE_WORDS,
     prepare_cache,
@@ -38,6 +40,16 @@ from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
+
+#: the largest relative violation (:func:`wbc.runtime.kernels.qp_defect`) of a working set's
+#: minimiser taken as the QP's answer (:func:`_working_set_answer`: the rows it holds are met up
+#: to rounding; the others may be violated by as much, as on near-dependent rows DAQP's own
+#: answer is); far below DAQP's primal tolerance and the controller's answer check (1e-6), so
+#: DAQP, warm-started from the same set, would stop at the same point
+WORKING_SET_DEFECT = 1e-9
+#: the smallest pivot of ``S = A_W H^-1 A_W^T``, relative to its diagonal, of a working set
+#: solved directly (:func:`_working_set_answer`): below it the rows are taken as dependent
+WORKING_SET_PIVOT = 1e-10
 
 _I8P = ir.IntType(8).as_pointer()
 _I32, _I64 = ir.IntType(32), ir.IntType(64)
@@ -96,15 +108,19 @@ def _now_ns(typingctx, function, clock_id):
 
 
 @njit(inline="always")
-def _no_active_constraint(problem: np.ndarray, sense_word: int, m: int) -> bool:
-    """Whether DAQP's working set -- the constraint states its problem points to (word
-    ``sense_word`` of ``problem``), the next solve's warm start -- holds no active constraint."""
+def _sense_at(problem: np.ndarray, sense_word: int, m: int) -> np.ndarray:
+    """DAQP's constraint states -- the array its problem points to (word ``sense_word`` of
+    ``problem``), the next solve's warm start -- as an int32 array of ``m`` (empty when unset)."""
     address = problem.view(np.int64)[sense_word]
-    if address == 0:
-        return True
-    sense = carray(_int32_at(address), (m,))
-    for i in range(m):
-        if sense[i] & DAQP_SENSE_ACTIVE:
+    return carray(_int32_at(address), (m if address != 0 else 0,))
+
+
+@njit(inline="always")
+def _no_active_constraint(sense: np.ndarray) -> bool:
+    """Whether DAQP's working set ``sense`` holds no active constraint (the last answer met no
+    limit): every state without a bit but the side (no equality row, soft or binary constraint)."""
+    for i in range(sense.shape[0]):
+        if sense[i] & ~DAQP_SENSE_LOWER:
             return False
     return True
 
@@ -124,29 +140,164 @@ def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, l
     return True
 
 
+@njit(cache=CACHE, nogil=True)
+def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray,
+                        kkt: np.ndarray) -> float:
+    """The minimiser of the QP in ``data`` (:func:`wbc.runtime.kernels.qp_defect`'s layout) with
+    the constraints of DAQP's working set ``sense`` (the last answer's active constraints) held as
+    equalities, when it meets every optimality condition of the QP: then it is the QP's answer
+    (``x``, multipliers ``lam``) and its defect is returned; else -1 (x and lam hold scratch).
+
+    With ``H = L L^T`` (``factor``), ``x0 = -H^-1 c`` and the k active constraints ``A_W x = b_W``
+    (a bound: a row of I; ``b`` the side DAQP marks: upper unless its LOWER bit is set), the
+    equality-constrained minimiser is ``x = x0 - H^-1 A_W^T mu``, ``S mu = A_W x0 - b_W``,
+    ``S = A_W H^-1 A_W^T = Y Y^T`` with ``Y^T = L^-1 A_W^T``. It is the QP's answer when it is
+    primal feasible (defect at most :data:`WORKING_SET_DEFECT`) and dual feasible (``mu >= 0``
+    on an upper side, ``<= 0`` on a lower side -- DAQP's sign convention for ``lam`` -- any
+    sign on an equality row): the KKT conditions of a strictly convex QP, which have one
+    solution. -1 also when H is not positive definite, a state holds another bit (soft,
+    binary, ...), the set holds more than n constraints or dependent ones (a pivot of S below
+    :data:`WORKING_SET_PIVOT` times its diagonal): DAQP then solves.
+
+    ``kkt`` ((2n + 4) x n scratch): rows 0..k-1 Y, rows n..2n-1 the Cholesky factor of S, row
+    2n the active constraints' indices, 2n + 1 mu, 2n + 2 the reciprocals of G's diagonal then
+    the step ``x0 - x``, 2n + 3 the reciprocals of L's diagonal.
+    """
+    n, m = x.shape[0], lam.shape[0]
+    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x):
+        return -1.0
+    start = n * n + n
+    C = data[start:start + (m - n) * n].reshape((m - n, n))
+    upper = data[start + (m - n) * n:start + (m - n) * n + m]
+    lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
+    inverse = kkt[2 * n + 3]  # 1 / L_aa
+    for a in range(n):
+        inverse[a] = 1.0 / factor[a, a]
+    k = 0  # the active constraints: their indices (row 2n), a_i (rows 0..k-1), a_i x0 - b_i (row 2n + 1)
+    for i in range(sense.shape[0]):
+        state = sense[i]
+        if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
+            return -1.0  # a soft or binary constraint, or a state this kernel does not know
+        if state & DAQP_SENSE_ACTIVE:
+            if k == n:
+                return -1.0
+            kkt[2 * n, k] = i
+            y = kkt[k]
+            if i < n:  # a bound: a_i = e_i
+                for a in range(n):
+                    y[a] = 0.0
+                y[i] = 1.0
+                value = x[i]
+            else:
+                row = C[i - n]
+                value = 0.0
+                for a in range(n):
+                    y[a] = row[a]
+                    value += row[a] * x[a]
+            kkt[2 * n + 1, k] = value - (lower[i] if state & DAQP_SENSE_LOWER else upper[i])
+            k += 1
+    for a in range(n):  # Y^T = L^-1 A_W^T in place (forward substitution, the k rows side by side)
+        for j in range(k):
+            total = kkt[j, a]
+            for p in range(a):
+                total -= factor[a, p] * kkt[j, p]
+            kkt[j, a] = total * inverse[a]
+    if k:
+        # S = Y Y^T (lower triangle, rows n..2n-1 of kkt), factored in place: S = G G^T; then
+        # mu = S^-1 (A_W x0 - b_W) in row 2n + 1 (row 2n + 2: the reciprocals of G's diagonal)
+        for j in range(k):
+            for r in range(j, k):
+                total = 0.0
+                for a in range(n):
+                    total += kkt[r, a] * kkt[j, a]
+                kkt[n + r, j] = total
+        reciprocal = kkt[2 * n + 2]
+        for j in range(k):
+            pivot = kkt[n + j, j]
+            diagonal = pivot
+            for p in range(j):
+                pivot -= kkt[n + j, p] * kkt[n + j, p]
+            if not pivot > WORKING_SET_PIVOT * diagonal:
+                return -1.0
+            root = math.sqrt(pivot)
+            kkt[n + j, j] = root
+            reciprocal[j] = 1.0 / root
+            for r in range(j + 1, k):
+                total = kkt[n + r, j]
+                for p in range(j):
+                    total -= kkt[n + r, p] * kkt[n + j, p]
+                kkt[n + r, j] = total * reciprocal[j]
+        mu = kkt[2 * n + 1]
+        for j in range(k):
+            total = mu[j]
+            for p in range(j):
+                total -= kkt[n + j, p] * mu[p]
+            mu[j] = total * reciprocal[j]
+        for j in range(k - 1, -1, -1):
+            total = mu[j]
+            for p in range(j + 1, k):
+                total -= kkt[n + p, j] * mu[p]
+            mu[j] = total * reciprocal[j]
+        for j in range(k):  # the multipliers' signs
+            state = sense[int(kkt[2 * n, j])]
+            if not state & DAQP_SENSE_IMMUTABLE and (mu[j] < 0.0 if not state & DAQP_SENSE_LOWER else mu[j] > 0.0):
+                return -1.0
+        # x = x0 - z, L^T z = Y^T mu (back substitution; z in row 2n + 2)
+        z = kkt[2 * n + 2]
+        for a in range(n):
+            total = 0.0
+            for j in range(k):
+                total += kkt[j, a] * mu[j]
+            z[a] = total
+        for a in range(n - 1, -1, -1):
+            total = z[a]
+            for p in range(a + 1, n):
+                total -= factor[p, a] * z[p]
+            z[a] = total * inverse[a]
+            x[a] -= z[a]
+    defect = qp_defect(data, x)
+    if defect > WORKING_SET_DEFECT:
+        return -1.0
+    for i in range(m):
+        lam[i] = 0.0
+    for j in range(k):
+        lam[int(kkt[2 * n, j])] = kkt[2 * n + 1, j]
+    return defect
+
+
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
           "float64[::1], int64, int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
 def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-               data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int,
-               clock_gettime: int, clock_id: int, steady_mask: int, unconstrained_first: int, sense_word: int) -> None:
+               data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int,
+               clock_gettime: int, clock_id: int, steady_mask: int, working_set_first: int, sense_word: int) -> None:
     """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
     flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
 
-    With ``unconstrained_first`` (a QP without equality rows) and no active constraint in DAQP's
-    working set (:func:`_no_active_constraint`: the last answer met no limit), the unconstrained
-    minimiser ``-H^-1 c`` is tried first (:func:`_unconstrained_answer`, ``factor``: n x n
-    scratch): when it satisfies every bound and row it is the answer (exit flag 1, defect 0, 0
-    iterations, multipliers ``lam`` 0), DAQP is not called and its working set stays empty.
+    With ``working_set_first``, the minimiser with DAQP's working set -- the last answer's active
+    constraints, its warm start -- held as equalities is tried first (:func:`_working_set_answer`;
+    ``scratch``: (3n + 4) x n, H's Cholesky factor in its first n rows): when it meets every
+    optimality condition of the QP it is the answer (exit flag 1, 0 iterations, its multipliers
+    in ``lam``), DAQP is not called and its working set stays as it was. With an empty working
+    set (the last answer met no limit) that is the unconstrained minimiser ``-H^-1 c``, taken
+    when it meets every bound and row exactly.
     Otherwise ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
     fresh buffers, ``daqp_solve`` writes x and ``lam`` (``result`` points to both); the answer is
     then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative violation of the
     bounds and rows) is written, inf when x is not finite. The next tick's mask is ``steady_mask``.
     """
     start = _now_ns(clock_gettime, clock_id)
-    if (unconstrained_first and _no_active_constraint(problem, sense_word, lam.shape[0])
-            and _unconstrained_answer(data, x, factor, lam)):
+    defect = -1.0
+    if working_set_first:
+        n = x.shape[0]
+        factor = scratch[:n]
+        sense = _sense_at(problem, sense_word, lam.shape[0])
+        if _no_active_constraint(sense):
+            defect = 0.0 if _unconstrained_answer(data, x, factor, lam) else -1.0
+        else:
+            defect = _working_set_answer(data, sense, x, factor, lam, scratch[n:])
+    if defect >= 0.0:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_OPTIMAL
-        control[DAQP_CONTROL_DEFECT] = 0.0
+        control[DAQP_CONTROL_DEFECT] = defect
         control[DAQP_CONTROL_ITERATIONS] = 0
         control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
         return
@@ -173,23 +324,24 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
 
 @njit(inline="always")
 def _daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-                data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, n: int, size: int, m: int,
+                data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, n: int, size: int, m: int,
                 update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
-                unconstrained_first: int, sense_word: int, flags: np.ndarray, dt: float) -> None:
+                working_set_first: int, sense_word: int, flags: np.ndarray, dt: float) -> None:
     if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
     else:
-        daqp_solve(problem, workspace, result, control, data, x, factor, lam, update_ldp, solve, clock_gettime,
-                   clock_id, steady_mask, unconstrained_first, sense_word)
+        daqp_solve(problem, workspace, result, control, data, x, scratch, lam, update_ldp, solve, clock_gettime,
+                   clock_id, steady_mask, working_set_first, sense_word)
 
 
 #: the compiled DAQP solve (wbc.solvers.daqp.native); skipped (exit flag DAQP_SKIPPED) when a NaN screen
 #: before it found a NaN, or a BAND row stopped
 DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
     ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
-    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("factor", ("n", "n")), ("lam", ("m",)),
-    ("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None), ("clock_gettime", None),
-    ("clock_id", None), ("steady_mask", None), ("unconstrained_first", None), ("sense_word", None), FLAGS_OPERAND),
+    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("scratch", ("3 * n + 4", "n")),
+    ("lam", ("m",)), ("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None),
+    ("clock_gettime", None), ("clock_id", None), ("steady_mask", None), ("working_set_first", None),
+    ("sense_word", None), FLAGS_OPERAND),
     checks=("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0",
             "m == n + (size - n * n - 3 * n) // (n + 2)", "update_ldp != 0", "solve != 0", "clock_gettime != 0",
             f"0 <= sense_word < {DAQP_PROBLEM_WORDS}"))

@@ -12,14 +12,18 @@ warm start. With ``warm_start`` the problem's ``sense`` pointer is the workspace
 array, so each tick starts from the previous working set; without it, it is a fresh copy
 of the initial states (equality rows active), so each tick starts cold.
 
-**The unconstrained minimiser first.** On a QP without equality rows, when DAQP's working set
-holds no active constraint (the last answer met no limit: always, without warm start), the
-compiled solve first tries ``x = -H^-1 c`` (one Cholesky factorisation): when it satisfies every
-bound and row exactly it is the QP's answer (H is positive definite: a feasible unconstrained
-minimiser is the constrained one), with multipliers 0 and 0 iterations, and DAQP is not called
-(its working set stays empty). Otherwise DAQP solves as below. A tick where no limit is active
-(most ticks of a tracking task) then costs a factorisation instead of DAQP's update and solve;
-a run of ticks at a limit does not try it.
+**The last working set first.** Before DAQP, the compiled solve tries the constraints that were
+active at the last answer (DAQP's working set, its warm start): the minimiser with them held as
+equalities (one Cholesky factorisation of H and one of ``A_W H^-1 A_W^T``) is the QP's answer
+when it meets every optimality condition -- the other bounds and rows hold (relative defect at
+most 1e-9, DAQP's own tolerance is 1e-6) and each multiplier has the sign of its side -- and
+then DAQP is not called (0 iterations, its working set unchanged). With no active constraint
+that is the unconstrained minimiser ``x = -H^-1 c``, taken when it meets every bound and row
+exactly. A tick of a tracking task (nothing active) costs a factorisation instead of DAQP's
+update and solve; so does a run of ticks against the same limits or a lower priority level
+against its band rows, as long as the set of active constraints does not change. Otherwise
+DAQP solves, from that working set. A workspace starts from the initial states (equality rows
+active).
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
 that runs the op keeps alive); DAQP's own allocations are freed when the object is
@@ -59,7 +63,8 @@ class NativeWorkspace:
         n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
-        self._factor = np.zeros((n, n))  # the Cholesky factor of H when the unconstrained minimiser is tried (scratch)
+        # scratch of the try of the working set first: H's Cholesky factor, then the rest (kernels.native_qp)
+        self._scratch = np.zeros((3 * n + 4, n))
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
         self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
         # the initial constraint states (equality rows active), what a cold tick re-reads;
@@ -88,7 +93,7 @@ class NativeWorkspace:
         self._program = TickProgram()  # the solve alone, for solve()
         self._program.add(kernels.DAQP_SOLVE, **self.operands())
         self._neutral_solve = TickProgram()  # DAQP's solve alone (never the minimiser), for reset()
-        self._neutral_solve.add(kernels.DAQP_SOLVE, **{**self.operands(), "unconstrained_first": 0})
+        self._neutral_solve.add(kernels.DAQP_SOLVE, **{**self.operands(), "working_set_first": 0})
         self.reset()
 
     def reset(self) -> None:
@@ -108,8 +113,9 @@ class NativeWorkspace:
         self.control[DAQP_CONTROL_MASK] = daqp_abi.COLD_UPDATE
         self._neutral_solve.run(0.0)
         self._point(qp.H, qp.c, qp.C, qp.upper, qp.lower)
-        if self.warm_start:
-            problem.sense = self.work.sense  # the working set carries over from tick to tick
+        if self.warm_start:  # the working set carries over from tick to tick, from the initial states
+            self._sense()[:] = self._initial_sense  # (not what the neutral solve left)
+            problem.sense = self.work.sense
         self.control[DAQP_CONTROL_MASK] = daqp_abi.COLD_UPDATE
 
     def _point(self, H: np.ndarray, f: np.ndarray, A: np.ndarray, upper: np.ndarray, lower: np.ndarray) -> None:
@@ -122,10 +128,10 @@ class NativeWorkspace:
         """The operands of the compiled solve (the declaration of `wbc.runtime.kernels.native_qp.DAQP_SOLVE`)."""
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
-                    control=self.control, data=self.qp.data, x=self.x, factor=self._factor, lam=self.lam,
+                    control=self.control, data=self.qp.data, x=self.x, scratch=self._scratch, lam=self.lam,
                     n=self.qp.n, size=self.qp.data.size, m=self.lam.size, update_ldp=entry.update_ldp,
                     solve=entry.solve, clock_gettime=entry.clock_gettime, clock_id=entry.clock_id,
-                    steady_mask=daqp_abi.WARM_UPDATE, unconstrained_first=int(self.qp.n_eq == 0),
+                    steady_mask=daqp_abi.WARM_UPDATE, working_set_first=1,
                     sense_word=Problem.sense.offset // 8)
 
     def add_op(self, program: TickProgram) -> None:
