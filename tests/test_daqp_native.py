@@ -203,7 +203,7 @@ def test_the_last_working_set_answers_when_it_is_still_optimal(rng):
 
 def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     n = qp.n
-    x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((3 * n + 4, n))
+    x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((3 * n + 2, n))
     defect = native_qp._working_set_answer(qp.data, sense.astype(np.int32), x, scratch[:n], lam, scratch[n:])
     return defect, x, lam
 

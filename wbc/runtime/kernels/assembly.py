@@ -97,36 +97,60 @@ def lm_damping_level(Hc: np.ndarray, damping: float, mu: float) -> None:
             Hc[j, j] += extra
 
 
+@declared("boolean(float64[:, :], float64[:, :], int64, float64)", cache=CACHE, nogil=True)
+def cholesky(A: np.ndarray, factor: np.ndarray, size: int, relative: float) -> bool:
+    """``A = L L^T`` for the leading ``size`` x ``size`` block of ``A`` (its lower triangle read),
+    L into the lower triangle of ``factor`` (which may be ``A`` itself). False when a pivot is
+    not positive, or at most ``relative`` times its diagonal entry of A (L is then partial)."""
+    for j in range(size):
+        pivot = A[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if not pivot > 0.0 or pivot <= relative * A[j, j]:
+            return False
+        factor[j, j] = math.sqrt(pivot)
+        for a in range(j + 1, size):
+            total = A[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total / factor[j, j]
+    return True
+
+
+@declared("void(float64[:, :], int64, float64[:])", cache=CACHE, nogil=True)
+def forward_substitution(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-1 b`` in place (L: the lower triangle of ``factor``'s leading ``size`` block)."""
+    for a in range(size):
+        total = b[a]
+        for p in range(a):
+            total -= factor[a, p] * b[p]
+        b[a] = total / factor[a, a]
+
+
+@declared("void(float64[:, :], int64, float64[:])", cache=CACHE, nogil=True)
+def back_substitution(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-T b`` in place (L: the lower triangle of ``factor``'s leading ``size`` block)."""
+    for a in range(size - 1, -1, -1):
+        total = b[a]
+        for p in range(a + 1, size):
+            total -= factor[p, a] * b[p]
+        b[a] = total / factor[a, a]
+
+
 @njit(inline="always")
 def _minimiser(Hc: np.ndarray, factor: np.ndarray, x: np.ndarray) -> bool:
     """``x = -H^-1 c``, the unconstrained minimiser of ``1/2 x^T H x + c^T x`` (``Hc = [H; c]``),
     by Cholesky ``H = L L^T`` (``factor``: n x n scratch, L in its lower triangle). Returns False,
     with ``x = 0``, when H is not positive definite."""
     nv = Hc.shape[1]
-    for j in range(nv):
-        pivot = Hc[j, j]
-        for p in range(j):
-            pivot -= factor[j, p] * factor[j, p]
-        if not pivot > 0.0:
-            for i in range(nv):
-                x[i] = 0.0
-            return False
-        factor[j, j] = math.sqrt(pivot)
-        for a in range(j + 1, nv):
-            total = Hc[a, j]
-            for p in range(j):
-                total -= factor[a, p] * factor[j, p]
-            factor[a, j] = total / factor[j, j]
-    for a in range(nv):  # L y = -c
-        total = -Hc[nv, a]
-        for p in range(a):
-            total -= factor[a, p] * x[p]
-        x[a] = total / factor[a, a]
-    for a in range(nv - 1, -1, -1):  # L^T x = y
-        total = x[a]
-        for p in range(a + 1, nv):
-            total -= factor[p, a] * x[p]
-        x[a] = total / factor[a, a]
+    if not cholesky(Hc, factor, nv, 0.0):
+        for i in range(nv):
+            x[i] = 0.0
+        return False
+    for a in range(nv):
+        x[a] = -Hc[nv, a]
+    forward_substitution(factor, nv, x)
+    back_substitution(factor, nv, x)
     return True
 
 

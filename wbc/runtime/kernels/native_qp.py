@@ -36,7 +36,7 @@ from . import (
     prepare_cache,
 )
 from ._lazy import declared
-from .assembly import _minimiser, qp_defect
+from .assembly import _minimiser, back_substitution, cholesky, forward_substitution, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -159,9 +159,8 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     binary, ...), the set holds more than n constraints or dependent ones (a pivot of S below
     :data:`WORKING_SET_PIVOT` times its diagonal): DAQP then solves.
 
-    ``kkt`` ((2n + 4) x n scratch): rows 0..k-1 Y, rows n..2n-1 the Cholesky factor of S, row
-    2n the active constraints' indices, 2n + 1 mu, 2n + 2 the reciprocals of G's diagonal then
-    the step ``x0 - x``, 2n + 3 the reciprocals of L's diagonal.
+    ``kkt`` ((2n + 2) x n scratch): rows 0..k-1 Y, rows n..2n-1 S and its Cholesky factor, row
+    2n mu, 2n + 1 the step ``x0 - x``.
     """
     n, m = x.shape[0], lam.shape[0]
     if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x):
@@ -170,10 +169,8 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     C = data[start:start + (m - n) * n].reshape((m - n, n))
     upper = data[start + (m - n) * n:start + (m - n) * n + m]
     lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
-    inverse = kkt[2 * n + 3]  # 1 / L_aa
-    for a in range(n):
-        inverse[a] = 1.0 / factor[a, a]
-    k = 0  # the active constraints: their indices (row 2n), a_i (rows 0..k-1), a_i x0 - b_i (row 2n + 1)
+    mu, z = kkt[2 * n], kkt[2 * n + 1]
+    k = 0  # the active constraints: a_i in row k of kkt, a_i x0 - b_i in mu
     for i in range(sense.shape[0]):
         state = sense[i]
         if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
@@ -181,87 +178,44 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
         if state & DAQP_SENSE_ACTIVE:
             if k == n:
                 return -1.0
-            kkt[2 * n, k] = i
             y = kkt[k]
-            if i < n:  # a bound: a_i = e_i
-                for a in range(n):
-                    y[a] = 0.0
-                y[i] = 1.0
-                value = x[i]
-            else:
-                row = C[i - n]
-                value = 0.0
-                for a in range(n):
-                    y[a] = row[a]
-                    value += row[a] * x[a]
-            kkt[2 * n + 1, k] = value - (lower[i] if state & DAQP_SENSE_LOWER else upper[i])
+            value = 0.0
+            for a in range(n):
+                y[a] = C[i - n, a] if i >= n else (1.0 if a == i else 0.0)
+                value += y[a] * x[a]
+            mu[k] = value - (lower[i] if state & DAQP_SENSE_LOWER else upper[i])
             k += 1
-    for a in range(n):  # Y^T = L^-1 A_W^T in place (forward substitution, the k rows side by side)
-        for j in range(k):
-            total = kkt[j, a]
-            for p in range(a):
-                total -= factor[a, p] * kkt[j, p]
-            kkt[j, a] = total * inverse[a]
-    if k:
-        # S = Y Y^T (lower triangle, rows n..2n-1 of kkt), factored in place: S = G G^T; then
-        # mu = S^-1 (A_W x0 - b_W) in row 2n + 1 (row 2n + 2: the reciprocals of G's diagonal)
-        for j in range(k):
-            for r in range(j, k):
-                total = 0.0
-                for a in range(n):
-                    total += kkt[r, a] * kkt[j, a]
-                kkt[n + r, j] = total
-        reciprocal = kkt[2 * n + 2]
-        for j in range(k):
-            pivot = kkt[n + j, j]
-            diagonal = pivot
-            for p in range(j):
-                pivot -= kkt[n + j, p] * kkt[n + j, p]
-            if not pivot > WORKING_SET_PIVOT * diagonal:
-                return -1.0
-            root = math.sqrt(pivot)
-            kkt[n + j, j] = root
-            reciprocal[j] = 1.0 / root
-            for r in range(j + 1, k):
-                total = kkt[n + r, j]
-                for p in range(j):
-                    total -= kkt[n + r, p] * kkt[n + j, p]
-                kkt[n + r, j] = total * reciprocal[j]
-        mu = kkt[2 * n + 1]
-        for j in range(k):
-            total = mu[j]
-            for p in range(j):
-                total -= kkt[n + j, p] * mu[p]
-            mu[j] = total * reciprocal[j]
-        for j in range(k - 1, -1, -1):
-            total = mu[j]
-            for p in range(j + 1, k):
-                total -= kkt[n + p, j] * mu[p]
-            mu[j] = total * reciprocal[j]
-        for j in range(k):  # the multipliers' signs
-            state = sense[int(kkt[2 * n, j])]
-            if not state & DAQP_SENSE_IMMUTABLE and (mu[j] < 0.0 if not state & DAQP_SENSE_LOWER else mu[j] > 0.0):
-                return -1.0
-        # x = x0 - z, L^T z = Y^T mu (back substitution; z in row 2n + 2)
-        z = kkt[2 * n + 2]
-        for a in range(n):
+    S = kkt[n:2 * n]  # S = Y Y^T, Y^T = L^-1 A_W^T (its lower triangle), then its factor G in place
+    for j in range(k):
+        forward_substitution(factor, n, kkt[j])
+        for r in range(j + 1):
             total = 0.0
-            for j in range(k):
-                total += kkt[j, a] * mu[j]
-            z[a] = total
-        for a in range(n - 1, -1, -1):
-            total = z[a]
-            for p in range(a + 1, n):
-                total -= factor[p, a] * z[p]
-            z[a] = total * inverse[a]
-            x[a] -= z[a]
+            for a in range(n):
+                total += kkt[j, a] * kkt[r, a]
+            S[j, r] = total
+    if not cholesky(S, S, k, WORKING_SET_PIVOT):
+        return -1.0
+    forward_substitution(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
+    back_substitution(S, k, mu)
+    j = 0  # the multipliers: the sign of their side (lam then holds scratch when not)
+    for i in range(m):
+        lam[i] = 0.0
+        if sense[i] & DAQP_SENSE_ACTIVE:
+            if not sense[i] & DAQP_SENSE_IMMUTABLE and (mu[j] > 0.0 if sense[i] & DAQP_SENSE_LOWER else mu[j] < 0.0):
+                return -1.0
+            lam[i] = mu[j]
+            j += 1
+    for a in range(n):  # x = x0 - L^-T Y^T mu
+        total = 0.0
+        for j in range(k):
+            total += kkt[j, a] * mu[j]
+        z[a] = total
+    back_substitution(factor, n, z)
+    for a in range(n):
+        x[a] -= z[a]
     defect = qp_defect(data, x)
     if defect > WORKING_SET_DEFECT:
         return -1.0
-    for i in range(m):
-        lam[i] = 0.0
-    for j in range(k):
-        lam[int(kkt[2 * n, j])] = kkt[2 * n + 1, j]
     return defect
 
 
@@ -275,7 +229,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
 
     With ``working_set_first``, the minimiser with DAQP's working set -- the last answer's active
     constraints, its warm start -- held as equalities is tried first (:func:`_working_set_answer`;
-    ``scratch``: (3n + 4) x n, H's Cholesky factor in its first n rows): when it meets every
+    ``scratch``: (3n + 2) x n, H's Cholesky factor in its first n rows): when it meets every
     optimality condition of the QP it is the answer (exit flag 1, 0 iterations, its multipliers
     in ``lam``), DAQP is not called and its working set stays as it was. With an empty working
     set (the last answer met no limit) that is the unconstrained minimiser ``-H^-1 c``, taken
@@ -338,7 +292,7 @@ def _daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, 
 #: before it found a NaN, or a BAND row stopped
 DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
     ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
-    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("scratch", ("3 * n + 4", "n")),
+    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("scratch", ("3 * n + 2", "n")),
     ("lam", ("m",)), ("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None),
     ("clock_gettime", None), ("clock_id", None), ("steady_mask", None), ("working_set_first", None),
     ("sense_word", None), FLAGS_OPERAND),

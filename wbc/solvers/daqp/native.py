@@ -64,7 +64,7 @@ class NativeWorkspace:
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
         # scratch of the try of the working set first: H's Cholesky factor, then the rest (kernels.native_qp)
-        self._scratch = np.zeros((3 * n + 4, n))
+        self._scratch = np.zeros((3 * n + 2, n))
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
         self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
         # the initial constraint states (equality rows active), what a cold tick re-reads;
