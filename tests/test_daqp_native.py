@@ -163,18 +163,19 @@ def test_a_feasible_unconstrained_minimiser_is_the_answer_without_daqp(rng, warm
 
 
 def test_the_last_working_set_answers_when_it_is_still_optimal(rng):
-    """A warm workspace whose last answer had active constraints tries them first as equalities
-    (wbc.runtime.kernels.native_qp._working_set_answer): after a small change of c the active
-    set is the same, the answer comes without DAQP (0 iterations) and is the binding's, with
-    multipliers that meet the KKT conditions written out; DAQP's working set is unchanged. When
-    c turns round (the multipliers change sign) DAQP answers (iterations > 0), as right."""
+    """A warm workspace made with working_set_first whose last answer had active constraints
+    tries them first as equalities (wbc.runtime.kernels.native_qp._working_set_answer): after a
+    small change of c the active set is the same, the answer comes without DAQP (0 iterations)
+    and is the binding's, with multipliers that meet the KKT conditions written out; DAQP's
+    working set is unchanged. When c turns round (the multipliers change sign) DAQP answers
+    (iterations > 0), as right."""
     library = daqp_probe.native()
     answered = 0
     for _ in range(80):
         n, p, e = int(rng.integers(2, 9)), int(rng.integers(0, 5)), int(rng.integers(0, 3))
         e = min(e, n - 1)
         qp = random_qp(rng, n, p, e)
-        workspace = NativeWorkspace(library, qp, {}, warm_start=True)
+        workspace = NativeWorkspace(library, qp, {}, warm_start=True, working_set_first=True)
         if workspace.solve()[0] != 1:
             continue
         active = workspace.working_set & kernels.DAQP_SENSE_ACTIVE

@@ -33,13 +33,18 @@ def _declared() -> dict[str, ops.Op]:
 
 DECLARED = _declared()
 
+#: the ops that call DAQP (run here only where a flag skips them: their addresses are dummies)
+DAQP_OPS = ("DAQP_SOLVE", "DAQP_SOLVE_WORKING_SET")
+
 #: int operands satisfying each op's checks (the arrays follow from them)
 INTS = {
     "BAND": dict(first=1, last=3, first_preview=0, last_preview=1, nv=3, rows=5, size=9 + 9 + 8 * 5, row=1,
                  target_rows=8),
     "DAQP_ACCEPT": {},
     "DAQP_SOLVE": dict(n=3, size=9 + 9 + 2 * 5, m=5, update_ldp=1, solve=1, clock_gettime=1, clock_id=1,
-                       steady_mask=0, working_set_first=1, sense_word=7),
+                       steady_mask=0, unconstrained_first=1, sense_word=7),
+    "DAQP_SOLVE_WORKING_SET": dict(n=3, size=9 + 9 + 2 * 5, m=5, update_ldp=1, solve=1, clock_gettime=1,
+                                   clock_id=1, steady_mask=0, sense_word=7),
     "FORWARD_KINEMATICS": dict(nq=2, joints=3, nv=2),
     "FRAME_TASK": dict(start=2, nv=4, rows=9),
     "HAS_NAN": dict(size=7, infinite=1),
@@ -121,7 +126,7 @@ def test_every_declared_op_is_numbered_and_bound():
         assert getattr(kernels, name) is op and op.spec.name == name
 
 
-@pytest.mark.parametrize("name", sorted(set(DECLARED) - {"DAQP_SOLVE", "DAQP_ACCEPT"}))  # (flags only: below)
+@pytest.mark.parametrize("name", sorted(set(DECLARED) - {*DAQP_OPS, "DAQP_ACCEPT"}))  # (flags only: below)
 def test_the_generated_decoder_calls_the_kernel_with_the_declared_operands(name):
     """One row run by run_program changes every array exactly as the kernel called directly on
     copies of the same arrays (operands in declaration order, then dt)."""
@@ -143,18 +148,19 @@ def test_the_generated_decoder_calls_the_kernel_with_the_declared_operands(name)
     assert changed or found_nan, f"{name}: the run wrote nothing"
 
 
-def _daqp_operands(control: np.ndarray) -> dict:
-    """DAQP_SOLVE operands whose function addresses are dummies: the row must be skipped."""
-    operands = _operands(DECLARED["DAQP_SOLVE"], np.random.default_rng(0))
+def _daqp_operands(control: np.ndarray, name: str) -> dict:
+    """Operands of DAQP op ``name`` whose function addresses are dummies: the row must be skipped."""
+    operands = _operands(DECLARED[name], np.random.default_rng(0))
     operands["control"] = control
     return operands
 
 
-def test_a_nan_screen_skips_the_solves_after_it():
+@pytest.mark.parametrize("name", DAQP_OPS)
+def test_a_nan_screen_skips_the_solves_after_it(name):
     program = TickProgram()
     data, control = np.array([0.0, np.nan]), np.full(kernels.DAQP_CONTROL_SIZE, 7.0)
     program.add(kernels.HAS_NAN, data=data, size=2, infinite=0)
-    program.add(kernels.DAQP_SOLVE, **_daqp_operands(control))  # would jump to address 1 if run
+    program.add(DECLARED[name], **_daqp_operands(control, name))  # would jump to address 1 if run
     assert program.run(DT) is True
     assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
     screen = TickProgram()  # the flags start from 0 at every run: a clean tick after a NaN is clean
@@ -164,14 +170,15 @@ def test_a_nan_screen_skips_the_solves_after_it():
     assert screen.run(DT) is False
 
 
-def test_a_failed_level_stops_the_solves_below_it():
+@pytest.mark.parametrize("name", DAQP_OPS)
+def test_a_failed_level_stops_the_solves_below_it(name):
     operands = _operands(DECLARED["BAND"], np.random.default_rng(1))
     operands["control"][kernels.DAQP_CONTROL_EXITFLAG] = -1.0  # the level's solve failed
     target = operands["target"].copy()
     program = TickProgram()
     program.add(kernels.BAND, **operands)
     control = np.full(kernels.DAQP_CONTROL_SIZE, 7.0)
-    program.add(kernels.DAQP_SOLVE, **_daqp_operands(control))
+    program.add(DECLARED[name], **_daqp_operands(control, name))
     assert program.run(DT) is False  # a stop is no NaN
     assert control[kernels.DAQP_CONTROL_EXITFLAG] == kernels.DAQP_SKIPPED
     np.testing.assert_array_equal(operands["target"], target)  # no band rows written

@@ -249,7 +249,9 @@ class Hierarchy:
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else scaling_last[1]
         self._workspaces = workspaces = None
         if isinstance(solver, DaqpBackend) and solver.native:  # (then every workspace is one)
-            self._workspaces = workspaces = [w for w in map(solver.workspace, self.solver_qps) if w is not None]
+            # the levels below the first try their working set (the band rows) before DAQP
+            self._workspaces = workspaces = [w for k, qp in enumerate(self.solver_qps)
+                                             if (w := solver.workspace(qp, working_set_first=k > 0)) is not None]
         self.in_program = workspaces is not None and b.reduction is None
         if workspaces is not None and self.in_program:
             for k, workspace in enumerate(workspaces):

@@ -219,42 +219,24 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     return defect
 
 
-@declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
-          "float64[::1], int64, int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
-def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-               data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int,
-               clock_gettime: int, clock_id: int, steady_mask: int, working_set_first: int, sense_word: int) -> None:
-    """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
-    flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
+@njit(inline="always")
+def _answered(control: np.ndarray, defect: float, start: int, clock_gettime: int, clock_id: int) -> None:
+    """``control`` of an answer found without DAQP: exit flag 1, ``defect``, 0 iterations, the time since ``start``."""
+    control[DAQP_CONTROL_EXITFLAG] = DAQP_OPTIMAL
+    control[DAQP_CONTROL_DEFECT] = defect
+    control[DAQP_CONTROL_ITERATIONS] = 0
+    control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
 
-    With ``working_set_first``, the minimiser with DAQP's working set -- the last answer's active
-    constraints, its warm start -- held as equalities is tried first (:func:`_working_set_answer`;
-    ``scratch``: (3n + 2) x n, H's Cholesky factor in its first n rows): when it meets every
-    optimality condition of the QP it is the answer (exit flag 1, 0 iterations, its multipliers
-    in ``lam``), DAQP is not called and its working set stays as it was. With an empty working
-    set (the last answer met no limit) that is the unconstrained minimiser ``-H^-1 c``, taken
-    when it meets every bound and row exactly.
-    Otherwise ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d) from the
-    fresh buffers, ``daqp_solve`` writes x and ``lam`` (``result`` points to both); the answer is
-    then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative violation of the
-    bounds and rows) is written, inf when x is not finite. The next tick's mask is ``steady_mask``.
-    """
-    start = _now_ns(clock_gettime, clock_id)
-    defect = -1.0
-    if working_set_first:
-        n = x.shape[0]
-        factor = scratch[:n]
-        sense = _sense_at(problem, sense_word, lam.shape[0])
-        if _no_active_constraint(sense):
-            defect = 0.0 if _unconstrained_answer(data, x, factor, lam) else -1.0
-        else:
-            defect = _working_set_answer(data, sense, x, factor, lam, scratch[n:])
-    if defect >= 0.0:
-        control[DAQP_CONTROL_EXITFLAG] = DAQP_OPTIMAL
-        control[DAQP_CONTROL_DEFECT] = defect
-        control[DAQP_CONTROL_ITERATIONS] = 0
-        control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
-        return
+
+@njit(inline="always")
+def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray, data: np.ndarray,
+          x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
+          start: int) -> None:
+    """DAQP's solve: ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d)
+    from the fresh buffers, ``daqp_solve`` writes x and lam (``result`` points to both); the
+    answer is then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative
+    violation of the bounds and rows) is written, inf when x is not finite; and the time
+    since ``start``. The next tick's mask is ``steady_mask``."""
     flags = result.view(np.int32)
     flag = _update_ldp(update_ldp, np.int32(control[DAQP_CONTROL_MASK]), workspace.ctypes.data,
                        problem.ctypes.data)
@@ -273,32 +255,104 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
 
 
+@declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
+          "float64[::1], int64, int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
+def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
+               data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int,
+               clock_gettime: int, clock_id: int, steady_mask: int, unconstrained_first: int, sense_word: int) -> None:
+    """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
+    flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
+
+    With ``unconstrained_first`` (a QP without equality rows) and no active constraint in DAQP's
+    working set (the last answer met no limit), the unconstrained minimiser ``-H^-1 c`` is tried
+    first (:func:`_unconstrained_answer`, ``factor``: n x n scratch): when it satisfies every
+    bound and row it is the answer (exit flag 1, defect 0, 0 iterations, multipliers ``lam`` 0),
+    DAQP is not called and its working set stays empty. Otherwise DAQP solves (:func:`_daqp`).
+    """
+    start = _now_ns(clock_gettime, clock_id)
+    if (unconstrained_first and _no_active_constraint(_sense_at(problem, sense_word, lam.shape[0]))
+            and _unconstrained_answer(data, x, factor, lam)):
+        _answered(control, 0.0, start, clock_gettime, clock_id)
+    else:
+        _daqp(problem, workspace, result, control, data, x, update_ldp, solve, clock_gettime, clock_id, steady_mask,
+              start)
+
+
+@declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
+          "float64[::1], int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
+def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
+                           data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int,
+                           solve: int, clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int) -> None:
+    """:func:`daqp_solve` trying DAQP's working set first: the minimiser with the last answer's
+    active constraints held as equalities (:func:`_working_set_answer`; ``scratch``: (3n + 2) x n,
+    H's Cholesky factor in its first n rows) is the answer when it meets every optimality
+    condition of the QP (exit flag 1, 0 iterations, its multipliers in ``lam``); DAQP is then not
+    called and its working set stays as it was. With no active constraint that is the
+    unconstrained minimiser, taken when it meets every bound and row exactly. Otherwise DAQP
+    solves (:func:`_daqp`), from that working set.
+    """
+    start = _now_ns(clock_gettime, clock_id)
+    n = x.shape[0]
+    sense = _sense_at(problem, sense_word, lam.shape[0])
+    if _no_active_constraint(sense):
+        defect = 0.0 if _unconstrained_answer(data, x, scratch[:n], lam) else -1.0
+    else:
+        defect = _working_set_answer(data, sense, x, scratch[:n], lam, scratch[n:])
+    if defect >= 0.0:
+        _answered(control, defect, start, clock_gettime, clock_id)
+    else:
+        _daqp(problem, workspace, result, control, data, x, update_ldp, solve, clock_gettime, clock_id, steady_mask,
+              start)
+
+
 # ------------------------------------------------------- tick-program ops
 
 
 @njit(inline="always")
 def _daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-                data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, n: int, size: int, m: int,
+                data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, n: int, size: int, m: int,
                 update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
-                working_set_first: int, sense_word: int, flags: np.ndarray, dt: float) -> None:
+                unconstrained_first: int, sense_word: int, flags: np.ndarray, dt: float) -> None:
     if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
     else:
-        daqp_solve(problem, workspace, result, control, data, x, scratch, lam, update_ldp, solve, clock_gettime,
-                   clock_id, steady_mask, working_set_first, sense_word)
+        daqp_solve(problem, workspace, result, control, data, x, factor, lam, update_ldp, solve, clock_gettime,
+                   clock_id, steady_mask, unconstrained_first, sense_word)
 
+
+#: the QP operands of the DAQP ops and their checks
+_QP_OPERANDS = (("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)),
+                ("result", (DAQP_RESULT_WORDS,)), ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)))
+_DAQP_OPERANDS = (("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None),
+                  ("clock_gettime", None), ("clock_id", None), ("steady_mask", None))
+_DAQP_CHECKS = ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0",
+                "m == n + (size - n * n - 3 * n) // (n + 2)", "update_ldp != 0", "solve != 0", "clock_gettime != 0",
+                f"0 <= sense_word < {DAQP_PROBLEM_WORDS}")
 
 #: the compiled DAQP solve (wbc.solvers.daqp.native); skipped (exit flag DAQP_SKIPPED) when a NaN screen
 #: before it found a NaN, or a BAND row stopped
 DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
-    ("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)), ("result", (DAQP_RESULT_WORDS,)),
-    ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)), ("scratch", ("3 * n + 2", "n")),
-    ("lam", ("m",)), ("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None),
-    ("clock_gettime", None), ("clock_id", None), ("steady_mask", None), ("working_set_first", None),
-    ("sense_word", None), FLAGS_OPERAND),
-    checks=("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0",
-            "m == n + (size - n * n - 3 * n) // (n + 2)", "update_ldp != 0", "solve != 0", "clock_gettime != 0",
-            f"0 <= sense_word < {DAQP_PROBLEM_WORDS}"))
+    *_QP_OPERANDS, ("factor", ("n", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("unconstrained_first", None),
+    ("sense_word", None), FLAGS_OPERAND), checks=_DAQP_CHECKS)
+
+
+@njit(inline="always")
+def _daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
+                            data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, n: int, size: int,
+                            m: int, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
+                            sense_word: int, flags: np.ndarray, dt: float) -> None:
+    if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
+        control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
+    else:
+        daqp_solve_working_set(problem, workspace, result, control, data, x, scratch, lam, update_ldp, solve,
+                               clock_gettime, clock_id, steady_mask, sense_word)
+
+
+#: DAQP_SOLVE trying the last working set first (daqp_solve_working_set): the lower levels of strict
+#: priorities, whose band rows are active tick after tick
+DAQP_SOLVE_WORKING_SET = Op("DAQP_SOLVE_WORKING_SET", _daqp_solve_working_set, (
+    *_QP_OPERANDS, ("scratch", ("3 * n + 2", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("sense_word", None),
+    FLAGS_OPERAND), checks=_DAQP_CHECKS)
 
 
 @njit(inline="always")

@@ -99,11 +99,13 @@ class DaqpBackend(QPSolver):
         """The workspace whose solve the program of :meth:`bind_program` runs (None before)."""
         return self._bound
 
-    def workspace(self, qp: QP) -> NativeWorkspace | None:
+    def workspace(self, qp: QP, working_set_first: bool = False) -> NativeWorkspace | None:
         """A native workspace of its own on ``qp`` (this backend's settings and warm start), for a
         caller that solves several QPs every tick (the levels of :mod:`wbc.control.hierarchy`); None on
-        the binding path."""
-        return None if self._library is None else NativeWorkspace(self._library, qp, self.settings, self.warm_start)
+        the binding path. ``working_set_first``: see :class:`~wbc.solvers.daqp.native.NativeWorkspace`."""
+        if self._library is None:
+            return None
+        return NativeWorkspace(self._library, qp, self.settings, self.warm_start, working_set_first)
 
     def collect(self) -> QPSolution:
         """The outcome of the solve that the bound program ran (:meth:`bind_program`)."""

@@ -12,18 +12,22 @@ warm start. With ``warm_start`` the problem's ``sense`` pointer is the workspace
 array, so each tick starts from the previous working set; without it, it is a fresh copy
 of the initial states (equality rows active), so each tick starts cold.
 
-**The last working set first.** Before DAQP, the compiled solve tries the constraints that were
-active at the last answer (DAQP's working set, its warm start): the minimiser with them held as
-equalities (one Cholesky factorisation of H and one of ``A_W H^-1 A_W^T``) is the QP's answer
-when it meets every optimality condition -- the other bounds and rows hold (relative defect at
-most 1e-9, DAQP's own tolerance is 1e-6) and each multiplier has the sign of its side -- and
-then DAQP is not called (0 iterations, its working set unchanged). With no active constraint
-that is the unconstrained minimiser ``x = -H^-1 c``, taken when it meets every bound and row
-exactly. A tick of a tracking task (nothing active) costs a factorisation instead of DAQP's
-update and solve; so does a run of ticks against the same limits or a lower priority level
-against its band rows, as long as the set of active constraints does not change. Otherwise
-DAQP solves, from that working set. A workspace starts from the initial states (equality rows
-active).
+**A first try without DAQP.** On a QP without equality rows, when DAQP's working set holds no
+active constraint (the last answer met no limit: always, without warm start), the compiled
+solve first tries ``x = -H^-1 c`` (one Cholesky factorisation): when it satisfies every bound
+and row exactly it is the QP's answer (H is positive definite: a feasible unconstrained
+minimiser is the constrained one), with multipliers 0 and 0 iterations, and DAQP is not called
+(its working set stays empty). A tick where no limit is active (most ticks of a tracking task)
+then costs a factorisation instead of DAQP's update and solve.
+
+A workspace made with ``working_set_first`` (the lower levels of strict priorities, whose band
+rows are active tick after tick) tries the last working set instead: the minimiser with those
+constraints held as equalities (Cholesky factors of H and of ``A_W H^-1 A_W^T``) is the QP's
+answer when it meets every optimality condition -- the other bounds and rows hold (relative
+defect at most 1e-9; DAQP's own tolerance is 1e-6) and each multiplier has the sign of its
+side -- and DAQP is then not called (0 iterations, its working set unchanged); with no active
+constraint it is the unconstrained minimiser as above. Otherwise DAQP solves, from that
+working set. A workspace starts from the initial states (equality rows active).
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
 that runs the op keeps alive); DAQP's own allocations are freed when the object is
@@ -55,16 +59,21 @@ class NativeWorkspace:
         qp: the QP whose buffers DAQP reads every tick.
         settings: DAQP settings (keys of :class:`wbc.solvers.daqp.abi.Settings`), validated upstream.
         warm_start: keep the working set from one tick to the next.
+        working_set_first: try the last working set before DAQP (see the module docstring; its
+            compiled solve costs ~1 s more CPU to compile after an install, so only where it pays:
+            the lower levels of strict priorities).
     """
 
-    def __init__(self, library: Library, qp: QP, settings: dict[str, Any], warm_start: bool) -> None:
-        self.qp, self.warm_start = qp, warm_start
+    def __init__(self, library: Library, qp: QP, settings: dict[str, Any], warm_start: bool,
+                 working_set_first: bool = False) -> None:
+        self.qp, self.warm_start, self.working_set_first = qp, warm_start, working_set_first
         self._library = library
         n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
-        # scratch of the try of the working set first: H's Cholesky factor, then the rest (kernels.native_qp)
-        self._scratch = np.zeros((3 * n + 2, n))
+        # scratch of the first try: H's Cholesky factor (then, trying the working set, the rest: kernels.native_qp)
+        self._scratch = np.zeros((3 * n + 2 if working_set_first else n, n))
+        self._op = kernels.DAQP_SOLVE_WORKING_SET if working_set_first else kernels.DAQP_SOLVE
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
         self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
         # the initial constraint states (equality rows active), what a cold tick re-reads;
@@ -91,9 +100,10 @@ class NativeWorkspace:
         self._neutral_lower = -self._neutral_upper
         self._finalizer = weakref.finalize(self, _free, library.lib, self.work)
         self._program = TickProgram()  # the solve alone, for solve()
-        self._program.add(kernels.DAQP_SOLVE, **self.operands())
+        self._program.add(self._op, **self.operands())
         self._neutral_solve = TickProgram()  # DAQP's solve alone (never the minimiser), for reset()
-        self._neutral_solve.add(kernels.DAQP_SOLVE, **{**self.operands(), "working_set_first": 0})
+        self._neutral_solve.add(kernels.DAQP_SOLVE, **self._shared_operands(), factor=self._scratch[:n],
+                                unconstrained_first=0)
         self.reset()
 
     def reset(self) -> None:
@@ -125,19 +135,24 @@ class NativeWorkspace:
         problem.A = A.ctypes.data if A.size else None
 
     def operands(self) -> dict[str, Any]:
-        """The operands of the compiled solve (the declaration of `wbc.runtime.kernels.native_qp.DAQP_SOLVE`)."""
+        """The operands of the compiled solve (the declaration of
+        `wbc.runtime.kernels.native_qp.DAQP_SOLVE`, or ``DAQP_SOLVE_WORKING_SET`` with ``working_set_first``)."""
+        if self.working_set_first:
+            return {**self._shared_operands(), "scratch": self._scratch}
+        return {**self._shared_operands(), "factor": self._scratch, "unconstrained_first": int(self.qp.n_eq == 0)}
+
+    def _shared_operands(self) -> dict[str, Any]:
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
-                    control=self.control, data=self.qp.data, x=self.x, scratch=self._scratch, lam=self.lam,
-                    n=self.qp.n, size=self.qp.data.size, m=self.lam.size, update_ldp=entry.update_ldp,
-                    solve=entry.solve, clock_gettime=entry.clock_gettime, clock_id=entry.clock_id,
-                    steady_mask=daqp_abi.WARM_UPDATE, working_set_first=1,
+                    control=self.control, data=self.qp.data, x=self.x, lam=self.lam, n=self.qp.n,
+                    size=self.qp.data.size, m=self.lam.size, update_ldp=entry.update_ldp, solve=entry.solve,
+                    clock_gettime=entry.clock_gettime, clock_id=entry.clock_id, steady_mask=daqp_abi.WARM_UPDATE,
                     sense_word=Problem.sense.offset // 8)
 
     def add_op(self, program: TickProgram) -> None:
         """Append the solve to ``program``: it runs after the program's NaN screen, and only
         when that found none (exit flag ``kernels.DAQP_SKIPPED``)."""
-        program.add(kernels.DAQP_SOLVE, **self.operands())
+        program.add(self._op, **self.operands())
         program.keep_alive(self)
 
     def add_accept_op(self, program: TickProgram, tolerance: NDArray[np.float64]) -> None:
