@@ -63,6 +63,7 @@ from ..core.errors import ScenarioError, WbcError
 from ..core.schema import NonNegative, Positive, Table, Vector3, explain, read_toml, suggest
 from ..model import shipped
 from ..model.robot import Robot, load_robot, rpy_matrix
+from ..runtime import kernels
 from ..tasks import FrameTask, PositionTask, PostureTask, Task
 from ..trajectory.scenario_spec import plan_from_spec
 from .references import Circle, ConstantPoint, ConstantPose, Line, ReferenceMotion
@@ -263,7 +264,8 @@ def load_scenario(path: str | Path) -> Scenario:
     path = scenario_file(path)
     spec = read_toml(path, ScenarioError, "scenario")
     try:
-        return _build(ScenarioFile.model_validate(spec), spec, path)
+        with kernels.batch():  # a first start's kernels compile in parallel processes (the first controller's)
+            return _build(ScenarioFile.model_validate(spec), spec, path)
     except ValidationError as exc:
         raise ScenarioError(f"{path}: {explain(exc, ScenarioFile)}") from None
     except ScenarioError as exc:

@@ -159,32 +159,33 @@ class Controller:
         every other argument is checked); :meth:`__init__` and the copies (:meth:`__reduce__`)."""
         if not isinstance(robot, Robot):
             raise InvalidInputError(f"robot must be a wbc.Robot, got {type(robot).__name__}")
-        self.robot = robot
-        self.kinematics = Kinematics(robot)
-        self._context = TickContext(self.kinematics, 0.0)  # (read through the property context)
-        self.dt = dt
-        # (damping, floor): operand of the cost normalisation, and where the damping setting lives
-        self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
-        self._lm_damping = np.array([as_nonnegative(lm_damping, "lm_damping")])  # operand of the LM_DAMPING ops
-        self.tasks, self._level_sizes = task_levels(tasks)  # the tasks in level order; sizes (None: one level)
-        self.constraints = as_items(constraints, Constraint, "constraints")
-        if not self.tasks:
-            raise InvalidInputError("a controller needs at least one task")
-        # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
-        self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
-        self.strict = as_flag(strict, "strict")
-        self.constraints = _base_constraints(robot, self.constraints, self.reduced)
-        self._solver: QPSolver = solver()
-        self._q_shape = (robot.nq,)
-        self._last: TickDiagnostics | None = None  # (read through the property last)
-        #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
-        #: control loop's path (v, solve time, tick time) (:meth:`_full_record`): what ``last`` is
-        #: built from when read (a record object per tick would cost ~4 % of a tick)
-        self._record: TickRecord | NativeRecord | None = None
-        self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
-        self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
-        self._answer_tolerance = np.array([ANSWER_TOLERANCE])  # operand of the program's check of DAQP's answer
-        self._allocate()
+        with kernels.batch():  # a first start's kernels compile in parallel processes, done when it is built
+            self.robot = robot
+            self.kinematics = Kinematics(robot)
+            self._context = TickContext(self.kinematics, 0.0)  # (read through the property context)
+            self.dt = dt
+            # (damping, floor): operand of the cost normalisation, and where the damping setting lives
+            self._cost_scaling = np.array([as_nonnegative(damping, "damping"), DAMPING_FLOOR])
+            self._lm_damping = np.array([as_nonnegative(lm_damping, "lm_damping")])  # operand of the LM_DAMPING ops
+            self.tasks, self._level_sizes = task_levels(tasks)  # the tasks in level order; sizes (None: one level)
+            self.constraints = as_items(constraints, Constraint, "constraints")
+            if not self.tasks:
+                raise InvalidInputError("a controller needs at least one task")
+            # a holonomic or fixed base has S(q) = I: its reduced form is the plain one
+            self.reduced = as_flag(reduced, "reduced") and robot.base.is_nonholonomic
+            self.strict = as_flag(strict, "strict")
+            self.constraints = _base_constraints(robot, self.constraints, self.reduced)
+            self._solver: QPSolver = solver()
+            self._q_shape = (robot.nq,)
+            self._last: TickDiagnostics | None = None  # (read through the property last)
+            #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
+            #: control loop's path (v, solve time, tick time) (:meth:`_full_record`): what ``last`` is
+            #: built from when read (a record object per tick would cost ~4 % of a tick)
+            self._record: TickRecord | NativeRecord | None = None
+            self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
+            self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
+            self._answer_tolerance = np.array([ANSWER_TOLERANCE])  # operand of the program's check of DAQP's answer
+            self._allocate()
 
     # ----------------------------------------------------------------- copies
     def _specification(self) -> dict[str, Any]:

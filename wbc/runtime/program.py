@@ -47,6 +47,7 @@ class TickProgram:
     def __init__(self) -> None:
         self._arrays: list[np.ndarray] = []
         self._rows: list[list[int]] = []
+        self._row_ops: list[Op | None] = []  # the op of each row of wbc's ops (its callback fetched by _resolve)
         self._packed = np.zeros(PROGRAM_HEADER, dtype=np.int64)
         self._program = np.zeros((0, 1), dtype=np.int64)  # the rows, a view into _packed
         self._owners: list[Any] = []
@@ -91,7 +92,9 @@ class TickProgram:
             if op.code <= 0:
                 raise TypeError(f"{op.spec.name} op: not one of wbc.runtime.kernels' ops (declare a built-in op as "
                                 "an attribute of its kernel module there; a third-party op is a CompiledOp)")
-            row = [OP_BUILTIN, kernels.callback(op)]  # compiled now, when the controller is built
+            # compiled now, when the controller is built; on a first start with compile workers, with the
+            # program's other ops before it first runs (_resolve)
+            row = [OP_BUILTIN, 0 if kernels.submit(op) else kernels.callback(op)]
         elif hasattr(op, "address"):  # a CompiledOp: its callback's address in the row
             row = [OP_EXTERNAL, op.address]
         else:
@@ -128,7 +131,16 @@ class TickProgram:
         if not isinstance(op, Op):
             self.keep_alive(op)  # its callback's address is in the row
         self._rows.append(row)
+        self._row_ops.append(op if isinstance(op, Op) else None)
         self._pack()
+
+    def _resolve(self) -> None:
+        """Fill in the callbacks of the ops :meth:`add` queued for the compile workers."""
+        queued = [(row, op) for row, op in zip(self._rows, self._row_ops, strict=True) if op is not None and not row[1]]
+        if queued:
+            for (row, _), address in zip(queued, kernels.callbacks([op for _, op in queued]), strict=True):
+                row[1] = address
+            self._pack()
 
     def _pack(self) -> None:
         width = max((len(row) for row in self._rows), default=1)
@@ -145,6 +157,7 @@ class TickProgram:
         """Remove row ``index`` (its arrays stay registered and alive); before :meth:`runner`,
         whose callable runs the rows packed when it was made."""
         del self._rows[index]
+        del self._row_ops[index]
         self._pack()
 
     def __len__(self) -> int:
@@ -152,12 +165,14 @@ class TickProgram:
 
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
+        self._resolve()
         return kernels.run_program(self._packed, _NO_INPUT, dt) == RUN_FOUND_NAN
 
     def runner(self) -> Callable[[float], int]:
         """A callable ``run(dt)`` without a Python frame of its own (for the hot path of
         :meth:`wbc.Controller.step`): it runs the rows added so far and returns
         :data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0."""
+        self._resolve()
         return functools.partial(kernels.run_program, self._packed, _NO_INPUT)
 
     def stepper(self) -> Callable[[np.ndarray, float], int]:
@@ -171,6 +186,7 @@ class TickProgram:
         input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written."""
         if self._input[0] < 0:
             raise TypeError("stepper(): the program has no input (set_input)")
+        self._resolve()
         return functools.partial(unchecked_entry(kernels.run_program), self._packed)
 
 

@@ -29,7 +29,9 @@ Importing a kernel module compiles nothing but the interpreter, which every prog
 (``tests/test_no_compile_in_ticks.py`` checks that no tick compiles). Everything compiled is
 cached on disk (``cache=CACHE``): after an install the first start of a controller compiles its
 own kernels once (a few seconds, announced by one line on stderr; ``wbc warmup`` compiles all of
-them up front, ~20 s); later starts read the machine code. Where numba finds no writable cache
+them up front, ~20 s); later starts read the machine code. On that first start, where a core is
+idle, worker processes compile part of them into the cache in parallel while the controller is
+built (:func:`batch`, :mod:`._pool`; ``WBC_COMPILE_WORKERS`` sets their number). Where numba finds no writable cache
 directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR`` unset, the package's
 ``__pycache__`` and the user cache not writable), ``CACHE`` is False: the kernels compile in
 memory at every start, said once on stderr with the fix
@@ -53,6 +55,8 @@ rotation matrices row-major 3x3.
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import importlib
 import pkgutil
 import sys
@@ -61,6 +65,9 @@ from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
+    from collections.abc import Callable, Iterator
+
+    from ._pool import CompilePool
     from .ops import Op
 
 # ------------------------------------------------------------- validation
@@ -169,6 +176,11 @@ _callback_module: ModuleType | None = None  #: the generated module of the callb
 #: numba's cache directory of this package, known after the first :func:`prepare_cache`
 #: (None: numba found no writable place and compiles on every load)
 cache_directory: Path | None = None
+_cold = False  #: the interpreter had no cache entry at the first :func:`prepare_cache` (a first start)
+_workers: CompilePool | None = None  #: the compile workers of a first start (:func:`_compile_pool`)
+_workers_started = False
+_batch_depth = 0  #: open :func:`batch` blocks
+_queued: dict[str, Callable[[], object]] = {}  #: jobs queued for the workers: how to compile each here
 
 
 def topic_modules() -> tuple[str, ...]:
@@ -181,13 +193,14 @@ def prepare_cache() -> bool:
     topic module compiles (each topic module calls it first and passes the result as numba's
     ``cache``): stale entries are deleted, a cold cache is announced by one line on stderr, and
     so is the lack of a writable cache directory. Returns whether the kernels can be cached."""
-    global _prepared, cache_directory
+    global _prepared, _cold, cache_directory
     if not _prepared:
         from . import _cache
 
         # cold: the interpreter, which every program needs, has no cache entry (the other kernels
         # compile when a controller first uses them)
         cache_directory = _cache.prepare(Path(__file__).parent, topic_modules(), cold=("tick",))
+        _cold = cache_directory is not None and _cache.is_cold(cache_directory, ("tick",))
         _prepared = True
     return cache_directory is not None
 
@@ -237,6 +250,7 @@ def callback(op: Op) -> int:
     load()
     compiled = _callbacks.get(op.spec.name)
     if compiled is None:
+        _claim(f"op {op.spec.name}")
         from numba import cfunc
 
         from ._lazy import compile_callees
@@ -259,18 +273,128 @@ def callback(op: Op) -> int:
 
 def prepare(*names: str) -> None:
     """Compile (or read from numba's cache) the compiled functions ``names`` now: the objects of a
-    controller that call them in its ticks do so when they are built (:mod:`._lazy`)."""
-    for name in names:
-        if name not in globals():
-            __getattr__(name)
+    controller that call them in its ticks do so when they are built (:mod:`._lazy`). While a
+    controller is built (:func:`batch`) on a first start with compile workers (:mod:`._pool`), they
+    are queued for the workers instead: compiled by the end of the build, or when fetched before."""
+    missing = [name for name in names if name not in globals()]
+    if missing and _batch_depth and _compile_pool() is not None:
+        _queue({f"kernel {name}": functools.partial(prepare_one, name) for name in missing})
+        return
+    for name in missing:
+        prepare_one(name)
+
+
+@contextlib.contextmanager
+def batch() -> Iterator[None]:
+    """While a controller is built: on a first start with compile workers (:mod:`._pool`), the
+    compiled functions it prepares and the ops its programs add are queued for the workers, and
+    compiled -- here or by them, in parallel -- when the outermost batch ends (:func:`settle`; a
+    program's before it first runs). Elsewhere, and without workers, nothing changes."""
+    global _batch_depth
+    _batch_depth += 1
+    _compile_pool()  # (started now: a worker takes ~1 s to start)
+    try:
+        yield
+    finally:
+        _batch_depth -= 1
+    if not _batch_depth:
+        settle()
+
+
+def prepare_one(name: str) -> None:
+    """Compile (or read from numba's cache) the compiled function ``name`` in this process."""
+    if name not in globals():
+        __getattr__(name)
+
+
+def submit(op: Op) -> bool:
+    """In a :func:`batch` on a first start with compile workers (:mod:`._pool`): queue ``op``'s callback for them and
+    return True -- the program fetches it with :func:`callback` after :func:`settle`, before it
+    first runs; else False (nothing done: compile it with :func:`callback`)."""
+    if op.spec.name in _callbacks or not _batch_depth or _compile_pool() is None:
+        return False
+    _queue({f"op {op.spec.name}": functools.partial(callback, op)})
+    return True
+
+
+def settle() -> None:
+    """Compile everything queued for the compile workers (:func:`prepare`, :func:`submit`) now (see
+    :func:`_settle`): the end of a :func:`batch`."""
+    _settle(list(_queued))
+
+
+def callbacks(ops: list[Op]) -> list[int]:
+    """The callback addresses of ``ops`` (:func:`callback`), those queued for the compile workers
+    settled first (:func:`_settle`): a program's, before it first runs."""
+    _settle([f"op {op.spec.name}" for op in ops])
+    return [callback(op) for op in ops]
+
+
+def _settle(jobs: list[str]) -> None:
+    """Compile the queued ``jobs``: here those no worker has started (earliest first), then read
+    those the workers compiled from numba's cache (waiting for those still running: :func:`_claim`;
+    compiling here those a worker failed)."""
+    steps = [(job, _queued.pop(job)) for job in jobs if job in _queued]
+    for job, compile_here in steps:
+        if _workers is not None and _workers.take(job):
+            compile_here()
+    for _, compile_here in steps:
+        compile_here()
+
+
+def _queue(jobs: dict[str, Callable[[], object]]) -> None:
+    """Queue ``jobs`` (job name: how to compile it here) for the compile workers."""
+    _queued.update(jobs)
+    assert _workers is not None
+    _workers.submit(list(jobs))
+
+
+def _claim(job: str) -> None:
+    """Before compiling ``job`` here: take it from the compile workers' queue, or wait while a worker
+    compiles it (numba then reads it from the cache)."""
+    if _workers is not None and not _workers.take(job):
+        _workers.wait(job)
+
+
+def _claim_declared(dispatcher: Any) -> None:
+    """:func:`_claim` for a compiled function about to compile (also as the callee of another)."""
+    name = getattr(getattr(dispatcher, "py_func", None), "__name__", "")
+    if name in _MODULE_OF:
+        _claim(f"kernel {name}")
+
+
+def _compile_pool() -> CompilePool | None:
+    """The compile workers (:mod:`._pool`), started on the first call of a first start (a cold
+    cache that numba can write); None otherwise, or with ``WBC_COMPILE_WORKERS=0``."""
+    global _workers, _workers_started
+    if not _workers_started:
+        _workers_started = True
+        load()
+        from ._pool import CompilePool, worker_count
+
+        count = worker_count() if _cold else 0
+        if count:
+            try:
+                _workers = CompilePool(count)
+            except OSError:
+                _workers = None
+            else:
+                from . import _lazy
+
+                _lazy.before_compile = _claim_declared
+    return _workers
 
 
 def warm_up() -> None:
-    """Compile every kernel and op callback of the package now (``wbc warmup``)."""
+    """Compile every kernel and op callback of the package now (``wbc warmup``; on a cold cache in
+    parallel with the compile workers, :mod:`._pool`)."""
     load()
-    prepare(*_MODULE_OF)
+    with batch():  # (its end compiles what it queued)
+        prepare(*_MODULE_OF)
+        for op in _ops:
+            submit(op)
     for op in _ops:
-        callback(op)
+        callback(op)  # (read from the cache, or compiled here without workers)
 
 
 def __getattr__(name: str) -> Any:

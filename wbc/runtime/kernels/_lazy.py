@@ -20,6 +20,15 @@ from numba import njit
 SIGNATURE = "wbc_signature"
 
 
+def _nothing_before(dispatcher: Any) -> None:
+    """The default :data:`before_compile`."""
+
+
+#: called with a declared kernel's dispatcher before it compiles (the compile workers of a first
+#: start: wait while a worker compiles it into the cache, see :mod:`._pool`)
+before_compile: Callable[[Any], None] = _nothing_before
+
+
 def declared(signature: str, **options: Any) -> Callable[[Callable[..., Any]], Any]:
     """``@njit(**options)``, compiled for ``signature`` by :func:`compile_declared` (not at import)."""
     def decorate(function: Callable[..., Any]) -> Any:
@@ -37,6 +46,7 @@ def compile_declared(dispatcher: Any, seen: set[int] | None = None) -> None:
     compile_callees(dispatcher, seen)
     signature = getattr(dispatcher, SIGNATURE, None)
     if signature is not None:
+        before_compile(dispatcher)
         dispatcher.compile(signature)
         dispatcher.disable_compile()
         setattr(dispatcher, SIGNATURE, None)

@@ -1,0 +1,185 @@
+"""Compile kernels in worker processes after an install, while the controller is built.
+
+On a cold numba cache (the first start after an install, or after the kernel sources changed)
+the kernels a controller uses compile once each, seconds of CPU in all, one after the other in
+one process. This pool runs them on the machine's other cores: a *job* (``"op FRAME_TASK"``:
+an op's C callback; ``"kernel qp_defect"``: a compiled function) is handed to an idle worker
+process, which compiles it into numba's on-disk cache (the cache directory is shared, numba
+writes each entry atomically); the controller's process then reads the machine code from
+the cache instead of compiling it. The process never waits for work it could do itself: a job
+no worker has started yet is taken back (:meth:`CompilePool.take`) and compiled in process;
+only a job a worker is compiling is waited for (:meth:`CompilePool.wait`). Workers take the
+most recently submitted job, the process the earliest, so the two meet in the middle of a
+controller's list. A job a worker could not compile (it failed, or the worker died) is
+compiled in process, as without the pool.
+
+Each worker is ``python -m wbc.runtime.kernels._pool`` (the wbc of this process on its path,
+no pool of its own): it says ``ready`` once it has imported the kernels (~1 s; the process
+compiles alone until then), then reads one job a line on stdin and answers ``ok <job>`` or
+``failed <job>``; it exits when its stdin closes (this process exits or :meth:`close`).
+"""
+
+from __future__ import annotations
+
+import atexit
+import math
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+#: environment variable: the number of worker processes (0: compile in process only); default
+#: one per idle core beyond the first, at most :data:`MAX_WORKERS` (:func:`worker_count`)
+WORKERS_VARIABLE = "WBC_COMPILE_WORKERS"
+MAX_WORKERS = 3
+#: what a worker says once it can take jobs
+READY = "ready"
+#: [s] how long :meth:`CompilePool.close` lets a worker finish the job at hand before stopping it
+CLOSE_TIMEOUT = 2.0
+
+
+def worker_count() -> int:
+    """Workers to start: ``WBC_COMPILE_WORKERS`` when set, else one per idle core beyond the one
+    this process uses (the cores available to it less the 1-minute load average, a core counted
+    when at least half of it is idle; at most :data:`MAX_WORKERS`). A worker on a busy core only
+    competes with the process it should relieve: on a 2-core machine kept busy by other work,
+    measured, a first run took longer with one (benchmarks/README.md, section 8)."""
+    setting = os.environ.get(WORKERS_VARIABLE, "").strip()
+    if setting:
+        try:
+            return max(0, int(setting))
+        except ValueError:
+            return 0
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    try:
+        busy = os.getloadavg()[0]
+    except OSError:  # (no load average on this platform)
+        busy = 0.0
+    return max(0, min(math.floor(cores - 0.5 - busy), MAX_WORKERS))
+
+
+class CompilePool:
+    """Worker processes compiling jobs into numba's cache (see the module docstring)."""
+
+    def __init__(self, workers: int) -> None:
+        self._condition = threading.Condition()
+        self._pending: list[str] = []  #: submitted, not started (oldest first)
+        self._running: set[str] = set()
+        self._finished: dict[str, bool] = {}  #: by a worker: whether it compiled
+        self._closed = False
+        package_root = str(Path(__file__).resolve().parents[3])  # the folder holding this wbc
+        path = os.environ.get("PYTHONPATH", "")
+        environment = {**os.environ, WORKERS_VARIABLE: "0",
+                       "PYTHONPATH": package_root + (os.pathsep + path if path else "")}
+        self._processes = [subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+                                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                            env=environment)
+                           for _ in range(workers)]
+        for process in self._processes:
+            threading.Thread(target=self._serve, args=(process,), daemon=True).start()
+        atexit.register(self.close)
+
+    def submit(self, jobs: list[str]) -> None:
+        """Queue ``jobs`` not yet known to the pool."""
+        with self._condition:
+            known = set(self._pending) | self._running | set(self._finished)
+            self._pending += [job for job in dict.fromkeys(jobs) if job not in known]
+            self._condition.notify_all()
+
+    def take(self, job: str) -> bool:
+        """Whether ``job`` was still waiting for a worker (it is then the caller's to compile)."""
+        with self._condition:
+            if job in self._pending:
+                self._pending.remove(job)
+                return True
+            return False
+
+    def wait(self, job: str) -> bool:
+        """Wait while a worker compiles ``job``; whether a worker compiled it (else the caller compiles it)."""
+        with self._condition:
+            while job in self._running:
+                self._condition.wait()
+            return self._finished.get(job, False)
+
+    def close(self) -> None:
+        """Stop the workers (they finish the job at hand); pending jobs are dropped."""
+        with self._condition:
+            self._closed = True
+            self._pending.clear()
+            self._condition.notify_all()
+        for process in self._processes:
+            try:
+                process.stdin.close()  # type: ignore[union-attr]
+            except OSError:
+                pass
+        for process in self._processes:  # idle once the controller is built: they exit at once
+            try:
+                process.wait(timeout=CLOSE_TIMEOUT)
+            except subprocess.TimeoutExpired:
+                process.kill()  # numba writes each cache entry atomically: nothing half-written stays
+                process.wait()
+
+    def _serve(self, process: subprocess.Popen[str]) -> None:
+        """Hand jobs to one worker, newest first, once it has started (until then the process
+        takes them), until the pool closes or the worker dies."""
+        if not _answer(process, (READY,)):
+            return
+        while True:
+            with self._condition:
+                while not self._pending and not self._closed:
+                    self._condition.wait()
+                if self._closed:
+                    return
+                job = self._pending.pop()
+                self._running.add(job)
+            try:
+                process.stdin.write(job + "\n")  # type: ignore[union-attr]
+                process.stdin.flush()  # type: ignore[union-attr]
+            except (OSError, ValueError):
+                pass
+            answer = _answer(process, (f"ok {job}", f"failed {job}"))
+            with self._condition:
+                self._running.discard(job)
+                self._finished[job] = answer == f"ok {job}"
+                self._condition.notify_all()
+            if not answer:  # the worker died: the rest goes to the other workers or the process
+                return
+
+
+def _answer(process: subprocess.Popen[str], answers: tuple[str, ...]) -> str:
+    """The next line of ``answers`` the worker writes (other output, e.g. numba's debug prints,
+    skipped); "" when it died."""
+    while True:
+        try:
+            line = process.stdout.readline()  # type: ignore[union-attr]
+        except (OSError, ValueError):
+            return ""
+        if not line or line.strip() in answers:
+            return line.strip()
+
+
+def run_worker() -> None:
+    """A worker's loop: compile each job read from stdin into numba's cache, answer on stdout."""
+    from wbc.runtime import kernels
+
+    kernels.load()
+    print(READY, flush=True)
+    for line in sys.stdin:
+        job = line.strip()
+        try:
+            kind, name = job.split()
+            if kind == "op":
+                kernels.callback(getattr(kernels, name))
+            elif kind == "kernel":
+                kernels.prepare(name)
+            else:
+                raise ValueError(job)
+            answer = f"ok {job}"
+        except Exception:  # noqa: BLE001 - the job is compiled in the controller's process instead
+            answer = f"failed {job}"
+        print(answer, flush=True)
+
+
+if __name__ == "__main__":
+    run_worker()
