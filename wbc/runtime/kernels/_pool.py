@@ -16,7 +16,7 @@ compiled in process, as without the pool.
 Each worker is ``python -m wbc.runtime.kernels._pool`` (the wbc of this process on its path,
 no pool of its own): it says ``ready`` once it has imported the kernels (~1 s; the process
 compiles alone until then), then reads one job a line on stdin and answers ``ok <job>`` or
-``failed <job>``; it exits when its stdin closes (this process exits or :meth:`close`).
+``failed <job>``; it exits when its stdin closes (this process exits or :meth:`CompilePool.close`).
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ from pathlib import Path
 #: environment variable: the number of worker processes (0: compile in process only); default
 #: one per idle core beyond the first, at most :data:`MAX_WORKERS` (:func:`worker_count`)
 WORKERS_VARIABLE = "WBC_COMPILE_WORKERS"
+#: the most workers started without ``WBC_COMPILE_WORKERS``
 MAX_WORKERS = 3
 #: what a worker says once it can take jobs
 READY = "ready"
