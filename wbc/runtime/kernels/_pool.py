@@ -13,7 +13,7 @@ most recently submitted job, the process the earliest, so the two meet in the mi
 controller's list. A job a worker could not compile (it failed, or the worker died) is
 compiled in process, as without the pool.
 
-Each worker is ``python -m wbc.runtime.kernels._pool`` (the wbc of this process on its path,
+Each worker is ``python -m wbc.runtime.kernels._worker`` (the wbc of this process on its path,
 no pool of its own): it says ``ready`` once it has imported the kernels (~1 s; the process
 compiles alone until then), then reads one job a line on stdin and answers ``ok <job>`` or
 ``failed <job>``; it exits when its stdin closes (this process exits or :meth:`CompilePool.close`).
@@ -34,6 +34,8 @@ from pathlib import Path
 WORKERS_VARIABLE = "WBC_COMPILE_WORKERS"
 #: the most workers started without ``WBC_COMPILE_WORKERS``
 MAX_WORKERS = 3
+#: the module a worker runs (:mod:`._worker`)
+WORKER = f"{__package__}._worker"
 #: what a worker says once it can take jobs
 READY = "ready"
 #: [s] how long :meth:`CompilePool.close` lets a worker finish the job at hand before stopping it
@@ -73,7 +75,7 @@ class CompilePool:
         path = os.environ.get("PYTHONPATH", "")
         environment = {**os.environ, WORKERS_VARIABLE: "0",
                        "PYTHONPATH": package_root + (os.pathsep + path if path else "")}
-        self._processes = [subprocess.Popen([sys.executable, "-m", __name__], stdin=subprocess.PIPE,
+        self._processes = [subprocess.Popen([sys.executable, "-m", WORKER], stdin=subprocess.PIPE,
                                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                                             env=environment)
                            for _ in range(workers)]
@@ -158,29 +160,3 @@ def _answer(process: subprocess.Popen[str], answers: tuple[str, ...]) -> str:
             return ""
         if not line or line.strip() in answers:
             return line.strip()
-
-
-def run_worker() -> None:
-    """A worker's loop: compile each job read from stdin into numba's cache, answer on stdout."""
-    from wbc.runtime import kernels
-
-    kernels.load()
-    print(READY, flush=True)
-    for line in sys.stdin:
-        job = line.strip()
-        try:
-            kind, name = job.split()
-            if kind == "op":
-                kernels.callback(getattr(kernels, name))
-            elif kind == "kernel":
-                kernels.prepare(name)
-            else:
-                raise ValueError(job)
-            answer = f"ok {job}"
-        except Exception:  # noqa: BLE001 - the job is compiled in the controller's process instead
-            answer = f"failed {job}"
-        print(answer, flush=True)
-
-
-if __name__ == "__main__":
-    run_worker()
