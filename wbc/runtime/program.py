@@ -48,6 +48,7 @@ class TickProgram:
         self._arrays: list[np.ndarray] = []
         self._rows: list[list[int]] = []
         self._row_ops: list[Op | None] = []  # the op of each row of wbc's ops (its callback fetched by _resolve)
+        self._queued = False  # some row's callback is queued for the compile workers (filled in by _resolve)
         self._packed = np.zeros(PROGRAM_HEADER, dtype=np.int64)
         self._program = np.zeros((0, 1), dtype=np.int64)  # the rows, a view into _packed
         self._owners: list[Any] = []
@@ -94,7 +95,9 @@ class TickProgram:
                                 "an attribute of its kernel module there; a third-party op is a CompiledOp)")
             # compiled now, when the controller is built; on a first start with compile workers, with the
             # program's other ops before it first runs (_resolve)
-            row = [OP_BUILTIN, 0 if kernels.submit(op) else kernels.callback(op)]
+            queued = kernels.submit(op)
+            self._queued = self._queued or queued
+            row = [OP_BUILTIN, 0 if queued else kernels.callback(op)]
         elif hasattr(op, "address"):  # a CompiledOp: its callback's address in the row
             row = [OP_EXTERNAL, op.address]
         else:
@@ -136,11 +139,13 @@ class TickProgram:
 
     def _resolve(self) -> None:
         """Fill in the callbacks of the ops :meth:`add` queued for the compile workers."""
+        if not self._queued:
+            return
         queued = [(row, op) for row, op in zip(self._rows, self._row_ops, strict=True) if op is not None and not row[1]]
-        if queued:
-            for (row, _), address in zip(queued, kernels.callbacks([op for _, op in queued]), strict=True):
-                row[1] = address
-            self._pack()
+        for (row, _), address in zip(queued, kernels.callbacks([op for _, op in queued]), strict=True):
+            row[1] = address
+        self._queued = False
+        self._pack()
 
     def _pack(self) -> None:
         width = max((len(row) for row in self._rows), default=1)
@@ -165,7 +170,8 @@ class TickProgram:
 
     def run(self, dt: float) -> bool:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
-        self._resolve()
+        if self._queued:
+            self._resolve()
         return kernels.run_program(self._packed, _NO_INPUT, dt) == RUN_FOUND_NAN
 
     def runner(self) -> Callable[[float], int]:
