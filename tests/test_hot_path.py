@@ -216,11 +216,12 @@ def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):
 
 
 def test_the_native_tick_records_every_diagnostic(youbot):
-    """On the control loop's path step records (v, solve time, tick time) only; ``last`` reads
-    every field as the pipeline's full record does: tick, solver, outcome, status, v and u (the
-    returned array itself), the solve time DAQP's op wrote, a tick time between it and the time
-    around the call, the lazy fields. A step that raises keeps the latest tick's diagnostics;
-    a new solver (a rebuilt program) does not rename the latest tick's."""
+    """On the control loop's path step records (v, solve time) only, the program times its
+    run; ``last`` reads every field as the pipeline's full record does: tick, solver, outcome,
+    status, v and u (the returned array itself), the solve time DAQP's op wrote, a tick time
+    between it and the time around the call, the lazy fields. A step that raises keeps the
+    latest tick's diagnostics, its tick time too (also when the program ran: a NaN q); a new
+    solver (a rebuilt program) neither renames the latest tick's nor loses its tick time."""
     native, native_task = _loop_controller(youbot)
     pipeline, pipeline_task = _loop_controller(youbot)
     zero, q = np.zeros(youbot.nv), youbot.neutral()
@@ -235,7 +236,7 @@ def test_the_native_tick_records_every_diagnostic(youbot):
         elapsed = time.perf_counter() - start
         solve_time = float(native.solver.bound.control[kernels.DAQP_CONTROL_TIME])
         w = pipeline.step(q, v_measured=zero)
-        assert len(native._record) == (8 if k == 0 else 3)  # the first tick is the assembly's
+        assert len(native._record) == (8 if k == 0 else 2)  # the first tick is the assembly's
         a, b = native.last, pipeline.last
         assert a is native.last  # built once per tick
         expected = (k + 1, "daqp", wbc.Outcome.OPTIMAL, "optimal", True)
@@ -247,14 +248,22 @@ def test_the_native_tick_records_every_diagnostic(youbot):
         assert a.task_errors == b.task_errors and a.active_constraints == b.active_constraints
         assert a.max_violation == b.max_violation
         q = youbot.integrate(q, v, 0.01)
+    tick_time = a.tick_time
     with pytest.raises(wbc.InvalidInputError):
         native.step(q[:-1])
     assert native.last is a and native.last.tick == 6
+    with pytest.raises(wbc.InvalidInputError):
+        native.step(np.full_like(q, np.nan))  # the program runs (its NaN screen), not accepted
+    assert native._program.run_time() > 0.0 and native._record[0] is a.v
+    assert (native.last.tick, native.last.tick_time, native.last.v) == (6, tick_time, a.v)
     v = native.step(q)  # (last not read before the solver changes)
+    tick_time = native._program.accepted_run_time()
     native.solver = wbc.solvers.make_solver("quadprog")
-    assert (native.last.tick, native.last.solver) == (7, "daqp") and native.last.v is v
+    # (the NaN step counted a tick: it overwrote the buffers the lazy fields read)
+    assert (native.last.tick, native.last.solver, native.last.tick_time) == (8, "daqp", tick_time)
+    assert native.last.v is v and tick_time > 0.0
     native.step(q)
-    assert (native.last.tick, native.last.solver) == (8, "quadprog")
+    assert (native.last.tick, native.last.solver) == (9, "quadprog")
 
 
 def test_a_task_without_target_is_refused_before_the_native_tick(youbot):

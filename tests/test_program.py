@@ -260,6 +260,52 @@ def test_a_stepper_refuses_a_q_of_another_size_before_running():
         TickProgram().set_input(np.zeros((2, 2)))
 
 
+def _libc_clock() -> tuple[int, int]:
+    """(address of libc's clock_gettime, CLOCK_MONOTONIC): time.perf_counter's clock, found here."""
+    import ctypes
+    import time
+
+    return ctypes.cast(ctypes.CDLL(None).clock_gettime, ctypes.c_void_p).value, time.CLOCK_MONOTONIC
+
+
+def test_a_clock_times_the_runs_given_a_q_and_keeps_the_latest_accepted_one():
+    """set_clock: every stepper run that ran is timed (run_time), from the native call's start to
+    its return -- within the wall time around the call, same clock; the accepted ones also in
+    accepted_run_time, which a run that was not accepted, a run without q (runner) and a refused
+    q leave alone. Without a clock nothing is timed."""
+    import time
+
+    control = np.zeros(kernels.DAQP_CONTROL_SIZE)
+    control[kernels.DAQP_CONTROL_EXITFLAG] = 1.0  # solved, defect 0: accepted
+    untimed, _, _ = _input_program(3)
+    untimed.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
+    assert untimed.stepper()(np.ones(3), DT) == ops.RUN_ACCEPTED
+    assert untimed.run_time() == untimed.accepted_run_time() == 0.0
+    program, into, _ = _input_program(3)
+    program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
+    program.set_clock(*_libc_clock())
+    step, header = program.stepper(), program._packed
+    start = time.perf_counter()
+    assert step(np.ones(3), DT) == ops.RUN_ACCEPTED
+    elapsed = time.perf_counter() - start
+    assert 0.0 < program.run_time() == program.accepted_run_time() <= elapsed
+    header[ops.PROGRAM_RUN_NS], header[ops.PROGRAM_ACCEPTED_NS] = -1, -5  # marks: which words a run writes
+    control[kernels.DAQP_CONTROL_EXITFLAG] = -1.0  # not accepted
+    start = time.perf_counter()
+    assert step(np.ones(3), DT) == 0
+    elapsed = time.perf_counter() - start
+    assert 0.0 < program.run_time() <= elapsed and program.accepted_run_time() == -5e-9
+    header[ops.PROGRAM_RUN_NS] = -1
+    assert step(np.full(3, np.nan), DT) == ops.RUN_FOUND_NAN  # ran (the screen found it): timed
+    assert program.run_time() > 0.0 and program.accepted_run_time() == -5e-9
+    control[kernels.DAQP_CONTROL_EXITFLAG], into[:] = 1.0, 0.0  # (the input held the NaN)
+    header[ops.PROGRAM_RUN_NS] = -1
+    assert program.runner()(DT) == ops.RUN_ACCEPTED and step(np.ones(4), DT) == ops.RUN_BAD_INPUT
+    assert program.run_time() == -1e-9 and program.accepted_run_time() == -5e-9  # neither was a timed run
+    with pytest.raises(TypeError, match="clock_gettime"):
+        program.set_clock(0, 1)
+
+
 def test_misnamed_misshapen_or_out_of_range_operands_are_refused():
     program = TickProgram()
     Hc, factor, preview = np.zeros((5, 4)), np.zeros((4, 4)), np.zeros(4)

@@ -77,7 +77,7 @@ class RunResult:
     position_error: NDArray[np.float64]  #: (R,) [m] of the reference task, before each command
     orientation_error: NDArray[np.float64]  #: (R,) [rad]
     solve_time: NDArray[np.float64]  #: (R,) [s]
-    tick_time: NDArray[np.float64]  #: (R,) [s], whole Controller.step
+    tick_time: NDArray[np.float64]  #: (R,) [s], Controller.last.tick_time (on the one-call path: the native call)
     position_violation: NDArray[np.float64]  #: (R+1,) max over joints of distance outside [lower, upper]
     velocity_violation: NDArray[np.float64]  #: (R,) max over coordinates of ``|v|`` beyond its limit
     velocity_ratio: NDArray[np.float64]  #: (R, nv) ``|v_i| / limit_i`` (base linear entries in the base frame)

@@ -179,7 +179,7 @@ class Controller:
             self._q_shape = (robot.nq,)
             self._last: TickDiagnostics | None = None  # (read through the property last)
             #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
-            #: control loop's path (v, solve time, tick time) (:meth:`_full_record`): what ``last`` is
+            #: control loop's path (v, solve time) (:meth:`_full_record`): what ``last`` is
             #: built from when read (a record object per tick would cost ~4 % of a tick)
             self._record: TickRecord | NativeRecord | None = None
             self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
@@ -250,14 +250,16 @@ class Controller:
         return last
 
     def _full_record(self) -> TickRecord:
-        """The latest tick's record: the control loop's path records (v, solve time, tick time)
-        only -- the rest of it is the same on every tick of that path: the tick is the
-        counter's (a step that raised neither counted nor recorded), the solver this program's,
-        optimal, v = u."""
+        """The latest tick's record: the control loop's path records (v, solve time) only -- the
+        rest of it is the same on every tick of that path: the tick is the counter's (a step
+        that raised neither counted nor recorded), the solver this program's, optimal, v = u,
+        and the tick time the program's own clock's (the latest accepted native run's: written
+        by that run only, so a later step that raised leaves it)."""
         record = self._record
-        if record is not None and len(record) == 3:
-            v, solve_time, tick_time = record
-            return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", solve_time, tick_time, v, v)
+        if record is not None and len(record) == 2:
+            v, solve_time = record
+            return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", solve_time,
+                    self._program.accepted_run_time(), v, v)
         assert record is not None  # (read after the first step)
         return record
 
@@ -490,14 +492,14 @@ class Controller:
     def _finish_program(self, program: TickProgram, rest: TickProgram, solve: BackendSolve) -> None:
         """Keep the program (and its part after the Python preview tasks, if any) and the
         pipeline's assembly and solve stages."""
+        if self._record is not None:  # a rebuilt program (another solver): the latest tick's record as it was
+            self._record = self._full_record()
         self._program, self._program_after_preview = program, (rest if rest is not program else None)
         self._solve, self.qp = solve, solve.qp  #: qp: what the solver sees (the last level's with priorities)
         # Python items see the kinematics before the program runs: for them q is checked up front
         self._q_screened = not (self._python_tasks or self._python_constraints or self._python_preview)
         if not self._q_screened and self._kinematics_op is not None:  # Kinematics.update computes them already
             program.drop(self._kinematics_op)
-        if self._record is not None:  # a rebuilt program (another solver): the latest tick's record as it was
-            self._record = self._full_record()
         split = self._program_after_preview is not None
         # the workspace whose answer is the command when the program solves: the one QP's, or the last level's
         bound = self._solver.bound if type(solve) is ProgramSolve and isinstance(self._solver, DaqpBackend) else None
@@ -520,6 +522,7 @@ class Controller:
         self._stepper: Callable[[NDArray[np.float64], float], int] | None = None  # what _native_step is set to
         if (bound is not None and not split and self._assembly.all_in_program and self._command is None
                 and self._kinematics_op is not None and self._q_screened):
+            program.set_clock(*bound.clock)  # the native tick's tick time (see step)
             self._stepper = program.stepper()
             self._answer_copy, self._outcome = bound.x.copy, bound.control_view
             #: with priorities, what collects the cascade's accepted answer and solve time (None: one QP)
@@ -549,7 +552,6 @@ class Controller:
                 diagnostics are stale afterwards.
             SolverError: with ``strict=True``, when the QP cannot be solved.
         """
-        start = _clock()
         native = self._native_step
         if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
             if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.ndim == 1):  # (what the entry does not check)
@@ -567,14 +569,16 @@ class Controller:
                 else:  # the cascade of strict priorities: its last level's answer
                     v, solve_time = collect()
                 self._context.previous = v
-                self._record = (v, solve_time, _clock() - start)  # (see _full_record)
+                self._record = (v, solve_time)  # the tick time: the program's clock's (see _full_record)
                 return v
             if run == RUN_BAD_INPUT:
                 self.robot.check_configuration(q)  # raises: q has the wrong size
+            start = _clock() - self._program.run_time()  # (this tick began with the native run)
             has_nan, answer = run == RUN_FOUND_NAN, None
             if has_nan:
                 self._assembly.screen(q)  # raises for a non-finite q, as the assembly does
         else:  # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
+            start = _clock()
             if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
                     and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
                 q = self.robot.check_configuration(q)
@@ -667,8 +671,8 @@ def _velocity_names(robot: Robot) -> list[str]:
 
 #: what one step records for its diagnostics (:class:`TickDiagnostics`' arguments after the buffers)
 TickRecord = tuple[int, str, Outcome, str, float, float, NDArray[np.float64], NDArray[np.float64]]
-#: what a step on the control loop's path records: (v, solve time, tick time) (:meth:`Controller._full_record`)
-NativeRecord = tuple[NDArray[np.float64], float, float]
+#: what a step on the control loop's path records: (v, solve time) (:meth:`Controller._full_record`)
+NativeRecord = tuple[NDArray[np.float64], float]
 
 
 class WarmState(NamedTuple):

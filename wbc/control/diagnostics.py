@@ -32,7 +32,12 @@ class TickDiagnostics:
       of the fallback chain answered); ``status`` -- ``"optimal"``, or what went wrong and which
       fallback produced the command, in words (see :class:`Controller`); ``success`` -- True when
       the command is the (checked) solution of the full QP (``outcome is Outcome.OPTIMAL``);
-    * ``solve_time`` -- time inside the QP backend(s) [s]; ``tick_time`` -- whole ``step`` [s];
+    * ``solve_time`` -- time inside the QP backend(s) [s]; ``tick_time`` -- the whole ``step`` [s], but
+      on the control loop's one-call path (a tick the native program answers: from the second
+      tick of a controller whose program does the whole tick, without ``v_measured``) the native
+      call alone, from ``q``'s copy to the checked answer, timed by the program itself: the
+      ~0.3-0.5 us of Python around that call (``q``'s type check, the copy of the answer) are
+      not in it;
     * ``v`` -- the command; ``u`` -- the same command over the real inputs, ``v = S(q) u``
       (``u is v`` for holonomic bases).
 
@@ -65,7 +70,7 @@ class TickDiagnostics:
     status: str  #: ``"optimal"``, or what went wrong and which fallback answered, in words
     success: bool  #: the command is the checked solution of the full QP (``outcome is Outcome.OPTIMAL``)
     solve_time: float  #: time inside the QP backend(s) [s]
-    tick_time: float  #: the whole step [s]
+    tick_time: float  #: the whole step [s]; on the one-call path the native call (see the class docstring)
     v: NDArray[np.float64] | None  #: the command (set by every step)
     u: NDArray[np.float64] | None  #: the command over the real inputs, ``v = S(q) u`` (``u is v`` for holonomic bases)
     __slots__ = ("tick", "solver", "outcome", "status", "success", "solve_time", "tick_time", "v", "u",

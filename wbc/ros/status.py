@@ -7,7 +7,8 @@ Latencies are kept for the last :data:`WINDOW` ticks (exact percentiles over the
   state from DDS, to the return of the last command's write ("state received -> command
   published": reading and checking the messages, the controller's step, the check of the
   command, serializing and writing it);
-* ``step`` -- :meth:`wbc.Controller.step` alone (``controller.last.tick_time``);
+* ``step`` -- :meth:`wbc.Controller.step` alone (``controller.last.tick_time``: on the one-call
+  native path the native call, see :class:`wbc.TickDiagnostics`);
 * ``state_age`` -- how old the newest joint state was when the tick took it (its writer's
   source timestamp to the tick, same clock on one machine): transport plus the wait for the
   tick, up to one period.

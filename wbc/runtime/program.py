@@ -29,9 +29,13 @@ from .kernels.ops import (
     FLAGS,
     OP_BUILTIN,
     OP_EXTERNAL,
+    PROGRAM_ACCEPTED_NS,
+    PROGRAM_CLOCK,
+    PROGRAM_CLOCK_ID,
     PROGRAM_HEADER,
     PROGRAM_INPUT,
     PROGRAM_INPUT_SIZE,
+    PROGRAM_RUN_NS,
     RUN_FOUND_NAN,
     Op,
 )
@@ -54,6 +58,7 @@ class TickProgram:
         self._owners: list[Any] = []
         self._address_list: list[int] = []
         self._input = (-1, 0)  # operand index and size of the input (set_input; -1: none)
+        self._clock = (0, 0)  # the clock timing the runs given a configuration (set_clock; 0: none)
 
     def keep_alive(self, owner: Any) -> None:
         """Keep ``owner`` (which frees memory an op's operands point to) alive as long as this program."""
@@ -78,6 +83,25 @@ class TickProgram:
             raise TypeError("a program's input is a 1-D array")
         self._input = (self.array(array), array.size)
         self._pack()
+
+    def set_clock(self, clock_gettime: int, clock_id: int) -> None:
+        """Time every run given a configuration (:meth:`stepper`'s) with ``clock_gettime(clock_id)``
+        (the address of libc's function, e.g. :class:`wbc.solvers.daqp.abi.Entry`'s): from the
+        start of the native call, before ``q`` is copied in, to its return -- read by
+        :meth:`run_time` and :meth:`accepted_run_time`. Before :meth:`stepper`, as :meth:`set_input`."""
+        if not (isinstance(clock_gettime, int) and clock_gettime != 0 and isinstance(clock_id, int)):
+            raise TypeError("set_clock(): the address of clock_gettime (not 0) and a clock id, both ints")
+        self._clock = (clock_gettime, clock_id)
+        self._pack()
+
+    def run_time(self) -> float:
+        """Seconds of the latest timed run (:meth:`set_clock`), whatever it returned; 0 before one."""
+        return self._packed.item(PROGRAM_RUN_NS) * 1e-9
+
+    def accepted_run_time(self) -> float:
+        """Seconds of the latest timed run that returned
+        :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED`; 0 before one."""
+        return self._packed.item(PROGRAM_ACCEPTED_NS) * 1e-9
 
     def add(self, op: Op | CompiledOp, **operands: Any) -> None:
         """Append one op, its operands given by name: one of wbc's (:class:`wbc.runtime.kernels.ops.Op`,
@@ -152,8 +176,9 @@ class TickProgram:
         rows = [row + [0] * (width - len(row)) for row in self._rows]
         header = [len(rows), width, *[0] * (PROGRAM_HEADER - 2)]
         header[PROGRAM_INPUT], header[PROGRAM_INPUT_SIZE] = self._input
+        header[PROGRAM_CLOCK], header[PROGRAM_CLOCK_ID] = self._clock
         #: what the native call receives, one array: [rows, width, the flags, the input and its size, the
-        #: rows..., the addresses...]
+        #: clock and the run times, the rows..., the addresses...]
         self._packed = np.array([*header, *(value for row in rows for value in row), *self._address_list],
                                 dtype=np.int64)
         self._program = self._packed[PROGRAM_HEADER:PROGRAM_HEADER + len(rows) * width].reshape(-1, width)
@@ -189,7 +214,8 @@ class TickProgram:
         It calls the compiled code without numba's type check of the arguments
         (:func:`wbc.runtime.native_entry.unchecked_entry`): ``q`` must be a 1-D float64 ndarray
         (any strides; read-only too), which the caller checks; a ``q`` of another size than the
-        input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written."""
+        input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written.
+        With a clock (:meth:`set_clock`) each run is timed. It runs the rows packed when it was made."""
         if self._input[0] < 0:
             raise TypeError("stepper(): the program has no input (set_input)")
         self._resolve()

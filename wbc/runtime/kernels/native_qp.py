@@ -35,6 +35,7 @@ from . import (
     DAQP_WORKSPACE_WORDS,
     prepare_cache,
 )
+from ._clock import now_ns
 from ._lazy import declared
 from .assembly import _minimiser, back_substitution, cholesky, forward_substitution, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
@@ -52,7 +53,7 @@ WORKING_SET_DEFECT = 1e-9
 WORKING_SET_PIVOT = 1e-10
 
 _I8P = ir.IntType(8).as_pointer()
-_I32, _I64 = ir.IntType(32), ir.IntType(64)
+_I32 = ir.IntType(32)
 
 
 @intrinsic
@@ -87,24 +88,6 @@ def _int32_at(typingctx, address):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int32)))
 
     return types.CPointer(types.int32)(types.int64), codegen
-
-
-@intrinsic
-def _now_ns(typingctx, function, clock_id):
-    """``clock_gettime(clock_id, &t)`` at address ``function``, as ns (``struct timespec``: two
-    longs, on the stack)."""
-    signature = types.int64(types.int64, types.int64)
-
-    def codegen(context, builder, signature, args):
-        timespec = ir.LiteralStructType([_I64, _I64])
-        slot = builder.alloca(timespec)
-        callee = builder.inttoptr(args[0], ir.FunctionType(_I32, [_I32, _I8P]).as_pointer())
-        builder.call(callee, [builder.trunc(args[1], _I32), builder.bitcast(slot, _I8P)])
-        seconds = builder.load(builder.gep(slot, [_I32(0), _I32(0)]))
-        nanoseconds = builder.load(builder.gep(slot, [_I32(0), _I32(1)]))
-        return builder.add(builder.mul(seconds, _I64(1_000_000_000)), nanoseconds)
-
-    return signature, codegen
 
 
 @njit(inline="always")
@@ -225,7 +208,7 @@ def _answered(control: np.ndarray, defect: float, start: int, clock_gettime: int
     control[DAQP_CONTROL_EXITFLAG] = DAQP_OPTIMAL
     control[DAQP_CONTROL_DEFECT] = defect
     control[DAQP_CONTROL_ITERATIONS] = 0
-    control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
+    control[DAQP_CONTROL_TIME] = (now_ns(clock_gettime, clock_id) - start) * 1e-9
 
 
 @njit(inline="always")
@@ -252,7 +235,7 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
     control[DAQP_CONTROL_EXITFLAG] = flag
     control[DAQP_CONTROL_DEFECT] = defect
     control[DAQP_CONTROL_ITERATIONS] = iterations
-    control[DAQP_CONTROL_TIME] = (_now_ns(clock_gettime, clock_id) - start) * 1e-9
+    control[DAQP_CONTROL_TIME] = (now_ns(clock_gettime, clock_id) - start) * 1e-9
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
@@ -269,7 +252,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     bound and row it is the answer (exit flag 1, defect 0, 0 iterations, multipliers ``lam`` 0),
     DAQP is not called and its working set stays empty. Otherwise DAQP solves (:func:`_daqp`).
     """
-    start = _now_ns(clock_gettime, clock_id)
+    start = now_ns(clock_gettime, clock_id)
     if (unconstrained_first and _no_active_constraint(_sense_at(problem, sense_word, lam.shape[0]))
             and _unconstrained_answer(data, x, factor, lam)):
         _answered(control, 0.0, start, clock_gettime, clock_id)
@@ -291,7 +274,7 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     unconstrained minimiser, taken when it meets every bound and row exactly. Otherwise DAQP
     solves (:func:`_daqp`), from that working set.
     """
-    start = _now_ns(clock_gettime, clock_id)
+    start = now_ns(clock_gettime, clock_id)
     n = x.shape[0]
     sense = _sense_at(problem, sense_word, lam.shape[0])
     if _no_active_constraint(sense):

@@ -32,6 +32,8 @@ controller's answer check). All are 0 when a run starts; the run returns them
 **Input.** A program may have an *input* (:meth:`wbc.runtime.program.TickProgram.set_input`:
 the configuration ``q`` its ops read): a run given a non-empty ``q`` first copies it there, so
 the control loop's tick is one native call from the caller's ``q`` to the checked answer.
+**Clock.** A program may time those runs (:meth:`wbc.runtime.program.TickProgram.set_clock`): from
+the run's start, before ``q`` is copied in, to its end (header words ``PROGRAM_*_NS``).
 """
 
 from __future__ import annotations
@@ -55,8 +57,13 @@ FLAG_COUNT = 3
 FLAGS_OPERAND = (FLAGS, (FLAG_COUNT,), "int64")
 #: words of the program's packed array after the flags: the operand index of its input (-1: none), its size
 PROGRAM_INPUT, PROGRAM_INPUT_SIZE = 2 + FLAG_COUNT, 3 + FLAG_COUNT
-#: words before the rows in the program's packed array: rows, width, the flags, the input and its size
-PROGRAM_HEADER = 4 + FLAG_COUNT
+#: the clock that times the runs given a configuration: the address of ``int clock_gettime(clockid_t,
+#: struct timespec*)`` (0: untimed) and the clock's id; then the ns from the start of the latest timed
+#: run to its end, and the same of the latest timed run that returned RUN_ACCEPTED (both 0 before one)
+PROGRAM_CLOCK, PROGRAM_CLOCK_ID, PROGRAM_RUN_NS, PROGRAM_ACCEPTED_NS = (4 + FLAG_COUNT, 5 + FLAG_COUNT,
+                                                                        6 + FLAG_COUNT, 7 + FLAG_COUNT)
+#: words before the rows in the program's packed array: rows, width, the flags, the input and its size, the clock
+PROGRAM_HEADER = 8 + FLAG_COUNT
 #: what a run returns: a NaN screen found a NaN (the solves after it skipped); else the solve's answer
 #: was accepted (flag :data:`FLAG_ACCEPTED`); else 0 -- or, before any row runs, that its ``q`` does not
 #: fit the program's input (another size, or no input: nothing written)

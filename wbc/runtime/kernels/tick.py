@@ -5,7 +5,8 @@ C-contiguous arrays and handed over by address: entering a numba function costs 
 array argument, a dozen arrays would cost more than the arithmetic. One native call,
 ``run_program(packed, q, dt)``, copies ``q`` into the program's input (unless ``q`` is empty) and
 runs every row; ``packed`` = [rows, width, the flags (:data:`~wbc.runtime.kernels.ops.FLAG_COUNT`),
-the input's operand index and size, the rows (rows x width, row-major), the operand addresses].
+the input's operand index and size, the clock and the run times (:data:`~.ops.PROGRAM_CLOCK`), the rows
+(rows x width, row-major), the operand addresses].
 Each row is [kind, callback address, operands...] (array operands by index into the addresses):
 ``run_program`` calls the row's callback, wbc's own op (:data:`~.ops.OP_BUILTIN`, which also
 receives the flags) or a third party's (:data:`~.ops.OP_EXTERNAL`). It returns
@@ -38,15 +39,20 @@ from numba import carray, njit, types
 from numba.extending import intrinsic
 
 from . import _cache, prepare_cache
+from ._clock import now_ns
 from .ops import (
     FLAG_ACCEPTED,
     FLAG_COUNT,
     FLAG_FOUND_NAN,
     FLAGS,
     OP_BUILTIN,
+    PROGRAM_ACCEPTED_NS,
+    PROGRAM_CLOCK,
+    PROGRAM_CLOCK_ID,
     PROGRAM_HEADER,
     PROGRAM_INPUT,
     PROGRAM_INPUT_SIZE,
+    PROGRAM_RUN_NS,
     RUN_ACCEPTED,
     RUN_BAD_INPUT,
     RUN_FOUND_NAN,
@@ -122,7 +128,11 @@ _Q = types.Array(types.float64, 1, "A", readonly=True)
 def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
     """Copy ``q`` into the program's input (unless it is empty), then run the rows of the program
     ``packed`` in order; RUN_FOUND_NAN when a NaN screen found a NaN, else RUN_ACCEPTED when the
-    solve's answer was accepted, else 0 (RUN_BAD_INPUT: ``q`` does not fit the input, nothing run)."""
+    solve's answer was accepted, else 0 (RUN_BAD_INPUT: ``q`` does not fit the input, nothing run).
+    A run given a ``q`` by a program with a clock is timed from here to its return (header words
+    ``PROGRAM_RUN_NS``, and ``PROGRAM_ACCEPTED_NS`` when it returns RUN_ACCEPTED)."""
+    clock = packed[PROGRAM_CLOCK] if q.size else 0
+    start = now_ns(clock, packed[PROGRAM_CLOCK_ID]) if clock != 0 else 0
     rows, width = packed[0], packed[1]
     flags = packed[2:2 + FLAG_COUNT]
     for i in range(FLAG_COUNT):
@@ -144,9 +154,13 @@ def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
             _call_builtin(op[1], addresses, row, dt, flag_address)
         else:  # OP_EXTERNAL
             _call_external(op[1], addresses, row, dt)
-    if flags[FLAG_FOUND_NAN]:
-        return RUN_FOUND_NAN
-    return RUN_ACCEPTED if flags[FLAG_ACCEPTED] else 0
+    outcome = RUN_FOUND_NAN if flags[FLAG_FOUND_NAN] else RUN_ACCEPTED if flags[FLAG_ACCEPTED] else 0
+    if clock != 0:
+        elapsed = now_ns(clock, packed[PROGRAM_CLOCK_ID]) - start
+        packed[PROGRAM_RUN_NS] = elapsed
+        if outcome == RUN_ACCEPTED:
+            packed[PROGRAM_ACCEPTED_NS] = elapsed
+    return outcome
 
 
 def callbacks_source(ops: list[Op], stamp: str) -> str:

@@ -155,6 +155,13 @@ class NativeWorkspace:
         program.add(self._op, **self.operands())
         program.keep_alive(self)
 
+    @property
+    def clock(self) -> tuple[int, int]:
+        """(address of libc's ``clock_gettime``, clock id): the clock the compiled solve is timed with
+        (that of ``time.perf_counter``), for :meth:`wbc.runtime.program.TickProgram.set_clock`."""
+        entry = self._library.entry
+        return entry.clock_gettime, entry.clock_id
+
     def add_accept_op(self, program: TickProgram, tolerance: NDArray[np.float64]) -> None:
         """Append the check of this workspace's latest solve to ``program`` (after :meth:`add_op`):
         the program's flag ``FLAG_ACCEPTED`` (its run returns ``RUN_ACCEPTED``) when DAQP solved
