@@ -216,12 +216,13 @@ def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):
 
 
 def test_the_native_tick_records_every_diagnostic(youbot):
-    """On the control loop's path step records (v, solve time) only, the program times its
-    run; ``last`` reads every field as the pipeline's full record does: tick, solver, outcome,
-    status, v and u (the returned array itself), the solve time DAQP's op wrote, a tick time
-    between it and the time around the call, the lazy fields. A step that raises keeps the
-    latest tick's diagnostics, its tick time too (also when the program ran: a NaN q); a new
-    solver (a rebuilt program) neither renames the latest tick's nor loses its tick time."""
+    """On the control loop's path step records v only, the program times its run and DAQP's
+    accept op keeps the accepted solve time; ``last`` reads every field as the pipeline's full
+    record does: tick, solver, outcome, status, v and u (the returned array itself), the solve
+    time DAQP's op wrote, a tick time between it and the time around the call, the lazy
+    fields. A step that raises keeps the latest tick's diagnostics, its tick time too (also
+    when the program ran: a NaN q); a new solver (a rebuilt program) neither renames the
+    latest tick's nor loses its tick time."""
     native, native_task = _loop_controller(youbot)
     pipeline, pipeline_task = _loop_controller(youbot)
     zero, q = np.zeros(youbot.nv), youbot.neutral()
@@ -236,7 +237,7 @@ def test_the_native_tick_records_every_diagnostic(youbot):
         elapsed = time.perf_counter() - start
         solve_time = float(native.solver.bound.control[kernels.DAQP_CONTROL_TIME])
         w = pipeline.step(q, v_measured=zero)
-        assert len(native._record) == (8 if k == 0 else 2)  # the first tick is the assembly's
+        assert native._record is v if k else len(native._record) == 8  # the first tick is the assembly's
         a, b = native.last, pipeline.last
         assert a is native.last  # built once per tick
         expected = (k + 1, "daqp", wbc.Outcome.OPTIMAL, "optimal", True)
@@ -254,7 +255,7 @@ def test_the_native_tick_records_every_diagnostic(youbot):
     assert native.last is a and native.last.tick == 6
     with pytest.raises(wbc.InvalidInputError):
         native.step(np.full_like(q, np.nan))  # the program runs (its NaN screen), not accepted
-    assert native._program.run_time() > 0.0 and native._record[0] is a.v
+    assert native._program.run_time() > 0.0 and native._record is a.v
     assert (native.last.tick, native.last.tick_time, native.last.v) == (6, tick_time, a.v)
     v = native.step(q)  # (last not read before the solver changes)
     tick_time = native._program.accepted_run_time()
@@ -264,6 +265,26 @@ def test_the_native_tick_records_every_diagnostic(youbot):
     assert native.last.v is v and tick_time > 0.0
     native.step(q)
     assert (native.last.tick, native.last.solver) == (9, "quadprog")
+
+
+def test_a_strict_step_that_raises_leaves_the_native_record_of_the_latest_tick(youbot):
+    """The native tick records v only: its solve and tick times are read when ``last`` is. A
+    strict controller's next native run solves, is not accepted (an infeasible QP) and raises:
+    DAQP's control vector and the program's latest run time then hold that run's -- ``last``
+    still reads the latest accepted tick's (DAQP_ACCEPT's copy, the program's accepted run)."""
+    controller, _ = _loop_controller(youbot, strict=True)
+    control, q = controller.solver.bound.control, youbot.neutral()
+    for _ in range(3):
+        v = controller.step(q)  # (last not read: built lazily below)
+    solve_time, tick_time = float(control[kernels.DAQP_CONTROL_TIME]), controller._program.run_time()
+    control[kernels.DAQP_CONTROL_TIME] = -1.0  # a mark: the failing run's solve overwrites it
+    with pytest.raises(wbc.SolverError):
+        controller.step(_huge(youbot, 3))
+    assert control[kernels.DAQP_CONTROL_TIME] >= 0.0 and controller._program.run_time() > 0.0
+    last = controller.last
+    assert last.v is v and (last.solve_time, last.tick_time) == (solve_time, tick_time)
+    assert last.tick == 4  # (the raising step counted its tick before the fallback chain raised, as ever)
+    assert 0.0 < solve_time <= tick_time
 
 
 def test_a_task_without_target_is_refused_before_the_native_tick(youbot):

@@ -179,8 +179,8 @@ class Controller:
             self._q_shape = (robot.nq,)
             self._last: TickDiagnostics | None = None  # (read through the property last)
             #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
-            #: control loop's path (v, solve time) (:meth:`_full_record`): what ``last`` is
-            #: built from when read (a record object per tick would cost ~4 % of a tick)
+            #: control loop's path v (one QP) or (v, solve time) (strict priorities) (:meth:`_full_record`):
+            #: what ``last`` is built from when read (a record object per tick would cost ~4 % of a tick)
             self._record: TickRecord | NativeRecord | None = None
             self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
             self._q_weights = finite_weights(robot.nq)  # q is finite iff q . w is (never an overflow warning)
@@ -250,17 +250,21 @@ class Controller:
         return last
 
     def _full_record(self) -> TickRecord:
-        """The latest tick's record: the control loop's path records (v, solve time) only -- the
-        rest of it is the same on every tick of that path: the tick is the counter's (a step
-        that raised neither counted nor recorded), the solver this program's, optimal, v = u,
-        and the tick time the program's own clock's (the latest accepted native run's: written
-        by that run only, so a later step that raised leaves it)."""
+        """The latest tick's record: the control loop's path records v (and, with strict
+        priorities, the levels' solve time) only -- the rest of it is the same on every tick of
+        that path: the tick is the counter's (a step that raised neither counted nor recorded),
+        the solver this program's, optimal, v = u; the tick time is the program's own clock's
+        and the one QP's solve time DAQP_ACCEPT's copy, each of the latest accepted native run
+        (written by that run only: a later step that raised leaves them)."""
         record = self._record
-        if record is not None and len(record) == 2:
+        assert record is not None  # (read after the first step)
+        if isinstance(record, np.ndarray):  # one QP
+            return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", self._outcome[_ACCEPTED_SOLVE_TIME],
+                    self._program.accepted_run_time(), record, record)
+        if len(record) == 2:  # strict priorities
             v, solve_time = record
             return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", solve_time,
                     self._program.accepted_run_time(), v, v)
-        assert record is not None  # (read after the first step)
         return record
 
     @property
@@ -563,11 +567,10 @@ class Controller:
             if run == RUN_ACCEPTED:
                 self._buffers.tick += 1
                 collect = self._native_collect
-                solve_time: float  # (a memoryview item: DAQP's control vector)
-                if collect is None:  # one QP
-                    v, solve_time = self._answer_copy(), self._outcome[_SOLVE_TIME]
-                else:  # the cascade of strict priorities: its last level's answer
-                    v, solve_time = collect()
+                if collect is None:  # one QP: the solve and tick times are the program's (see _full_record)
+                    v = self._context.previous = self._record = self._answer_copy()
+                    return v
+                v, solve_time = collect()  # the cascade of strict priorities: its last level's answer
                 self._context.previous = v
                 self._record = (v, solve_time)  # the tick time: the program's clock's (see _full_record)
                 return v
@@ -629,7 +632,7 @@ class Controller:
 _FLOAT64 = np.dtype(np.float64)
 _OPTIMAL = Outcome.OPTIMAL
 _clock = time.perf_counter  # step's tick time
-_SOLVE_TIME = kernels.DAQP_CONTROL_TIME
+_ACCEPTED_SOLVE_TIME = kernels.DAQP_CONTROL_ACCEPTED_TIME
 
 
 #: what a task's or constraint's data computes (TaskData / ConstraintData)
@@ -671,8 +674,9 @@ def _velocity_names(robot: Robot) -> list[str]:
 
 #: what one step records for its diagnostics (:class:`TickDiagnostics`' arguments after the buffers)
 TickRecord = tuple[int, str, Outcome, str, float, float, NDArray[np.float64], NDArray[np.float64]]
-#: what a step on the control loop's path records: (v, solve time) (:meth:`Controller._full_record`)
-NativeRecord = tuple[NDArray[np.float64], float]
+#: what a step on the control loop's path records: v, or (v, solve time) with strict priorities
+#: (:meth:`Controller._full_record`)
+NativeRecord = NDArray[np.float64] | tuple[NDArray[np.float64], float]
 
 
 class WarmState(NamedTuple):

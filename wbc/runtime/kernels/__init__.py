@@ -135,9 +135,11 @@ DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
 #: layout of the control vector of the compiled DAQP solve (wbc.solvers.daqp.native): the update mask
 #: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
-#: answer), the solve time [s] and DAQP's iterations out
-DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS = range(5)
-DAQP_CONTROL_SIZE = 5
+#: answer), the solve time [s] and DAQP's iterations out; the solve time of the latest answer that
+#: a DAQP_ACCEPT op accepted (what the controller's native tick records)
+(DAQP_CONTROL_MASK, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_DEFECT, DAQP_CONTROL_TIME, DAQP_CONTROL_ITERATIONS,
+ DAQP_CONTROL_ACCEPTED_TIME) = range(6)
+DAQP_CONTROL_SIZE = 6
 #: (exit flag, defect, solve time [s]) of the control vector, read in one slice
 DAQP_CONTROL_OUTCOME = slice(DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_TIME + 1)
 #: exit flag of a solve that a NaN screen earlier in the program skipped

@@ -17,6 +17,7 @@ from numba import carray, njit, types
 from numba.extending import intrinsic
 
 from . import (
+    DAQP_CONTROL_ACCEPTED_TIME,
     DAQP_CONTROL_DEFECT,
     DAQP_CONTROL_EXITFLAG,
     DAQP_CONTROL_ITERATIONS,
@@ -342,9 +343,11 @@ DAQP_SOLVE_WORKING_SET = Op("DAQP_SOLVE_WORKING_SET", _daqp_solve_working_set, (
 def _daqp_accept(control: np.ndarray, tolerance: np.ndarray, flags: np.ndarray, dt: float) -> None:
     if control[DAQP_CONTROL_EXITFLAG] >= 1.0 and control[DAQP_CONTROL_DEFECT] <= tolerance[0]:
         flags[FLAG_ACCEPTED] = 1
+        control[DAQP_CONTROL_ACCEPTED_TIME] = control[DAQP_CONTROL_TIME]
 
 
 #: the controller's check of a DAQP_SOLVE's answer (``control``, its control vector): the program's flag
-#: FLAG_ACCEPTED when DAQP solved (exit flag >= 1) and the answer's defect is at most ``tolerance[0]``
+#: FLAG_ACCEPTED when DAQP solved (exit flag >= 1) and the answer's defect is at most ``tolerance[0]``;
+#: the solve time of an accepted answer is kept in ``control[DAQP_CONTROL_ACCEPTED_TIME]``
 DAQP_ACCEPT = Op("DAQP_ACCEPT", _daqp_accept, (
     ("control", (DAQP_CONTROL_SIZE,)), ("tolerance", (1,)), FLAGS_OPERAND))
