@@ -558,7 +558,7 @@ class Controller:
         """
         native = self._native_step
         if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
-            if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.ndim == 1):  # (what the entry does not check)
+            if not (type(q) is _NDARRAY and q.dtype is _FLOAT64 and q.ndim == 1):  # (what the entry does not check)
                 q = self.robot.check_configuration(q)
             # q copied in (its size checked: RUN_BAD_INPUT, nothing run; its finiteness by the program's screen),
             # the program run, DAQP's answer checked (_finish_program)
@@ -582,7 +582,7 @@ class Controller:
                 self._assembly.screen(q)  # raises for a non-finite q, as the assembly does
         else:  # the pipeline of this controller's mode (wbc.control.pipelines): assembly, solve, command
             start = _clock()
-            if not (type(q) is np.ndarray and q.dtype is _FLOAT64 and q.shape == self._q_shape
+            if not (type(q) is _NDARRAY and q.dtype is _FLOAT64 and q.shape == self._q_shape
                     and (self._q_screened or math.isfinite(q.dot(self._q_weights)))):  # check_configuration's fast path
                 q = self.robot.check_configuration(q)
             self._native_step = None  # (a tick with v_measured: the next one clears the context's on this path)
@@ -630,6 +630,7 @@ class Controller:
 
 
 _FLOAT64 = np.dtype(np.float64)
+_NDARRAY = np.ndarray  # (a global: one attribute lookup less per step)
 _OPTIMAL = Outcome.OPTIMAL
 _clock = time.perf_counter  # step's tick time
 _ACCEPTED_SOLVE_TIME = kernels.DAQP_CONTROL_ACCEPTED_TIME
