@@ -227,9 +227,10 @@ class Scenario:
         return [[task for task, level in zip(self.tasks, self.levels, strict=True) if level == k]
                 for k in range(max(self.levels) + 1)]
 
-    def make_controller(self, solver: str | None = None) -> Controller:
+    def make_controller(self, solver: str | None = None, warm_up: bool = True) -> Controller:
         return Controller(self.robot, self.task_levels, self.constraints, solver=solver or self.solver,
-                          dt=self.dt, damping=self.damping, reduced=self.reduced, lm_damping=self.lm_damping)
+                          dt=self.dt, damping=self.damping, reduced=self.reduced, lm_damping=self.lm_damping,
+                          warm_up=warm_up)
 
     @property
     def ticks(self) -> int:
@@ -288,7 +289,7 @@ def _build(checked: ScenarioFile, spec: dict[str, Any], path: Path) -> Scenario:
     if checked.reference is not None:
         scenario.reference_task, scenario.reference = _reference(checked.reference, tasks, robot, q0)
     try:  # what only the whole stack can tell (a base that needs a no-slip row, ...): before any run starts
-        scenario.make_controller("daqp")
+        scenario.make_controller("daqp", warm_up=False)  # (a check: never ticked)
     except WbcError as exc:
         raise ScenarioError(f"the controller cannot be built: {exc}") from exc
     return scenario

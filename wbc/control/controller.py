@@ -64,6 +64,7 @@ from .pipelines import (
     inputs_of,
 )
 from .tick_buffers import TickBuffers
+from .warm_up import warm_up_twin
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..solvers.daqp.native import NativeWorkspace
@@ -97,6 +98,11 @@ class Controller:
             ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
         strict: raise :class:`~wbc.core.errors.SolverError` when the QP cannot be solved, instead
             of the fallback below.
+        warm_up: tick a throwaway copy of the controller twice when it is built
+            (:mod:`wbc.control.warm_up`), so that its first tick runs code just run (~3.5x a
+            steady tick instead of ~12x in a fresh process), at the cost of about one more
+            build (~1.6 ms on the youBot). The controller's own state and commands are the same
+            either way; False skips it (copies never warm up).
 
     Raises:
         InvalidInputError: a bad argument (not a robot, no task, a task in two levels, a
@@ -146,11 +152,14 @@ class Controller:
     def __init__(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
                  constraints: Sequence[Constraint] = (), solver: str = "daqp", dt: float = 0.01, damping: float = 1e-3,
                  solver_options: dict[str, Any] | None = None, reduced: bool = False, strict: bool = False,
-                 lm_damping: float = DEFAULT_LM_DAMPING) -> None:
+                 lm_damping: float = DEFAULT_LM_DAMPING, warm_up: bool = True) -> None:
         if solver_options is not None and not isinstance(solver_options, Mapping):
             raise InvalidInputError(f"solver_options must be a dict of backend settings, got {solver_options!r}")
+        warm = as_flag(warm_up, "warm_up")
         self._setup(robot, tasks, constraints, lambda: make_solver(solver, solver_options), dt, damping, reduced,
                     strict, lm_damping)
+        if warm:
+            warm_up_twin(self)
 
     def _setup(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
                constraints: Sequence[Constraint], solver: Callable[[], QPSolver], dt: float, damping: float,

@@ -1,0 +1,71 @@
+"""Warming a controller's code when it is built, so that its first tick runs warm.
+
+The first tick of a process used to take 12-15x a steady tick (``python -m benchmarks.cold``):
+not page faults nor lazy binding, but code and data run for the first time after the build
+(Python's inline caches, numba's dispatch, the ops' callbacks, DAQP's solve). A throwaway
+*twin* -- a deep copy of the controller, with copies of its robot, tasks, constraints and
+solver and buffers, program and DAQP workspaces of its own -- ticks twice when the controller
+is built: once on the checked pipeline (the controller's own first tick) and once on the
+control loop's native path (its later ticks). The controller itself is not touched: its tick
+counter, previous command, DAQP working sets, items' targets and ``last`` stay as they were.
+
+What is warmed is the process's code, not the controller's data: one twin per *shape* of
+controller (class, solver, item classes, levels, form) and process is enough, so a later
+controller of a shape already warmed is built as fast as without the warm-up.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Hashable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..tasks.error_task import ErrorTask
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .controller import Controller
+
+#: the shapes of the controllers warmed (or tried) in this process (:func:`shape`)
+_WARMED: set[Hashable] = set()
+
+
+def warm_up(controller: Controller) -> None:
+    """Warm the code of ``controller``'s first ticks (:func:`warm_up_twin`), unless a controller
+    of its shape was warmed (or tried) before in this process."""
+    key = shape(controller)
+    if key not in _WARMED:
+        _WARMED.add(key)
+        warm_up_twin(controller)
+
+
+def shape(controller: Controller) -> Hashable:
+    """What decides which code a controller's ticks run: its class, solver, form, levels and
+    the classes of its tasks and constraints (settings and sizes run the same code)."""
+    return (type(controller), controller.solver.name, controller.reduced, tuple(map(len, controller.levels)),
+            tuple(map(type, controller.tasks)), tuple(map(type, controller.constraints)))
+
+
+def warm_up_twin(controller: Controller) -> bool:
+    """Tick a throwaway twin of ``controller`` twice at Pinocchio's neutral configuration
+    clipped into the position limits; True when both ticks ran.
+
+    Tasks of the twin that still wait for their first target (:attr:`ErrorTask.needs_target`)
+    tick toward the target their constructor left (a finite default). The warm-up is best
+    effort: a twin that cannot be made or ticked (an item that cannot be deep-copied, a custom
+    task that is not ready) is dropped and False returned -- the controller's own first tick
+    checks the tasks and raises as it would without the warm-up, so no error is hidden.
+    """
+    try:
+        twin = copy.deepcopy(controller)
+        for task in twin.tasks:
+            if isinstance(task, ErrorTask) and task.needs_target and not task._has_target:
+                task._has_target = True  # (the twin's copy only)
+        robot = twin.robot
+        q = np.clip(robot.neutral(), robot.lower, robot.upper)
+        twin.step(q)  # the checked pipeline, as the controller's first tick
+        twin.step(q)  # the native path (when the program does the whole tick), as its later ticks
+    except Exception:  # noqa: BLE001 -- any failure only means no warm-up (see the docstring)
+        return False
+    return True
