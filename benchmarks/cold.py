@@ -1,7 +1,7 @@
 """Cold costs: the first tick of a process and of a controller, building a controller, and the
 first ``wbc run`` after an install.
 
-    python -m benchmarks.cold [--scenario tasks/youbot_circle.toml] [--processes 5] [--first-runs 3]
+    python -m benchmarks.cold [--scenario tasks/youbot_circle.toml] [--processes 5] [--first-runs 3] [--no-warm-up]
 
 Each measurement runs in a fresh Python process (the first tick of a *process* pays for
 code paths run once: Pinocchio's and numba's dispatch caches, first touches of memory):
@@ -9,6 +9,8 @@ code paths run once: Pinocchio's and numba's dispatch caches, first touches of m
 compiled kernels from numba's cache), its first tick, 2000 steady ticks (median), then 50
 more controllers built (median) and the first tick of 20 of them (median). Ratios are to
 the steady tick of the same process; the table shows the median (min–max) over processes.
+Controllers are built as by default, warmed up (``Controller(warm_up=True)``: a throwaway twin
+ticks at build, wbc.control.warm_up); ``--no-warm-up`` builds them without it.
 
 ``--first-runs N``: N times, ``wbc run --no-progress <scenario>`` with ``NUMBA_CACHE_DIR`` set to
 a fresh empty directory (a fresh install: every kernel the run uses compiles), then once more on
@@ -39,9 +41,10 @@ import wbc
 from wbc.app.scenario import load_scenario
 imported = time.perf_counter()
 scenario = load_scenario(sys.argv[1])
+warm_up = sys.argv[2] == "1"
 q = scenario.q0.copy()
 scenario.reference_task.set_target(*scenario.reference(0.0))
-a = time.perf_counter(); controller = scenario.make_controller(); b = time.perf_counter()
+a = time.perf_counter(); controller = scenario.make_controller(warm_up=warm_up); b = time.perf_counter()
 controller.step(q); c = time.perf_counter()
 ticks = []
 for k in range(1, 2001):
@@ -49,7 +52,7 @@ for k in range(1, 2001):
     t = time.perf_counter(); controller.step(q); ticks.append(time.perf_counter() - t)
 builds, firsts = [], []
 for k in range(50):
-    t = time.perf_counter(); other = scenario.make_controller(); builds.append(time.perf_counter() - t)
+    t = time.perf_counter(); other = scenario.make_controller(warm_up=warm_up); builds.append(time.perf_counter() - t)
     if k < 20:
         t = time.perf_counter(); other.step(q); firsts.append(time.perf_counter() - t)
 print(json.dumps(dict(import_s=imported - start, first_build_s=b - a, first_tick_s=c - b,
@@ -58,10 +61,10 @@ print(json.dumps(dict(import_s=imported - start, first_build_s=b - a, first_tick
 """
 
 
-def measure(scenario: Path) -> dict:
+def measure(scenario: Path, warm_up: bool = True) -> dict:
     """One fresh process's cold costs (see the module docstring)."""
-    result = subprocess.run([sys.executable, "-c", _CHILD, str(scenario)], capture_output=True, text=True,
-                            check=True, cwd=Path.home())
+    result = subprocess.run([sys.executable, "-c", _CHILD, str(scenario), "1" if warm_up else "0"],
+                            capture_output=True, text=True, check=True, cwd=Path.home())
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 
@@ -93,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--scenario", type=Path, default=ROOT / "tasks" / "youbot_circle.toml")
     parser.add_argument("--processes", type=int, default=5)
     parser.add_argument("--first-runs", type=int, default=0, help="also time N first runs on an empty numba cache")
+    parser.add_argument("--no-warm-up", action="store_true", help="build the controllers with warm_up=False")
     args = parser.parse_args(argv)
     if args.first_runs:
         runs = first_runs(args.scenario.resolve(), args.first_runs)
@@ -102,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  first {first_wall:5.1f} / {first_cpu:5.1f}   warm {warm_wall:5.1f} / {warm_cpu:5.1f}")
     if not args.processes:
         return 0
-    runs = [measure(args.scenario.resolve()) for _ in range(args.processes)]
+    runs = [measure(args.scenario.resolve(), not args.no_warm_up) for _ in range(args.processes)]
 
     def spread(values: list[float], unit: float, digits: int = 1) -> str:
         values = np.array(values) * unit
@@ -117,7 +121,8 @@ def main(argv: list[str] | None = None) -> int:
             ("a later controller built [ms]", spread([r["build_s"] for r in runs], 1e3, 2)),
             ("its first tick / steady tick",
              spread([r["later_first_tick_s"] / s for r, s in zip(runs, steady, strict=True)], 1))]
-    print(f"{args.scenario.name}, {args.processes} fresh processes: median (min–max)")
+    print(f"{args.scenario.name}, {args.processes} fresh processes{', warm_up=False' if args.no_warm_up else ''}: "
+          "median (min–max)")
     for name, value in rows:
         print(f"  {name:34s} {value}")
     return 0
