@@ -51,8 +51,9 @@ def warm_up_twin(controller: Controller) -> bool:
     """Tick a throwaway twin of ``controller`` twice at Pinocchio's neutral configuration
     clipped into the position limits; True when both ticks ran.
 
-    Tasks of the twin that still wait for their first target (:attr:`ErrorTask.needs_target`)
-    tick toward the target their constructor left (a finite default). The warm-up is best
+    The twin's :class:`~wbc.tasks.error_task.ErrorTask` copies that still wait for their first
+    target (``needs_target``) tick toward the one their constructor left (a finite default;
+    the controller's own tasks keep waiting for theirs). The warm-up is best
     effort: a twin that cannot be made or ticked (an item that cannot be deep-copied, a custom
     task that is not ready) is dropped and False returned -- the controller's own first tick
     checks the tasks and raises as it would without the warm-up, so no error is hidden.
