@@ -9,15 +9,15 @@ is built: once on the checked pipeline (the controller's own first tick) and onc
 control loop's native path (its later ticks). The controller itself is not touched: its tick
 counter, previous command, DAQP working sets, items' targets and ``last`` stay as they were.
 
-What is warmed is the process's code, not the controller's data: one twin per *shape* of
-controller (class, solver, item classes, levels, form) and process is enough, so a later
-controller of a shape already warmed is built as fast as without the warm-up.
+Every build warms its own twin: what the twin warms is also the CPU's caches, which building
+another controller evicts again (warming only the first controller of each kind in a process
+left the first tick of a scenario's controller -- built after the scenario's own check build --
+at 6-10x a steady tick).
 """
 
 from __future__ import annotations
 
 import copy
-from collections.abc import Hashable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,25 +26,6 @@ from ..tasks.error_task import ErrorTask
 
 if TYPE_CHECKING:  # pragma: no cover
     from .controller import Controller
-
-#: the shapes of the controllers warmed (or tried) in this process (:func:`shape`)
-_WARMED: set[Hashable] = set()
-
-
-def warm_up(controller: Controller) -> None:
-    """Warm the code of ``controller``'s first ticks (:func:`warm_up_twin`), unless a controller
-    of its shape was warmed (or tried) before in this process."""
-    key = shape(controller)
-    if key not in _WARMED:
-        _WARMED.add(key)
-        warm_up_twin(controller)
-
-
-def shape(controller: Controller) -> Hashable:
-    """What decides which code a controller's ticks run: its class, solver, form, levels and
-    the classes of its tasks and constraints (settings and sizes run the same code)."""
-    return (type(controller), controller.solver.name, controller.reduced, tuple(map(len, controller.levels)),
-            tuple(map(type, controller.tasks)), tuple(map(type, controller.constraints)))
 
 
 def warm_up_twin(controller: Controller) -> bool:
