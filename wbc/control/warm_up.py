@@ -18,17 +18,30 @@ at 6-10x a steady tick).
 from __future__ import annotations
 
 import copy
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ..model.robot import Robot
 from ..tasks.error_task import ErrorTask
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .controller import Controller
+from ..tasks.task import Task
 
 
-def warm_up_twin(controller: Controller) -> bool:
+class Steppable(Protocol):
+    """What the warm-up uses of a controller (:class:`~wbc.control.controller.Controller`)."""
+
+    @property
+    def robot(self) -> Robot: ...
+
+    @property
+    def tasks(self) -> Sequence[Task]: ...
+
+    def step(self, q: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+
+def warm_up_twin(controller: Steppable) -> bool:
     """Tick a throwaway twin of ``controller`` twice at Pinocchio's neutral configuration
     clipped into the position limits; True when both ticks ran.
 
