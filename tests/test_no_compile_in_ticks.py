@@ -64,7 +64,7 @@ _CHILD = textwrap.dedent("""
         for controller in controllers(robot, item):
             built += 1
             before = signatures()
-            warm_up_twin(controller)  # what the build runs by default: compiles nothing the build did not
+            warm_up_twin(controller._twin)  # what a build runs by default: compiles nothing the build did not
             warmed = sorted(name for name, count in signatures().items() if count != before.get(name, 0))
             assert not warmed, f"warm-up of {case.name} on {case.robot}, {controller.levels}: {warmed}"
             q = q0.copy()

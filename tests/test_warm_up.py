@@ -37,15 +37,14 @@ CASES = [
 
 
 def _controller(name: str, overrides: dict, warm_up: bool) -> tuple[wbc.Controller, object]:
-    """A fresh scenario (its own items) and its controller, warmed up (whether or not a
-    controller of its shape was before in this process) or not."""
+    """A fresh scenario (its own items) and its controller, warmed up or not."""
     scenario = load_scenario(name)
     arguments = dict(solver=scenario.solver, dt=scenario.dt, damping=scenario.damping, reduced=scenario.reduced,
                      lm_damping=scenario.lm_damping)
     controller = wbc.Controller(scenario.robot, scenario.task_levels, scenario.constraints,
                                 **{**arguments, **overrides}, warm_up=False)
     if warm_up:
-        assert warm_up_twin(controller)  # what the build runs for the first controller of a shape
+        assert warm_up_twin(controller._twin)  # what every build runs
     return controller, scenario
 
 
@@ -81,7 +80,7 @@ def test_every_build_warms_up_unless_told_not_to(youbot, monkeypatch):
     """Every build: what is warmed is also the CPU's caches, which building another controller
     (a scenario's check, say) evicts again."""
     twins = []
-    monkeypatch.setattr(controller_module, "warm_up_twin", lambda controller: twins.append(controller) or True)
+    monkeypatch.setattr(controller_module, "warm_up_twin", lambda make_twin: twins.append(make_twin.__self__) or True)
 
     def build(**keywords):
         return wbc.Controller(youbot, [wbc.FrameTask("ee"), wbc.KineticEnergyRegularization(1e-3)],
@@ -100,7 +99,7 @@ def test_the_warm_up_runs_before_the_first_target_and_leaves_the_task_without_on
     ee = wbc.FrameTask("ee", gain=0.5)
     controller = wbc.Controller(youbot, [ee, wbc.KineticEnergyRegularization(1e-3)], [wbc.JointVelocityLimits()],
                                 warm_up=False)
-    assert warm_up_twin(controller)
+    assert warm_up_twin(controller._twin)
     with pytest.raises(wbc.InvalidInputError, match="no target set"):  # still the user's error to see
         controller.step(youbot.neutral())
 
@@ -121,7 +120,7 @@ class _NeverReady(wbc.PostureTask):
 def test_a_controller_that_cannot_be_copied_builds_and_ticks_without_the_warm_up(youbot):
     task = _LockedTask()
     controller = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()])
-    assert not warm_up_twin(controller)
+    assert not warm_up_twin(controller._twin)
     cold = wbc.Controller(youbot, [task], [wbc.JointVelocityLimits()], warm_up=False)
     q = youbot.random_configuration(np.random.default_rng(3))
     assert controller.step(q).tobytes() == cold.step(q).tobytes()
@@ -131,6 +130,27 @@ def test_a_task_that_is_not_ready_still_raises_at_the_first_tick(youbot):
     controller = wbc.Controller(youbot, [_NeverReady(1e-2)])  # the warm-up fails quietly
     with pytest.raises(wbc.InvalidInputError, match="not ready yet"):
         controller.step(youbot.neutral())
+
+
+class _Sending(wbc.Controller):
+    """A controller that acts on the world in its step (sends the command somewhere)."""
+
+    def step(self, q, v_measured=None):
+        v = super().step(q, v_measured)
+        SENT.append(v)
+        return v
+
+
+SENT: list = []
+
+
+def test_the_twin_of_a_subclass_never_runs_the_subclass_step(youbot):
+    SENT.clear()
+    controller = _Sending(youbot, [wbc.PostureTask(1e-2), wbc.KineticEnergyRegularization(1e-3)])
+    assert SENT == []  # built (and warmed) without sending anything
+    assert warm_up_twin(controller._twin) and SENT == []  # (the twin did tick)
+    controller.step(youbot.neutral())
+    assert len(SENT) == 1
 
 
 def test_warm_up_must_be_a_bool(youbot):

@@ -159,7 +159,7 @@ class Controller:
         self._setup(robot, tasks, constraints, lambda: make_solver(solver, solver_options), dt, damping, reduced,
                     strict, lm_damping)
         if warm:
-            warm_up_twin(self)
+            warm_up_twin(self._twin)
 
     def _setup(self, robot: Robot, tasks: Sequence[Task] | Sequence[Sequence[Task]],
                constraints: Sequence[Constraint], solver: Callable[[], QPSolver], dt: float, damping: float,
@@ -234,6 +234,11 @@ class Controller:
     def __deepcopy__(self, memo: dict[int, Any]) -> Controller:
         """A controller of copies of the robot, tasks and constraints (independent settings)."""
         return _rebuilt(type(self), copy.deepcopy(self._specification(), memo), self._warm_state())
+
+    def _twin(self) -> Controller:
+        """A deep copy as a plain ``Controller``, for the warm-up (:mod:`wbc.control.warm_up`):
+        a subclass's own ``step`` may act on the world."""
+        return _rebuilt(Controller, copy.deepcopy(self._specification()), self._warm_state())
 
     # --------------------------------------------------------------- settings
     _dt: float  # where dt lives

@@ -17,8 +17,7 @@ at 6-10x a steady tick).
 
 from __future__ import annotations
 
-import copy
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Protocol
 
 import numpy as np
@@ -30,7 +29,7 @@ from ..tasks.task import Task
 
 
 class Steppable(Protocol):
-    """What the warm-up uses of a controller (:class:`~wbc.control.controller.Controller`)."""
+    """What the warm-up uses of its twin (a :class:`~wbc.control.controller.Controller`)."""
 
     @property
     def robot(self) -> Robot: ...
@@ -41,19 +40,21 @@ class Steppable(Protocol):
     def step(self, q: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
-def warm_up_twin(controller: Steppable) -> bool:
-    """Tick a throwaway twin of ``controller`` twice at Pinocchio's neutral configuration
-    clipped into the position limits; True when both ticks ran.
+def warm_up_twin(make_twin: Callable[[], Steppable]) -> bool:
+    """Make a throwaway twin of a controller (``make_twin``: a deep copy, as a plain
+    ``Controller`` -- a subclass's own ``step``, which may act on the world, never runs here)
+    and tick it twice at Pinocchio's neutral configuration clipped into the position limits;
+    True when both ticks ran.
 
     The twin's :class:`~wbc.tasks.error_task.ErrorTask` copies that still wait for their first
     target (``needs_target``) tick toward the one their constructor left (a finite default;
-    the controller's own tasks keep waiting for theirs). The warm-up is best
-    effort: a twin that cannot be made or ticked (an item that cannot be deep-copied, a custom
-    task that is not ready) is dropped and False returned -- the controller's own first tick
-    checks the tasks and raises as it would without the warm-up, so no error is hidden.
+    the controller's own tasks keep waiting for theirs). The warm-up is best effort: a twin
+    that cannot be made or ticked (an item that cannot be deep-copied, a custom task that is
+    not ready) is dropped and False returned -- the controller's own first tick checks the
+    tasks and raises as it would without the warm-up, so no error is hidden.
     """
     try:
-        twin = copy.deepcopy(controller)
+        twin = make_twin()
         for task in twin.tasks:
             if isinstance(task, ErrorTask) and task.needs_target and not task._has_target:
                 task._has_target = True  # (the twin's copy only)
