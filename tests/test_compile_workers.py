@@ -11,12 +11,14 @@ import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import NEUTRAL, child_environment
-from wbc.runtime.kernels._pool import WORKERS_VARIABLE, CompilePool
+from wbc.runtime.kernels import _pool
+from wbc.runtime.kernels._pool import MAX_WORKERS, WORKERS_VARIABLE, CompilePool
 
 _FIRST_START = """
     import json
@@ -87,3 +89,56 @@ def test_a_job_a_worker_cannot_compile_or_dies_on_is_the_callers():
         time.sleep(0.01)
     assert not pool.wait("kernel has_nan")  # the dead worker's job: the caller compiles it, nothing hangs
     pool.close()
+
+
+def test_a_worker_compiles_without_running_wbcs_top_level():
+    """A worker imports wbc.runtime alone (its BOOTSTRAP skips wbc/__init__.py): no Pinocchio in
+    its memory, yet it compiles a job (into the shared cache)."""
+    pool = CompilePool(1)
+    try:
+        pool.submit(["kernel has_non_finite"])
+        deadline = time.monotonic() + 120
+        while "kernel has_non_finite" not in pool._finished and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert pool._finished.get("kernel has_non_finite") is True
+        maps = (Path("/proc") / str(pool._processes[0].pid) / "maps").read_text()
+        assert "numba" in maps  # (the check below reads the right process)
+        assert "pinocchio" not in maps.lower()
+    finally:
+        pool.close()
+
+
+@pytest.mark.parametrize(("idle_fraction", "cpus", "affinity", "expected"), [
+    (0.5, 2, 2, 1),  # this process busy on one core, the other idle: one worker
+    (0.2, 2, 2, 0),  # the other core mostly busy: none
+    (0.02, 2, 2, 0),  # every core busy
+    (0.75, 4, 4, 3),  # three idle cores of four
+    (1.0, 8, 8, 3),  # at most MAX_WORKERS
+    (0.75, 4, 2, 1),  # at most the cores this process may use, less its own
+])
+def test_worker_count_follows_the_cores_left_idle(monkeypatch, idle_fraction, cpus, affinity, expected):
+    """Idle cores = idle share of the machine's CPU time since the import x CPUs (here a window
+    of 1 s of 100-Hz jiffies per CPU), rounded, capped."""
+    monkeypatch.delenv(WORKERS_VARIABLE, raising=False)
+    start = (0.0, 0.0, 0.0)
+    total = 100.0 * cpus
+    monkeypatch.setattr(_pool, "_IMPORTED", start)
+    monkeypatch.setattr(_pool, "cpu_times", lambda: (1.0, idle_fraction * total, total))
+    monkeypatch.setattr(_pool.os, "cpu_count", lambda: cpus)
+    monkeypatch.setattr(_pool.os, "sched_getaffinity", lambda pid: set(range(affinity)))
+    assert _pool.worker_count() == expected
+    assert MAX_WORKERS == 3
+
+
+def test_worker_count_without_proc_stat_reads_the_load_average(monkeypatch):
+    monkeypatch.delenv(WORKERS_VARIABLE, raising=False)
+    monkeypatch.setattr(_pool, "cpu_times", lambda: None)
+    monkeypatch.setattr(_pool.os, "sched_getaffinity", lambda pid: {0, 1, 2, 3})
+    monkeypatch.setattr(_pool.os, "getloadavg", lambda: (1.2, 1.0, 1.0))
+    assert _pool.worker_count() == 2  # 4 cores - this process - 1.2 busy = 1.8 idle
+    monkeypatch.setattr(_pool.os, "getloadavg", lambda: (3.0, 1.0, 1.0))
+    assert _pool.worker_count() == 0
+    monkeypatch.setenv(WORKERS_VARIABLE, "2")
+    assert _pool.worker_count() == 2  # the setting wins
+    monkeypatch.setenv(WORKERS_VARIABLE, "many")
+    assert _pool.worker_count() == 0

@@ -109,6 +109,22 @@ def test_the_interpreter_and_the_generated_callbacks_are_loaded_from_the_cache(w
     assert result.stderr == ""
 
 
+def test_loading_compiles_nothing_and_a_program_prepares_the_interpreter(warm):
+    """load() imports the kernel modules without compiling (reading) anything, the interpreter
+    included; making a tick program prepares it (when a controller is built, never in a tick)."""
+    result = _python("""
+        from wbc.runtime import kernels
+        from wbc.runtime.kernels import tick
+        kernels.load()
+        loaded = len(tick.run_program.signatures)
+        from wbc.runtime.program import TickProgram
+        TickProgram()
+        print(loaded, len(tick.run_program.signatures), "run_program" in vars(kernels))
+    """)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["0", "1", "True"]
+
+
 def test_generated_sources_are_written_once_and_replace_the_stale_ones(tmp_path):
     first = _cache.write_generated(tmp_path, "gen_", "x = 1\n")
     stamp = first.stat().st_mtime_ns

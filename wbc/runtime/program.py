@@ -59,6 +59,7 @@ class TickProgram:
         self._address_list: list[int] = []
         self._input = (-1, 0)  # operand index and size of the input (set_input; -1: none)
         self._clock = (0, 0)  # the clock timing the runs given a configuration (set_clock; 0: none)
+        kernels.prepare("run_program")  # the interpreter compiles now, not at the first run (a compile worker may)
 
     def keep_alive(self, owner: Any) -> None:
         """Keep ``owner`` (which frees memory an op's operands point to) alive as long as this program."""

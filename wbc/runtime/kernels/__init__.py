@@ -14,10 +14,10 @@ PositionTask rows), :mod:`.joints` (posture, steering, position-limit and headin
 normalisation, NaN screen, answer check), :mod:`.hierarchy` (the levels of strict
 priorities), ... -- each with the declarations of its tick-program ops (:class:`.ops.Op`:
 operands, checks, kernel; every ``*.py`` file of this package not starting with ``_`` is a
-topic module). :func:`load` imports them on the first access of an op or ``run_program``
-(``kernels.run_program``, ``kernels.FRAME_TASK``; :class:`~wbc.model.kinematics.Kinematics` calls
+topic module). :func:`load` imports them on the first access of an op or a compiled function
+(``kernels.FRAME_TASK``, ``kernels.run_program``; :class:`~wbc.model.kinematics.Kinematics` calls
 :func:`load`, so building a controller does), never ``import wbc``; it numbers the ops and binds
-them and the interpreter ``run_program`` (:mod:`.tick`) into this namespace.
+them into this namespace.
 
 **When the kernels compile.** Only what a controller uses, when it is built -- never inside a
 control tick: a kernel compiled lazily in a tick would stall the loop for seconds. An op's C
@@ -25,7 +25,8 @@ callback (:func:`callback`: the op's kernel and the kernels it calls) compiles w
 adds the op; a compiled function (``kernels.posture_rows``, declared with its signature:
 :mod:`._lazy`) compiles when first fetched here, which the objects calling it in ticks do when
 they are built (:func:`prepare`; items computed in Python list theirs in ``python_kernels``).
-Importing a kernel module compiles nothing but the interpreter, which every program needs
+Importing a kernel module compiles nothing; the interpreter ``run_program`` (:mod:`.tick`), which
+every program needs, is a compiled function prepared when a program is made
 (``tests/test_no_compile_in_ticks.py`` checks that no tick compiles). Everything compiled is
 cached on disk (``cache=CACHE``): after an install the first start of a controller compiles its
 own kernels once (a few seconds, announced by one line on stderr; ``wbc warmup`` compiles all of
@@ -63,6 +64,8 @@ import sys
 from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any
+
+from . import _pool  # (imported now: its import starts the window over which _pool.worker_count measures idle cores)
 
 if TYPE_CHECKING:  # pragma: no cover
     from collections.abc import Callable, Iterator
@@ -166,6 +169,7 @@ COMPILED = {
     "chain": ("forward_kinematics",),
     "hierarchy": ("level_constraints", "normalise_level", "band_rows", "hierarchy_preview"),
     "acceleration": ("braking_speed", "acceleration_bounds"),
+    "tick": ("run_program",),
 }
 _MODULE_OF = {name: module for module, names in COMPILED.items() for name in names}
 
@@ -208,8 +212,8 @@ def prepare_cache() -> bool:
 
 
 def load() -> None:
-    """Import every kernel module (nothing is compiled but the interpreter ``run_program``), and
-    bind its declared ops (:class:`.ops.Op`, numbered 1, 2, ... by name) into this namespace."""
+    """Import every kernel module (nothing is compiled), and bind its declared ops
+    (:class:`.ops.Op`, numbered 1, 2, ... by name) into this namespace."""
     global _loaded, _stamp
     if _loaded:
         return
@@ -240,7 +244,6 @@ def load() -> None:
         op.code = code
     _ops[:] = ops
     _stamp = _cache.source_stamp(Path(__file__).parent, numba.__version__)
-    namespace["run_program"] = importlib.import_module(f"{__name__}.tick").run_program
     namespace.update(declared)
     _loaded = True
 
@@ -294,7 +297,7 @@ def batch() -> Iterator[None]:
     program's before it first runs). Elsewhere, and without workers, nothing changes."""
     global _batch_depth
     _batch_depth += 1
-    _compile_pool()  # (started now: a worker takes ~1 s to start)
+    _compile_pool()  # (started now: a worker takes ~0.4 s to start)
     try:
         yield
     finally:
@@ -371,19 +374,18 @@ def _compile_pool() -> CompilePool | None:
     global _workers, _workers_started
     if not _workers_started:
         _workers_started = True
-        load()
-        from ._pool import CompilePool, worker_count
-
-        count = worker_count() if _cold else 0
+        prepare_cache()  # (whether the cache is cold; the workers start before load() imports the kernel modules)
+        count = _pool.worker_count() if _cold else 0
         if count:
             try:
-                _workers = CompilePool(count)
+                _workers = _pool.CompilePool(count)
             except OSError:
                 _workers = None
             else:
                 from . import _lazy
 
                 _lazy.before_compile = _claim_declared
+        load()
     return _workers
 
 
@@ -401,8 +403,7 @@ def warm_up() -> None:
 
 def __getattr__(name: str) -> Any:
     """A compiled function, compiled for its declared signature on first access (:mod:`._lazy`),
-    or a declared op (an upper-case name) or ``run_program``, loading the kernels on first access
-    (PEP 562)."""
+    or a declared op (an upper-case name), loading the kernels on first access (PEP 562)."""
     if name in _MODULE_OF:
         load()
         from ._lazy import compile_declared
@@ -411,7 +412,7 @@ def __getattr__(name: str) -> Any:
         compile_declared(function)
         globals()[name] = function  # later lookups are plain attribute hits
         return function
-    if name == "run_program" or (name.isupper() and not _loaded):
+    if name.isupper() and not _loaded:
         load()
         if name in globals():
             return globals()[name]

@@ -29,8 +29,9 @@ def _nothing_before(dispatcher: Any) -> None:
 before_compile: Callable[[Any], None] = _nothing_before
 
 
-def declared(signature: str, **options: Any) -> Callable[[Callable[..., Any]], Any]:
-    """``@njit(**options)``, compiled for ``signature`` by :func:`compile_declared` (not at import)."""
+def declared(signature: Any, **options: Any) -> Callable[[Callable[..., Any]], Any]:
+    """``@njit(**options)``, compiled for ``signature`` (a numba signature or its string) by
+    :func:`compile_declared` (not at import)."""
     def decorate(function: Callable[..., Any]) -> Any:
         dispatcher = njit(**options)(function)
         setattr(dispatcher, SIGNATURE, signature)

@@ -13,10 +13,12 @@ most recently submitted job, the process the earliest, so the two meet in the mi
 controller's list. A job a worker could not compile (it failed, or the worker died) is
 compiled in process, as without the pool.
 
-Each worker is ``python -m wbc.runtime.kernels._worker`` (the wbc of this process on its path,
-no pool of its own): it says ``ready`` once it has imported the kernels (~1 s; the process
-compiles alone until then), then reads one job a line on stdin and answers ``ok <job>`` or
-``failed <job>``; it exits when its stdin closes (this process exits or :meth:`CompilePool.close`).
+Each worker runs :func:`._worker.run_worker` of this process's wbc (no pool of its own) with
+``wbc`` itself *not* executed (:data:`BOOTSTRAP`): :mod:`wbc.runtime` imports nothing else of wbc,
+so the worker skips Pinocchio, SciPy and the solvers and is ready in ~0.4 s (numba and the kernel
+modules) instead of ~1.3 s; the process compiles alone until then. It says ``ready``, then reads
+one job a line on stdin and answers ``ok <job>`` or ``failed <job>``; it exits when its stdin
+closes (this process exits or :meth:`CompilePool.close`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import os
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 
 #: environment variable: the number of worker processes (0: compile in process only); default
@@ -34,20 +37,50 @@ from pathlib import Path
 WORKERS_VARIABLE = "WBC_COMPILE_WORKERS"
 #: the most workers started without ``WBC_COMPILE_WORKERS``
 MAX_WORKERS = 3
-#: the module a worker runs (:mod:`._worker`)
-WORKER = f"{__package__}._worker"
 #: what a worker says once it can take jobs
 READY = "ready"
 #: [s] how long :meth:`CompilePool.close` lets a worker finish the job at hand before stopping it
 CLOSE_TIMEOUT = 2.0
 
 
+#: [s] the shortest window over which :func:`worker_count` measures the idle cores
+IDLE_WINDOW = 0.05
+#: a worker: run :func:`._worker.run_worker` of the wbc in folder ``{folder}`` without executing
+#: ``wbc/__init__.py`` (the package module is created from its spec, not run)
+BOOTSTRAP = ("import importlib.util, sys\n"
+             "spec = importlib.util.spec_from_file_location('wbc', {init!r}, submodule_search_locations=[{folder!r}])\n"
+             "sys.modules['wbc'] = importlib.util.module_from_spec(spec)\n"
+             "from wbc.runtime.kernels._worker import run_worker\n"
+             "run_worker()\n")
+
+
+def cpu_times() -> tuple[float, float, float] | None:
+    """(time.monotonic(), idle, total) jiffies of all CPUs (Linux ``/proc/stat``: idle and I/O wait of
+    user, nice, system, idle, iowait, irq, softirq, steal), None where there is no such file."""
+    try:
+        with open("/proc/stat", encoding="ascii") as stat:
+            fields = stat.readline().split()
+    except OSError:
+        return None
+    if not fields or fields[0] != "cpu" or len(fields) < 9:
+        return None
+    values = [float(value) for value in fields[1:9]]
+    return time.monotonic(), values[3] + values[4], sum(values)
+
+
+#: the CPU times when this module was imported (with :mod:`wbc.runtime.kernels`, early in ``import wbc``)
+_IMPORTED = cpu_times()
+
+
 def worker_count() -> int:
-    """Workers to start: ``WBC_COMPILE_WORKERS`` when set, else one per idle core beyond the one
-    this process uses (the cores available to it less the 1-minute load average, a core counted
-    when at least half of it is idle; at most :data:`MAX_WORKERS`). A worker on a busy core only
-    competes with the process it should relieve: on a 2-core machine kept busy by other work,
-    measured, a first run took longer with one (benchmarks/README.md, section 8)."""
+    """Workers to start: ``WBC_COMPILE_WORKERS`` when set, else one per core left idle by everything
+    else while this process ran (rounded; at most :data:`MAX_WORKERS` and the cores available
+    less one). The idle cores are measured from ``/proc/stat`` since this module was imported
+    (a window of at least :data:`IDLE_WINDOW`, during which this process imported wbc and built its
+    objects on one core), elsewhere estimated from the 1-minute load average (which still counts a
+    ``pip install`` that ended seconds ago: measured, it started no worker after one). A worker
+    on a busy core only competes with the process it should relieve: on a 2-core machine kept
+    busy by other work a first run took longer with one (benchmarks/README.md, section 8)."""
     setting = os.environ.get(WORKERS_VARIABLE, "").strip()
     if setting:
         try:
@@ -55,11 +88,30 @@ def worker_count() -> int:
         except ValueError:
             return 0
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    try:
-        busy = os.getloadavg()[0]
-    except OSError:  # (no load average on this platform)
-        busy = 0.0
-    return max(0, min(math.floor(cores - 0.5 - busy), MAX_WORKERS))
+    idle = _idle_cores()
+    if idle is None:
+        try:
+            idle = cores - 1 - os.getloadavg()[0]  # (this process's own load counted as a busy core)
+        except OSError:  # (no load average on this platform)
+            idle = cores - 1
+    return max(0, min(math.floor(idle + 0.5), cores - 1, MAX_WORKERS))
+
+
+def _idle_cores() -> float | None:
+    """Cores idle since this module was imported, this process's own busy core not counted as idle
+    (:func:`cpu_times`); None without ``/proc/stat``."""
+    now = cpu_times()
+    if _IMPORTED is None or now is None:
+        return None
+    if now[0] - _IMPORTED[0] < IDLE_WINDOW:  # too short to tell: this process had no time to be busy
+        time.sleep(IDLE_WINDOW)
+        later = cpu_times()
+        if later is None or later[2] <= now[2]:
+            return None
+        return (later[1] - now[1]) / (later[2] - now[2]) * (os.cpu_count() or 1) - 1.0  # (this process slept)
+    if now[2] <= _IMPORTED[2]:
+        return None
+    return (now[1] - _IMPORTED[1]) / (now[2] - _IMPORTED[2]) * (os.cpu_count() or 1)  # (all CPUs of the machine)
 
 
 class CompilePool:
@@ -71,11 +123,10 @@ class CompilePool:
         self._running: set[str] = set()
         self._finished: dict[str, bool] = {}  #: by a worker: whether it compiled
         self._closed = False
-        package_root = str(Path(__file__).resolve().parents[3])  # the folder holding this wbc
-        path = os.environ.get("PYTHONPATH", "")
-        environment = {**os.environ, WORKERS_VARIABLE: "0",
-                       "PYTHONPATH": package_root + (os.pathsep + path if path else "")}
-        self._processes = [subprocess.Popen([sys.executable, "-m", WORKER], stdin=subprocess.PIPE,
+        folder = Path(__file__).resolve().parents[2]  # this wbc
+        bootstrap = BOOTSTRAP.format(init=str(folder / "__init__.py"), folder=str(folder))
+        environment = {**os.environ, WORKERS_VARIABLE: "0"}
+        self._processes = [subprocess.Popen([sys.executable, "-c", bootstrap], stdin=subprocess.PIPE,
                                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                                             env=environment)
                            for _ in range(workers)]

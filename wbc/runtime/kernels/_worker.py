@@ -1,4 +1,5 @@
-"""A compile worker of :mod:`wbc.runtime.kernels._pool`: ``python -m wbc.runtime.kernels._worker``."""
+"""A compile worker of :mod:`wbc.runtime.kernels._pool` (started by its ``BOOTSTRAP``, which skips
+``wbc/__init__.py``; ``python -m wbc.runtime.kernels._worker`` runs one too)."""
 
 from __future__ import annotations
 

@@ -35,11 +35,12 @@ from types import ModuleType
 
 import numpy as np
 from llvmlite import ir
-from numba import carray, njit, types
+from numba import carray, types
 from numba.extending import intrinsic
 
 from . import _cache, prepare_cache
 from ._clock import now_ns
+from ._lazy import declared
 from .ops import (
     FLAG_ACCEPTED,
     FLAG_COUNT,
@@ -60,7 +61,7 @@ from .ops import (
     decoder_source,
 )
 
-CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
+CACHE = prepare_cache()  # before anything below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 #: file names of the generated callbacks (``<prefix><content hash>.py``)
 GENERATED_PREFIX = "wbc_tick_ops_"
@@ -124,7 +125,8 @@ _Q = types.Array(types.float64, 1, "A", readonly=True)
 
 
 # the GIL stays held: releasing and taking it back costs ~0.05 us a tick, and a tick is a few us
-@njit(types.int64(types.int64[::1], _Q, types.float64), cache=CACHE)
+# declared, not compiled at import: a first start compiles it with the controller's kernels (a compile worker may)
+@declared(types.int64(types.int64[::1], _Q, types.float64), cache=CACHE)
 def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
     """Copy ``q`` into the program's input (unless it is empty), then run the rows of the program
     ``packed`` in order; RUN_FOUND_NAN when a NaN screen found a NaN, else RUN_ACCEPTED when the
