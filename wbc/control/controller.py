@@ -535,7 +535,7 @@ class Controller:
         # the hot path's callables (bound once: wbc.control.pipelines)
         self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
         # the control loop's path, when the program does the whole tick and v = x: one native call
-        # from q to the checked answer (step), taken once the first tick has checked the tasks
+        # from q to the checked answer (step), from the first tick on (its tasks checked first)
         self._native_step: Callable[[NDArray[np.float64], float], int] | None = None  # taken by step when set
         self._stepper: Callable[[NDArray[np.float64], float], int] | None = None  # what _native_step is set to
         if (bound is not None and not split and self._assembly.all_in_program and self._command is None
@@ -571,6 +571,9 @@ class Controller:
             SolverError: with ``strict=True``, when the QP cannot be solved.
         """
         native = self._native_step
+        if native is None and v_measured is None and not self._buffers.tick and self._stepper is not None:
+            self._assembly.check_ready()  # the first tick: the tasks checked here, then the one native call
+            native = self._native_step = self._stepper
         if native is not None and v_measured is None:  # the control loop's path: the tick in one native call
             if not (type(q) is _NDARRAY and q.dtype is _FLOAT64 and q.ndim == 1):  # (what the entry does not check)
                 q = self.robot.check_configuration(q)

@@ -161,7 +161,7 @@ class Assembly:
         context.measured = None if v_measured is None else context.measure(v_measured)
         kin.update(q, self._deferred_kinematics)
         if self._unready:
-            self._check_ready()
+            self.check_ready()
         for task, jacobian, target in self._tasks:
             task.compute(kin, dt, jacobian, target)
         for constraint, block in self._constraints:
@@ -181,13 +181,15 @@ class Assembly:
         context.measured = None if v_measured is None else context.measure(v_measured)
         self._kinematics.update(q, self._deferred_kinematics)
         if self._unready:
-            self._check_ready()
+            self.check_ready()
         has_nan = self._run(dt) == RUN_FOUND_NAN
         if has_nan and self._q_screened:
             self.screen(q)
         return has_nan
 
-    def _check_ready(self) -> None:
+    def check_ready(self) -> None:
+        """Raise InvalidInputError for a task that cannot be evaluated yet (e.g. no target),
+        until every one of them could once."""
         for task in self._unready:
             task.check_ready()
         self._unready = []
