@@ -193,26 +193,31 @@ def test_the_native_tick_is_the_assembly_pipeline(youbot, options, barrier, leve
 
 
 def test_the_control_loop_does_not_go_through_the_assembly(youbot, monkeypatch):
-    """The native tick is taken: once the first tick has checked the tasks, a tick without
-    v_measured neither calls Kinematics.update (the program copies q) nor the assembly."""
+    """The native tick is taken from the first tick on (the tasks checked first, in Python): a
+    tick without v_measured neither calls Kinematics.update (the program copies q) nor the
+    assembly; a task not ready raises at the first tick as the assembly would."""
     from wbc.model.kinematics import Kinematics
 
-    controller, _ = _loop_controller(youbot)
+    task = wbc.FrameTask("ee", 1.0, 0.5)  # no target yet
+    limits = [wbc.JointVelocityLimits(), wbc.JointPositionLimits(), wbc.MecanumWheelLimits()]
+    controller = wbc.Controller(youbot, [task, wbc.PostureTask(1e-2)], limits)
     calls = []
     update = Kinematics.update
     monkeypatch.setattr(Kinematics, "update", lambda self, *args: calls.append(1) or update(self, *args))
     q = youbot.neutral()
-    controller.step(q)
-    assert len(calls) == 1  # the first tick: the assembly (which checks the tasks' readiness)
+    with pytest.raises(wbc.InvalidInputError, match="no target set"):
+        controller.step(q)
+    assert calls == [] and getattr(controller, "last", None) is None  # nothing ran
+    task.set_target(youbot.frame_pose(q, "ee"))
     for _ in range(3):
         controller.step(q)
-    assert len(calls) == 1
+    assert calls == [] and controller.last.tick == 3 and controller.last.status == "optimal"
     controller.step(q, v_measured=np.zeros(youbot.nv))
-    assert len(calls) == 2 and controller.context.measured is not None
+    assert len(calls) == 1 and controller.context.measured is not None
     controller.step(q)  # the assembly again, once: it clears the measured velocity
-    assert len(calls) == 3 and controller.context.measured is None
+    assert len(calls) == 2 and controller.context.measured is None
     controller.step(q)
-    assert len(calls) == 3
+    assert len(calls) == 2
 
 
 def test_the_native_tick_records_every_diagnostic(youbot):

@@ -5,9 +5,10 @@ not page faults nor lazy binding, but code and data run for the first time after
 (Python's inline caches, numba's dispatch, the ops' callbacks, DAQP's solve). A throwaway
 *twin* -- a deep copy of the controller, with copies of its robot, tasks, constraints and
 solver and buffers, program and DAQP workspaces of its own -- ticks twice when the controller
-is built: once on the checked pipeline (the controller's own first tick) and once on the
-control loop's native path (its later ticks). The controller itself is not touched: its tick
-counter, previous command, DAQP working sets, items' targets and ``last`` stay as they were.
+is built, as the controller's first and later ticks run: on the control loop's one-call native
+path where the controller has it (the first tick checks the tasks first), else on the pipeline.
+The controller itself is not touched: its tick counter, previous command, DAQP working sets,
+items' targets and ``last`` stay as they were.
 
 Every build warms its own twin: what the twin warms is also the CPU's caches, which building
 another controller evicts again (warming only the first controller of each kind in a process
@@ -60,8 +61,8 @@ def warm_up_twin(make_twin: Callable[[], Steppable]) -> bool:
                 task._has_target = True  # (the twin's copy only)
         robot = twin.robot
         q = np.clip(robot.neutral(), robot.lower, robot.upper)
-        twin.step(q)  # the checked pipeline, as the controller's first tick
-        twin.step(q)  # the native path (when the program does the whole tick), as its later ticks
+        twin.step(q)  # as the controller's first tick (its tasks checked, then the native call or the pipeline)
+        twin.step(q)  # as its later ticks
     except Exception:  # noqa: BLE001 -- any failure only means no warm-up (see the docstring)
         return False
     return True
