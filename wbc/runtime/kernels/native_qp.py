@@ -38,7 +38,7 @@ from . import (
 )
 from ._clock import now_ns
 from ._lazy import declared
-from .assembly import _minimiser, back_substitution, cholesky, forward_substitution, qp_defect
+from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -130,6 +130,48 @@ def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, l
 
 
 @njit(inline="always")
+def _reciprocal_cholesky(A: np.ndarray, factor: np.ndarray, size: int, relative: float) -> bool:
+    """:func:`wbc.runtime.kernels.cholesky` (``A = L L^T``, False on a pivot not above ``relative``
+    times its diagonal entry) with ``1 / L_jj`` on ``factor``'s diagonal: the solves
+    :func:`_forward` and :func:`_back` then multiply where they would divide. Inlined into the
+    working-set try, on its contiguous arrays."""
+    for j in range(size):
+        pivot = A[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if not pivot > 0.0 or pivot <= relative * A[j, j]:
+            return False
+        inverse = 1.0 / math.sqrt(pivot)
+        factor[j, j] = inverse
+        for a in range(j + 1, size):
+            total = A[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total * inverse
+    return True
+
+
+@njit(inline="always")
+def _forward(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-1 b`` in place (L from :func:`_reciprocal_cholesky`: its diagonal's reciprocals)."""
+    for a in range(size):
+        total = b[a]
+        for p in range(a):
+            total -= factor[a, p] * b[p]
+        b[a] = total * factor[a, a]
+
+
+@njit(inline="always")
+def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-T b`` in place (L from :func:`_reciprocal_cholesky`: its diagonal's reciprocals)."""
+    for a in range(size - 1, -1, -1):
+        total = b[a]
+        for p in range(a + 1, size):
+            total -= factor[p, a] * b[p]
+        b[a] = total * factor[a, a]
+
+
+@njit(inline="always")
 def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.ndarray, lu: np.ndarray,
                    kkt: np.ndarray) -> float:
     """:func:`_working_set_answer` of a working set of n constraints (``A_W``: n x n), which pins x:
@@ -141,7 +183,8 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
     general case accept x: multipliers of their sides' signs and a defect at most
     :data:`WORKING_SET_DEFECT` -- KKT conditions of a convex QP, x a vertex of its feasible set.
 
-    ``lu`` (n x n scratch): ``Â`` and its factors ``L U`` (rows swapped as pivoted); ``kkt`` (4 x n
+    ``lu`` (n x n scratch): ``Â`` and its factors ``L U`` (rows swapped as pivoted; U's diagonal
+    holds the reciprocals of its pivots: the solves multiply); ``kkt`` (4 x n
     scratch at least): row 0 the row scales ``1 / s_i``, 1 each row's constraint index, 2 ``D b_W``
     then ``L^-1 D b_W``, 3 ``-(H x + c)`` then ``D^-1 lam_W``, all in ``lu``'s row order.
     """
@@ -184,6 +227,7 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
             scale[col], scale[pivot] = scale[pivot], scale[col]
             index[col], index[pivot] = index[pivot], index[col]
         inverse = 1.0 / A[col, col]
+        A[col, col] = inverse
         for r in range(col + 1, n):
             factor = A[r, col] * inverse
             A[r, col] = factor
@@ -198,7 +242,7 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
         total = b[a]
         for p in range(a + 1, n):
             total -= A[a, p] * x[p]
-        x[a] = total / A[a, a]
+        x[a] = total * A[a, a]
     for a in range(n):  # y = -(H x + c), then Â^-T y = L^-T U^-T y = D^-1 lam_W
         total = c[a]
         for p in range(n):
@@ -208,7 +252,7 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
         total = y[a]
         for p in range(a):
             total -= A[p, a] * y[p]
-        y[a] = total / A[a, a]
+        y[a] = total * A[a, a]
     for a in range(n - 1, -1, -1):
         total = y[a]
         for p in range(a + 1, n):
@@ -249,7 +293,8 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     constraints pins x: :func:`_vertex_answer` solves it without H's factor (``factor`` holds its LU).
 
     ``kkt`` ((2n + 2) x n scratch): rows 0..k-1 Y, rows n..2n-1 S and its Cholesky factor, row
-    2n mu, 2n + 1 the step ``x0 - x``.
+    2n mu, 2n + 1 the step ``x0 - x``. The factors hold the reciprocals of their diagonals
+    (:func:`_reciprocal_cholesky`).
     """
     n, m = x.shape[0], lam.shape[0]
     k = 0  # the active constraints
@@ -263,8 +308,13 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
         return -1.0
     if k == n:
         return _vertex_answer(data, sense, x, lam, factor, kkt)
-    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x):
+    Hc = data[:n * n + n].reshape((n + 1, n))  # x0 = -H^-1 c
+    if not _reciprocal_cholesky(Hc, factor, n, 0.0):
         return -1.0
+    for a in range(n):
+        x[a] = -Hc[n, a]
+    _forward(factor, n, x)
+    _back(factor, n, x)
     start = n * n + n
     C = data[start:start + (m - n) * n].reshape((m - n, n))
     upper = data[start + (m - n) * n:start + (m - n) * n + m]
@@ -283,16 +333,16 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
             k += 1
     S = kkt[n:2 * n]  # S = Y Y^T, Y^T = L^-1 A_W^T (its lower triangle), then its factor G in place
     for j in range(k):
-        forward_substitution(factor, n, kkt[j])
+        _forward(factor, n, kkt[j])
         for r in range(j + 1):
             total = 0.0
             for a in range(n):
                 total += kkt[j, a] * kkt[r, a]
             S[j, r] = total
-    if not cholesky(S, S, k, WORKING_SET_PIVOT):
+    if not _reciprocal_cholesky(S, S, k, WORKING_SET_PIVOT):
         return -1.0
-    forward_substitution(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
-    back_substitution(S, k, mu)
+    _forward(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
+    _back(S, k, mu)
     j = 0  # the multipliers: the sign of their side (lam then holds scratch when not)
     for i in range(m):
         lam[i] = 0.0
@@ -306,7 +356,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
         for j in range(k):
             total += kkt[j, a] * mu[j]
         z[a] = total
-    back_substitution(factor, n, z)
+    _back(factor, n, z)
     for a in range(n):
         x[a] -= z[a]
     defect = qp_defect(data, x)
