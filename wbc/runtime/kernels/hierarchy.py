@@ -57,7 +57,7 @@ def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> Non
         Hc[i, i] = 1.0
 
 
-@njit(cache=CACHE, nogil=True)
+@njit(inline="always")
 def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray, size: float,
               relative: float, data: np.ndarray, row: int, h: int) -> None:
     """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``,
