@@ -183,7 +183,7 @@ def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
         b[a] = total * factor[a, a]
 
 
-@njit(inline="always")
+@njit(cache=CACHE, nogil=True)
 def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.ndarray, lu: np.ndarray,
                    kkt: np.ndarray) -> float:
     """:func:`_working_set_answer` of a working set of n constraints (``A_W``: n x n), which pins x:
@@ -284,7 +284,7 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
     return defect
 
 
-@njit(inline="always")
+@njit(cache=CACHE, nogil=True)
 def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray,
                         kkt: np.ndarray) -> float:
     """The minimiser of the QP in ``data`` (:func:`wbc.runtime.kernels.qp_defect`'s layout) with
