@@ -216,9 +216,11 @@ def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None
                 Hc[i, i] += missing
 
 
-@njit(inline="always")
-def _constraint_defect_of(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
-    """:func:`constraint_defect`, inlined where a caller's arrays are known contiguous (the working-set try)."""
+@declared("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
+def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
+    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
+    :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
+    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
     n = x.shape[0]
     worst = 0.0
     for i in range(upper.shape[0]):
@@ -239,14 +241,6 @@ def _constraint_defect_of(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x
             bound = upper[i] if value > upper[i] else lower[i]
             worst = max(worst, excess / max(1.0, abs(bound), size))
     return worst
-
-
-@declared("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
-def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
-    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
-    :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
-    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
-    return _constraint_defect_of(C, upper, lower, x)
 
 
 @declared("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)

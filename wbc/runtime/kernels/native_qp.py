@@ -38,7 +38,7 @@ from . import (
 )
 from ._clock import now_ns
 from ._lazy import declared
-from .assembly import _constraint_defect_of, _minimiser, qp_defect
+from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -127,18 +127,6 @@ def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, l
     for i in range(lam.shape[0]):
         lam[i] = 0.0
     return True
-
-
-@njit(inline="always")
-def _defect(data: np.ndarray, x: np.ndarray) -> float:
-    """:func:`wbc.runtime.kernels.qp_defect`, inlined into the working-set try (no call passing its arrays)."""
-    n = x.shape[0]
-    rows = (data.shape[0] - n * n - 3 * n) // (n + 2)
-    start = n * n + n
-    m = n + rows
-    C = data[start:start + rows * n].reshape((rows, n))
-    return _constraint_defect_of(C, data[start + rows * n:start + rows * n + m],
-                                 data[start + rows * n + m:start + rows * n + 2 * m], x)
 
 
 @njit(inline="always")
@@ -278,7 +266,7 @@ def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.n
         if not sense[i] & DAQP_SENSE_IMMUTABLE and (mu > 0.0 if sense[i] & DAQP_SENSE_LOWER else mu < 0.0):
             return -1.0
         lam[i] = mu
-    defect = _defect(data, x)
+    defect = qp_defect(data, x)
     if defect > WORKING_SET_DEFECT:
         return -1.0
     return defect
@@ -371,7 +359,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     _back(factor, n, z)
     for a in range(n):
         x[a] -= z[a]
-    defect = _defect(data, x)
+    defect = qp_defect(data, x)
     if defect > WORKING_SET_DEFECT:
         return -1.0
     return defect
