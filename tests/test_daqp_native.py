@@ -238,6 +238,104 @@ def test_the_working_set_try_refuses_what_is_not_an_answer():
     assert _kernel_answer(qp, np.array([0, 0, 0, 0, A]))[0] == -1.0  # H only semidefinite
 
 
+def _vertex_qp(rng: np.random.Generator, n: int, lower_side: np.ndarray) -> tuple[QP, np.ndarray, np.ndarray,
+                                                                                   np.ndarray]:
+    """A QP whose answer x* is pinned by n active constraints -- some bounds, the rest rows
+    (scaled 0.1..10, sides ``lower_side``) -- with multipliers lam* of their sides' signs (the
+    KKT conditions written out: ``c = -H x* - A_W^T lam*``), two more rows with slack; and the
+    working set (DAQP's states), x*, lam*."""
+    bounds = int(rng.integers(0, n))
+    qp = QP(n, n - bounds + 2, 0)
+    fill_random(rng, qp)
+    x_star = rng.uniform(-0.5, 0.5, n)
+    qp.C[...] *= 10.0 ** rng.uniform(-1.0, 1.0, (qp.n_ineq, 1))
+    values = np.concatenate([x_star, qp.C @ x_star])
+    qp.upper[...], qp.lower[...] = values + 1.0, values - 1.0
+    active = np.concatenate([rng.choice(n, bounds, replace=False), n + np.arange(n - bounds)])
+    sense = np.zeros(qp.upper.size, dtype=np.int32)
+    lam = np.zeros(qp.upper.size)
+    for i, lower in zip(active, lower_side, strict=True):
+        sense[i] = kernels.DAQP_SENSE_ACTIVE | (kernels.DAQP_SENSE_LOWER if lower else 0)
+        (qp.lower if lower else qp.upper)[i] = values[i]
+        lam[i] = rng.uniform(0.1, 2.0) * (-1.0 if lower else 1.0)
+    qp.c[...] = -qp.H @ x_star - lam[:n] - qp.C.T @ lam[n:]
+    return qp, sense, x_star, lam
+
+
+def test_a_working_set_of_n_constraints_is_solved_by_one_lu(rng):
+    """A working set that pins x (n independent active constraints, :func:`native_qp._vertex_answer`)
+    gives x* and lam* of the KKT conditions written out, the binding's answer and its defect; a
+    warm workspace then answers it without DAQP (0 iterations) after a small change of c."""
+    library = daqp_probe.native()
+    for n in (1, 2, 5, 8, 9):
+        for _ in range(10):
+            qp, sense, x_star, lam_star = _vertex_qp(rng, n, rng.random(n) < 0.5)
+            defect, x, lam = _kernel_answer(qp, sense)
+            assert 0.0 <= defect == kernels.qp_defect(qp.data, x) <= 1e-9
+            np.testing.assert_allclose(x, x_star, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(lam, lam_star, rtol=1e-8, atol=1e-9)
+            assert_kkt(qp, x, lam)
+            reference, flag = binding_answer(qp)
+            assert flag == 1
+            np.testing.assert_allclose(x, reference, rtol=0, atol=1e-8)
+            workspace = NativeWorkspace(library, qp, {}, warm_start=True, working_set_first=True)
+            assert workspace.solve()[0] == 1
+            if np.array_equal(workspace.working_set & kernels.DAQP_SENSE_ACTIVE, sense & kernels.DAQP_SENSE_ACTIVE):
+                qp.c[...] += 1e-7 * rng.standard_normal(n)  # the same vertex, other multipliers
+                assert workspace.solve()[0] == 1 and workspace.iterations == 0
+                np.testing.assert_allclose(workspace.x, binding_answer(qp)[0], rtol=0, atol=1e-8)
+                assert_kkt(qp, workspace.x, workspace.lam)
+
+
+def test_a_working_set_of_n_constraints_refuses_what_is_not_an_answer(rng):
+    """The LU try of a pinning working set returns -1 (DAQP then solves) when a multiplier has
+    the wrong sign (the set marked on the other side), another row is violated at the vertex,
+    the rows are dependent (a copy of another, a combination of two, a zero row; nearly so: a
+    pivot below WORKING_SET_LU_PIVOT, even at an optimal vertex), or a state holds a bit it does
+    not know."""
+    low = kernels.DAQP_SENSE_LOWER
+    for n in (2, 4, 8):
+        qp, sense, x_star, _ = _vertex_qp(rng, n, np.zeros(n, dtype=bool))
+        assert _kernel_answer(qp, sense)[0] >= 0.0
+        flipped = sense.copy()
+        i = int(np.flatnonzero(sense)[0])
+        flipped[i] |= low
+        qp.lower[i] = qp.upper[i]
+        assert _kernel_answer(qp, flipped)[0] == -1.0  # lam* > 0 on a lower side
+        qp.lower[i] = qp.upper[i] - 1.0
+        slack = qp.upper.size - 1  # a row with slack, moved below its value at x*
+        qp.upper[slack] = qp.lower[slack] + 0.5
+        assert _kernel_answer(qp, sense)[0] == -1.0
+        qp.upper[slack] = qp.lower[slack] + 2.0
+        assert _kernel_answer(qp, sense)[0] >= 0.0
+        rows = np.flatnonzero(sense[n:]) + n  # the active rows of C
+        full = np.vstack([np.eye(n), qp.C])  # (the constraints' rows: bounds, then C)
+        others = [i for i in np.flatnonzero(sense) if i not in rows[:2]]  # (a third active constraint)
+        for replacement in (full[rows[0]] * 2.0, full[rows[0]] - 3.0 * full[others[0]] if others else None,
+                            0.0 * full[0]):
+            if len(rows) < 2 or replacement is None:
+                continue
+            C = qp.C.copy()
+            qp.C[rows[1] - n] = replacement
+            qp.sync_equalities()
+            value = qp.C[rows[1] - n] @ x_star
+            qp.upper[rows[1]], qp.lower[rows[1]] = value, value - 1.0
+            assert _kernel_answer(qp, sense)[0] == -1.0  # dependent rows
+            qp.C[...] = C
+        unknown = sense.copy()
+        unknown[int(np.flatnonzero(sense)[-1])] |= 8  # DAQP's SOFT bit
+        assert _kernel_answer(qp, unknown)[0] == -1.0
+        if len(rows) >= 2:  # nearly dependent rows: refused by the pivot even where the vertex is optimal
+            qp, sense, x_star, lam_star = _vertex_qp(rng, n, np.zeros(n, dtype=bool))
+            rows = np.flatnonzero(sense[n:]) + n
+            qp.C[rows[1] - n] = qp.C[rows[0] - n] + 1e-8 * rng.standard_normal(n)
+            qp.sync_equalities()
+            qp.upper[rows[1]] = qp.C[rows[1] - n] @ x_star
+            qp.lower[rows[1]] = qp.upper[rows[1]] - 1.0
+            qp.c[...] = -qp.H @ x_star - lam_star[:n] - qp.C.T @ lam_star[n:]
+            assert _kernel_answer(qp, sense)[0] == -1.0
+
+
 def test_settings_reach_the_c_solver():
     rng = np.random.default_rng(3)
     qp = random_qp(rng, 10, 8, 0)

@@ -57,7 +57,7 @@ def normalise_level(Hc: np.ndarray, damping: float, damping_floor: float) -> Non
         Hc[i, i] = 1.0
 
 
-@njit(cache=CACHE, nogil=True)
+@njit(inline="always")
 def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upper: np.ndarray, size: float,
               relative: float, data: np.ndarray, row: int, h: int) -> None:
     """Rows ``row``, ``row + 1`` of a QP in ``data``: ``+-a v <= +-y + eps`` for stack row ``r``,
@@ -97,13 +97,10 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
     size = 1.0
     for j in range(x.shape[0]):
         size = max(size, abs(min(max(x[j], lower[j]), upper[j])))
-    nv, slot = x.shape[0], 0
-    for r in range(first, last):
+    nv, count = x.shape[0], last - first
+    for slot in range(count + last_preview - first_preview):  # (one call site: _band_row is inlined once)
+        r = first + slot if slot < count else first_preview + slot - count
         _band_row(stack_t, r, x, lower, upper, size, relative, data, row + 2 * slot * nv, h + 2 * slot)
-        slot += 1
-    for r in range(first_preview, last_preview):
-        _band_row(stack_t, r, x, lower, upper, size, relative, data, row + 2 * slot * nv, h + 2 * slot)
-        slot += 1
 
 
 @declared("void(float64[:, :], float64[:], float64, float64[:])", cache=CACHE, nogil=True)

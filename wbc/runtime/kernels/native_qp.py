@@ -38,7 +38,7 @@ from . import (
 )
 from ._clock import now_ns
 from ._lazy import declared
-from .assembly import _minimiser, back_substitution, cholesky, forward_substitution, qp_defect
+from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -52,6 +52,11 @@ WORKING_SET_DEFECT = 1e-9
 #: the smallest pivot of ``S = A_W H^-1 A_W^T``, relative to its diagonal, of a working set
 #: solved directly (:func:`_working_set_answer`): below it the rows are taken as dependent
 WORKING_SET_PIVOT = 1e-10
+#: the smallest pivot of the LU factorisation of a working set of n constraints (:func:`_vertex_answer`;
+#: its rows scaled to largest entry 1): below it the rows are taken as dependent. The square root of
+#: :data:`WORKING_SET_PIVOT`: S's pivots are the squares of those of A_W (with H = I and orthogonal
+#: factorisations; LU's are of the same size)
+WORKING_SET_LU_PIVOT = 1e-5
 
 _I8P = ir.IntType(8).as_pointer()
 _I32 = ir.IntType(32)
@@ -124,6 +129,149 @@ def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, l
     return True
 
 
+@njit(inline="always")
+def _reciprocal_cholesky(A: np.ndarray, factor: np.ndarray, size: int, relative: float) -> bool:
+    """:func:`wbc.runtime.kernels.cholesky` (``A = L L^T``, False on a pivot not above ``relative``
+    times its diagonal entry) with ``1 / L_jj`` on ``factor``'s diagonal: the solves
+    :func:`_forward` and :func:`_back` then multiply where they would divide. Inlined into the
+    working-set try, on its contiguous arrays."""
+    for j in range(size):
+        pivot = A[j, j]
+        for p in range(j):
+            pivot -= factor[j, p] * factor[j, p]
+        if not pivot > 0.0 or pivot <= relative * A[j, j]:
+            return False
+        inverse = 1.0 / math.sqrt(pivot)
+        factor[j, j] = inverse
+        for a in range(j + 1, size):
+            total = A[a, j]
+            for p in range(j):
+                total -= factor[a, p] * factor[j, p]
+            factor[a, j] = total * inverse
+    return True
+
+
+@njit(inline="always")
+def _forward(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-1 b`` in place (L from :func:`_reciprocal_cholesky`: its diagonal's reciprocals)."""
+    for a in range(size):
+        total = b[a]
+        for p in range(a):
+            total -= factor[a, p] * b[p]
+        b[a] = total * factor[a, a]
+
+
+@njit(inline="always")
+def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
+    """``b = L^-T b`` in place (L from :func:`_reciprocal_cholesky`: its diagonal's reciprocals)."""
+    for a in range(size - 1, -1, -1):
+        total = b[a]
+        for p in range(a + 1, size):
+            total -= factor[p, a] * b[p]
+        b[a] = total * factor[a, a]
+
+
+@njit(cache=CACHE, nogil=True)
+def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.ndarray, lu: np.ndarray,
+                   kkt: np.ndarray) -> float:
+    """:func:`_working_set_answer` of a working set of n constraints (``A_W``: n x n), which pins x:
+    ``x = A_W^-1 b_W`` and the multipliers from stationarity ``H x + c + A_W^T lam_W = 0``, both by
+    one LU factorisation with partial pivoting of ``A_W`` -- no Cholesky of H nor of S. Each row
+    ``a_i`` (and ``b_i``) is first divided by its largest entry ``s_i``: ``A_W = D^-1 Â``, so
+    ``x = Â^-1 D b_W`` and ``lam_W = -D Â^-T (H x + c)``; a pivot of ``Â`` at most
+    :data:`WORKING_SET_LU_PIVOT` (dependent rows, a zero row) gives -1. The same checks as the
+    general case accept x: multipliers of their sides' signs and a defect at most
+    :data:`WORKING_SET_DEFECT` -- KKT conditions of a convex QP, x a vertex of its feasible set.
+
+    ``lu`` (n x n scratch): ``Â`` and its factors ``L U`` (rows swapped as pivoted; U's diagonal
+    holds the reciprocals of its pivots: the solves multiply); ``kkt`` (4 x n
+    scratch at least): row 0 the row scales ``1 / s_i``, 1 each row's constraint index, 2 ``D b_W``
+    then ``L^-1 D b_W``, 3 ``-(H x + c)`` then ``D^-1 lam_W``, all in ``lu``'s row order.
+    """
+    n, m = x.shape[0], lam.shape[0]
+    start = n * n + n
+    H, c = data[:n * n].reshape((n, n)), data[n * n:start]
+    C = data[start:start + (m - n) * n].reshape((m - n, n))
+    upper = data[start + (m - n) * n:start + (m - n) * n + m]
+    lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
+    A, scale, index, b, y = lu, kkt[0], kkt[1], kkt[2], kkt[3]
+    j = 0
+    for i in range(m):
+        state = sense[i]
+        if state & DAQP_SENSE_ACTIVE:
+            row = A[j]
+            largest = 0.0
+            for a in range(n):
+                row[a] = C[i - n, a] if i >= n else (1.0 if a == i else 0.0)
+                largest = max(largest, abs(row[a]))
+            if not largest > 0.0:
+                return -1.0
+            inverse = 1.0 / largest
+            for a in range(n):
+                row[a] *= inverse
+            b[j] = (lower[i] if state & DAQP_SENSE_LOWER else upper[i]) * inverse
+            scale[j] = inverse
+            index[j] = i
+            j += 1
+    for col in range(n):  # Â = P^T L U in place (unit L below the diagonal), the rows swapped along
+        pivot, best = col, abs(A[col, col])
+        for r in range(col + 1, n):
+            if abs(A[r, col]) > best:
+                pivot, best = r, abs(A[r, col])
+        if not best > WORKING_SET_LU_PIVOT:
+            return -1.0
+        if pivot != col:
+            for a in range(n):
+                A[col, a], A[pivot, a] = A[pivot, a], A[col, a]
+            b[col], b[pivot] = b[pivot], b[col]
+            scale[col], scale[pivot] = scale[pivot], scale[col]
+            index[col], index[pivot] = index[pivot], index[col]
+        inverse = 1.0 / A[col, col]
+        A[col, col] = inverse
+        for r in range(col + 1, n):
+            factor = A[r, col] * inverse
+            A[r, col] = factor
+            for a in range(col + 1, n):
+                A[r, a] -= factor * A[col, a]
+    for a in range(n):  # x = U^-1 L^-1 (D b_W)
+        total = b[a]
+        for p in range(a):
+            total -= A[a, p] * b[p]
+        b[a] = total
+    for a in range(n - 1, -1, -1):
+        total = b[a]
+        for p in range(a + 1, n):
+            total -= A[a, p] * x[p]
+        x[a] = total * A[a, a]
+    for a in range(n):  # y = -(H x + c), then Â^-T y = L^-T U^-T y = D^-1 lam_W
+        total = c[a]
+        for p in range(n):
+            total += H[a, p] * x[p]
+        y[a] = -total
+    for a in range(n):
+        total = y[a]
+        for p in range(a):
+            total -= A[p, a] * y[p]
+        y[a] = total * A[a, a]
+    for a in range(n - 1, -1, -1):
+        total = y[a]
+        for p in range(a + 1, n):
+            total -= A[p, a] * y[p]
+        y[a] = total
+    for i in range(m):
+        lam[i] = 0.0
+    for j in range(n):  # the multipliers: the sign of their side (lam then holds scratch when not)
+        i = int(index[j])
+        mu = y[j] * scale[j]
+        if not sense[i] & DAQP_SENSE_IMMUTABLE and (mu > 0.0 if sense[i] & DAQP_SENSE_LOWER else mu < 0.0):
+            return -1.0
+        lam[i] = mu
+    defect = qp_defect(data, x)
+    if defect > WORKING_SET_DEFECT:
+        return -1.0
+    return defect
+
+
 @njit(cache=CACHE, nogil=True)
 def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray,
                         kkt: np.ndarray) -> float:
@@ -141,14 +289,32 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     sign on an equality row): the KKT conditions of a strictly convex QP, which have one
     solution. -1 also when H is not positive definite, a state holds another bit (soft,
     binary, ...), the set holds more than n constraints or dependent ones (a pivot of S below
-    :data:`WORKING_SET_PIVOT` times its diagonal): DAQP then solves.
+    :data:`WORKING_SET_PIVOT` times its diagonal): DAQP then solves. A set of exactly n
+    constraints pins x: :func:`_vertex_answer` solves it without H's factor (``factor`` holds its LU).
 
     ``kkt`` ((2n + 2) x n scratch): rows 0..k-1 Y, rows n..2n-1 S and its Cholesky factor, row
-    2n mu, 2n + 1 the step ``x0 - x``.
+    2n mu, 2n + 1 the step ``x0 - x``. The factors hold the reciprocals of their diagonals
+    (:func:`_reciprocal_cholesky`).
     """
     n, m = x.shape[0], lam.shape[0]
-    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x):
+    k = 0  # the active constraints
+    for i in range(sense.shape[0]):
+        state = sense[i]
+        if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
+            return -1.0  # a soft or binary constraint, or a state this kernel does not know
+        if state & DAQP_SENSE_ACTIVE:
+            k += 1
+    if k > n:
         return -1.0
+    if k == n:
+        return _vertex_answer(data, sense, x, lam, factor, kkt)
+    Hc = data[:n * n + n].reshape((n + 1, n))  # x0 = -H^-1 c
+    if not _reciprocal_cholesky(Hc, factor, n, 0.0):
+        return -1.0
+    for a in range(n):
+        x[a] = -Hc[n, a]
+    _forward(factor, n, x)
+    _back(factor, n, x)
     start = n * n + n
     C = data[start:start + (m - n) * n].reshape((m - n, n))
     upper = data[start + (m - n) * n:start + (m - n) * n + m]
@@ -157,11 +323,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
     k = 0  # the active constraints: a_i in row k of kkt, a_i x0 - b_i in mu
     for i in range(sense.shape[0]):
         state = sense[i]
-        if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
-            return -1.0  # a soft or binary constraint, or a state this kernel does not know
         if state & DAQP_SENSE_ACTIVE:
-            if k == n:
-                return -1.0
             y = kkt[k]
             value = 0.0
             for a in range(n):
@@ -171,16 +333,16 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
             k += 1
     S = kkt[n:2 * n]  # S = Y Y^T, Y^T = L^-1 A_W^T (its lower triangle), then its factor G in place
     for j in range(k):
-        forward_substitution(factor, n, kkt[j])
+        _forward(factor, n, kkt[j])
         for r in range(j + 1):
             total = 0.0
             for a in range(n):
                 total += kkt[j, a] * kkt[r, a]
             S[j, r] = total
-    if not cholesky(S, S, k, WORKING_SET_PIVOT):
+    if not _reciprocal_cholesky(S, S, k, WORKING_SET_PIVOT):
         return -1.0
-    forward_substitution(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
-    back_substitution(S, k, mu)
+    _forward(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
+    _back(S, k, mu)
     j = 0  # the multipliers: the sign of their side (lam then holds scratch when not)
     for i in range(m):
         lam[i] = 0.0
@@ -194,7 +356,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
         for j in range(k):
             total += kkt[j, a] * mu[j]
         z[a] = total
-    back_substitution(factor, n, z)
+    _back(factor, n, z)
     for a in range(n):
         x[a] -= z[a]
     defect = qp_defect(data, x)

@@ -26,7 +26,8 @@ constraints held as equalities (Cholesky factors of H and of ``A_W H^-1 A_W^T``)
 answer when it meets every optimality condition -- the other bounds and rows hold (relative
 defect at most 1e-9; DAQP's own tolerance is 1e-6) and each multiplier has the sign of its
 side -- and DAQP is then not called (0 iterations, its working set unchanged); with no active
-constraint it is the unconstrained minimiser as above. Otherwise DAQP solves, from that
+constraint it is the unconstrained minimiser as above, with n (x pinned) it is ``A_W^-1 b_W``
+by one LU factorisation of ``A_W``. Otherwise DAQP solves, from that
 working set. A workspace starts from the initial states (equality rows active).
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
