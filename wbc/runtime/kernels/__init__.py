@@ -133,6 +133,9 @@ CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
 #: int32 indices of DAQPResult's exitflag and iter (checked likewise)
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
+#: int32 index of DAQPProblem's m, word of its A (bupper and blower the next two), int32 index of
+#: DAQPWorkspace's m, word of its sense (checked likewise; the packing of wbc.runtime.kernels._inert_rows)
+DAQP_PROBLEM_M, DAQP_PROBLEM_A, DAQP_WORKSPACE_M, DAQP_WORKSPACE_SENSE = 1, 4, 3, 8
 #: layout of the control vector of the compiled DAQP solve (wbc.solvers.daqp.native): the update mask
 #: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
 #: answer), the solve time [s] and DAQP's iterations out; the solve time of the latest answer that
