@@ -90,7 +90,7 @@ def _operands(op: ops.Op, rng: np.random.Generator) -> dict:
         if shape is None or name == ops.FLAGS:
             continue
         dims = tuple(dim if isinstance(dim, int) else eval(dim, {}, ints) for dim in shape)  # noqa: S307
-        operands[name] = rng.normal(size=dims) if op.dtypes[name] == "float64" else rng.integers(0, 2, size=dims)
+        operands[name] = rng.normal(size=dims)
     if op.spec.name == "FORWARD_KINEMATICS":
         operands["chain"] = _chain()
     if op.spec.name == "HIERARCHY_PREVIEW":

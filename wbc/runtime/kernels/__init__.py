@@ -152,6 +152,8 @@ DAQP_OPTIMAL = 1
 #: bits of DAQP's constraint states: active, at its lower side, immutable (an equality row)
 #: (DAQP's ACTIVE, LOWER, IMMUTABLE; its other bits mark soft and binary constraints and its own use)
 DAQP_SENSE_ACTIVE, DAQP_SENSE_LOWER, DAQP_SENSE_IMMUTABLE = 1, 2, 4
+#: DAQP's soft bit, and its own mark of a zero row it was given (constants.h DAQP_SOFT, DAQP_ZERO_ROW)
+DAQP_SENSE_SOFT, DAQP_SENSE_ZERO_ROW = 8, 2048
 
 # ------------------------------------------------------- compiled functions
 

@@ -37,7 +37,7 @@ from . import (
     prepare_cache,
 )
 from ._clock import now_ns
-from ._inert_rows import _int32_at, pack, unpack
+from ._inert_rows import _int32_at, leave_out, restore
 from ._lazy import declared
 from .assembly import _minimiser, back_substitution, cholesky, forward_substitution, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
@@ -206,17 +206,16 @@ def _answered(control: np.ndarray, defect: float, start: int, clock_gettime: int
 
 @njit(inline="always")
 def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray, data: np.ndarray,
-          x: np.ndarray, lam: np.ndarray, packed: np.ndarray, order: np.ndarray, update_ldp: int, solve: int,
-          clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int, start: int) -> None:
+          x: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
+          steady_mask: int, sense_word: int, start: int) -> None:
     """DAQP's solve: ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d)
     from the fresh buffers, ``daqp_solve`` writes x and lam (``result`` points to both); the
     answer is then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative
     violation of the bounds and rows) is written, inf when x is not finite; and the time
-    since ``start``. The next tick's mask is ``steady_mask``. DAQP is given only the rows that
-    not every x satisfies (:mod:`._inert_rows`: ``packed``, ``order``); the answer is checked
-    against every row."""
+    since ``start``. The next tick's mask is ``steady_mask``. DAQP is not given the trailing
+    rows that every x satisfies (:mod:`._inert_rows`); the answer is checked against every row."""
     flags = result.view(np.int32)
-    packing = pack(problem, packed, order, x.shape[0], lam.shape[0], sense_word)
+    given = leave_out(problem, x.shape[0], lam.shape[0])
     flag = _update_ldp(update_ldp, np.int32(control[DAQP_CONTROL_MASK]), workspace.ctypes.data,
                        problem.ctypes.data)
     control[DAQP_CONTROL_MASK] = steady_mask
@@ -226,9 +225,9 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
         _solve(solve, result.ctypes.data, workspace.ctypes.data)
         flag = flags[DAQP_RESULT_EXITFLAG]
         iterations = flags[DAQP_RESULT_ITERATIONS]
-    unpack(problem, workspace, lam, packed, order, x.shape[0], sense_word, packing)
-    if flag >= 1:
-        defect = qp_defect(data, x)  # inf when x is not finite
+        if flag >= 1:
+            defect = qp_defect(data, x)  # inf when x is not finite
+    restore(problem, workspace, lam, given, sense_word)
     control[DAQP_CONTROL_EXITFLAG] = flag
     control[DAQP_CONTROL_DEFECT] = defect
     control[DAQP_CONTROL_ITERATIONS] = iterations
@@ -236,12 +235,10 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
-          "float64[::1], float64[::1], int64[::1], int64, int64, int64, int64, int64, int64, int64)", cache=CACHE,
-          nogil=True)
+          "float64[::1], int64, int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
 def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-               data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, packed: np.ndarray,
-               order: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
-               unconstrained_first: int, sense_word: int) -> None:
+               data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int,
+               clock_gettime: int, clock_id: int, steady_mask: int, unconstrained_first: int, sense_word: int) -> None:
     """One DAQP solve of the QP whose buffers ``problem`` points to (``data``: the same QP's
     flat buffer, :class:`wbc.qp.problem.QP`), writing ``control`` (layout ``DAQP_CONTROL_*``).
 
@@ -249,24 +246,22 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     working set (the last answer met no limit), the unconstrained minimiser ``-H^-1 c`` is tried
     first (:func:`_unconstrained_answer`, ``factor``: n x n scratch): when it satisfies every
     bound and row it is the answer (exit flag 1, defect 0, 0 iterations, multipliers ``lam`` 0),
-    DAQP is not called and its working set stays empty. Otherwise DAQP solves (:func:`_daqp`;
-    ``packed``, ``order``: :mod:`._inert_rows`'s scratch).
+    DAQP is not called and its working set stays empty. Otherwise DAQP solves (:func:`_daqp`).
     """
     start = now_ns(clock_gettime, clock_id)
     if (unconstrained_first and _no_active_constraint(_sense_at(problem, sense_word, lam.shape[0]))
             and _unconstrained_answer(data, x, factor, lam)):
         _answered(control, 0.0, start, clock_gettime, clock_id)
     else:
-        _daqp(problem, workspace, result, control, data, x, lam, packed, order, update_ldp, solve, clock_gettime,
-              clock_id, steady_mask, sense_word, start)
+        _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
+              steady_mask, sense_word, start)
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
-          "float64[::1], float64[::1], int64[::1], int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
+          "float64[::1], int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
 def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-                           data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, packed: np.ndarray,
-                           order: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
-                           steady_mask: int, sense_word: int) -> None:
+                           data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int,
+                           solve: int, clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int) -> None:
     """:func:`daqp_solve` trying DAQP's working set first: the minimiser with the last answer's
     active constraints held as equalities (:func:`_working_set_answer`; ``scratch``: (3n + 2) x n,
     H's Cholesky factor in its first n rows) is the answer when it meets every optimality
@@ -285,8 +280,8 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     if defect >= 0.0:
         _answered(control, defect, start, clock_gettime, clock_id)
     else:
-        _daqp(problem, workspace, result, control, data, x, lam, packed, order, update_ldp, solve, clock_gettime,
-              clock_id, steady_mask, sense_word, start)
+        _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
+              steady_mask, sense_word, start)
 
 
 # ------------------------------------------------------- tick-program ops
@@ -294,22 +289,19 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
 
 @njit(inline="always")
 def _daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-                data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, packed: np.ndarray,
-                order: np.ndarray, n: int, size: int, m: int, update_ldp: int, solve: int, clock_gettime: int,
-                clock_id: int, steady_mask: int, unconstrained_first: int, sense_word: int, flags: np.ndarray,
-                dt: float) -> None:
+                data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, n: int, size: int, m: int,
+                update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
+                unconstrained_first: int, sense_word: int, flags: np.ndarray, dt: float) -> None:
     if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
     else:
-        daqp_solve(problem, workspace, result, control, data, x, factor, lam, packed, order, update_ldp, solve,
-                   clock_gettime, clock_id, steady_mask, unconstrained_first, sense_word)
+        daqp_solve(problem, workspace, result, control, data, x, factor, lam, update_ldp, solve, clock_gettime,
+                   clock_id, steady_mask, unconstrained_first, sense_word)
 
 
 #: the QP operands of the DAQP ops and their checks
 _QP_OPERANDS = (("problem", (DAQP_PROBLEM_WORDS,)), ("workspace", (DAQP_WORKSPACE_WORDS,)),
                 ("result", (DAQP_RESULT_WORDS,)), ("control", (DAQP_CONTROL_SIZE,)), ("data", ("size",)), ("x", ("n",)))
-#: the scratch of the packing of rows every x satisfies (wbc.runtime.kernels._inert_rows)
-_PACKING_OPERANDS = (("packed", ("(m - n) * n + 3 * m",)), ("order", ("m - n",), "int64"))
 _DAQP_OPERANDS = (("n", None), ("size", None), ("m", None), ("update_ldp", None), ("solve", None),
                   ("clock_gettime", None), ("clock_id", None), ("steady_mask", None))
 _DAQP_CHECKS = ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n + 2) == 0",
@@ -319,29 +311,26 @@ _DAQP_CHECKS = ("1 <= n", "n * n + 3 * n <= size", "(size - n * n - 3 * n) % (n 
 #: the compiled DAQP solve (wbc.solvers.daqp.native); skipped (exit flag DAQP_SKIPPED) when a NaN screen
 #: before it found a NaN, or a BAND row stopped
 DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
-    *_QP_OPERANDS, ("factor", ("n", "n")), ("lam", ("m",)), *_PACKING_OPERANDS, *_DAQP_OPERANDS,
-    ("unconstrained_first", None),
+    *_QP_OPERANDS, ("factor", ("n", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("unconstrained_first", None),
     ("sense_word", None), FLAGS_OPERAND), checks=_DAQP_CHECKS)
 
 
 @njit(inline="always")
 def _daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
-                            data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, packed: np.ndarray,
-                            order: np.ndarray, n: int, size: int, m: int, update_ldp: int, solve: int,
-                            clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int, flags: np.ndarray,
-                            dt: float) -> None:
+                            data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, n: int, size: int,
+                            m: int, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
+                            sense_word: int, flags: np.ndarray, dt: float) -> None:
     if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
     else:
-        daqp_solve_working_set(problem, workspace, result, control, data, x, scratch, lam, packed, order,
-                               update_ldp, solve, clock_gettime, clock_id, steady_mask, sense_word)
+        daqp_solve_working_set(problem, workspace, result, control, data, x, scratch, lam, update_ldp, solve,
+                               clock_gettime, clock_id, steady_mask, sense_word)
 
 
 #: DAQP_SOLVE trying the last working set first (daqp_solve_working_set): the lower levels of strict
 #: priorities, whose band rows are active tick after tick
 DAQP_SOLVE_WORKING_SET = Op("DAQP_SOLVE_WORKING_SET", _daqp_solve_working_set, (
-    *_QP_OPERANDS, ("scratch", ("3 * n + 2", "n")), ("lam", ("m",)), *_PACKING_OPERANDS, *_DAQP_OPERANDS,
-    ("sense_word", None),
+    *_QP_OPERANDS, ("scratch", ("3 * n + 2", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("sense_word", None),
     FLAGS_OPERAND), checks=_DAQP_CHECKS)
 
 

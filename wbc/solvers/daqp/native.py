@@ -71,8 +71,6 @@ class NativeWorkspace:
         n, m = qp.n, qp.n + qp.n_ineq + qp.n_eq
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
-        # DAQP is given only the rows not every x satisfies, packed here (wbc.runtime.kernels._inert_rows)
-        self._packed, self._order = np.zeros((m - n) * n + 3 * m), np.zeros(m - n, dtype=np.int64)
         # scratch of the first try: H's Cholesky factor (then, trying the working set, the rest: kernels.native_qp)
         self._scratch = np.zeros((3 * n + 2 if working_set_first else n, n))
         self._op = kernels.DAQP_SOLVE_WORKING_SET if working_set_first else kernels.DAQP_SOLVE
@@ -146,8 +144,7 @@ class NativeWorkspace:
     def _shared_operands(self) -> dict[str, Any]:
         entry = self._library.entry
         return dict(problem=self.problem_words, workspace=self.work_words, result=self.result_words,
-                    control=self.control, data=self.qp.data, x=self.x, lam=self.lam, packed=self._packed,
-                    order=self._order, n=self.qp.n,
+                    control=self.control, data=self.qp.data, x=self.x, lam=self.lam, n=self.qp.n,
                     size=self.qp.data.size, m=self.lam.size, update_ldp=entry.update_ldp, solve=entry.solve,
                     clock_gettime=entry.clock_gettime, clock_id=entry.clock_id, steady_mask=daqp_abi.WARM_UPDATE,
                     sense_word=Problem.sense.offset // 8)
