@@ -1,4 +1,4 @@
-"""The compiled DAQP solve leaves out the rows every x satisfies (wbc.runtime.kernels._inert_rows):
+"""The compiled DAQP solve leaves out the trailing rows every x satisfies (wbc.runtime.kernels._inert_rows):
 answers against a second solve given only the live rows, KKT conditions written out on the whole
 QP, the warm start in the QP's row order, the inert rows never reaching DAQP."""
 
@@ -10,20 +10,20 @@ import wbc
 from test_daqp_native import assert_kkt, fill_random
 from wbc.qp.problem import QP
 from wbc.runtime import kernels
+from wbc.solvers import DaqpBackend
 from wbc.solvers.daqp import abi as daqp_abi
 from wbc.solvers.daqp import probe as daqp_probe
 from wbc.solvers.daqp.native import NativeWorkspace
 
-#: DAQP's own mark of a zero row it was given (constants.h DAQP_ZERO_ROW)
-DAQP_ZERO_ROW = 2048
-
 
 def make_inert(rng: np.random.Generator, qp: QP) -> np.ndarray:
-    """Zero some rows with bounds that hold 0 (about half the inequality rows -- as
-    CollisionAvoidance's: upper 1, lower -inf, or a two-sided range -- and some equality rows);
-    the general rows' mask of those made inert."""
+    """Zero some rows with bounds that hold 0 (inequality rows as CollisionAvoidance's: upper 1,
+    lower -inf; or a two-sided range holding 0; equality rows b = 0): scattered ones, and often a
+    trailing run of rows; the general rows' mask of those made inert."""
     n, p = qp.n, qp.n_ineq
-    inert = rng.random(qp.C.shape[0]) < 0.5
+    inert = rng.random(qp.C.shape[0]) < 0.3
+    if rng.random() < 0.7:
+        inert[qp.C.shape[0] - int(rng.integers(1, qp.C.shape[0] + 1)):] = True
     for i in np.flatnonzero(inert):
         qp.C[i] = 0.0
         if i < p and rng.random() < 0.5:
@@ -31,6 +31,14 @@ def make_inert(rng: np.random.Generator, qp: QP) -> np.ndarray:
         elif i < p:
             qp.upper[n + i] = 1.0
     return inert
+
+
+def trailing(inert: np.ndarray) -> np.ndarray:
+    """The mask of the trailing run of inert rows (those DAQP is not given)."""
+    live = np.flatnonzero(~inert)
+    mask = np.zeros_like(inert)
+    mask[live[-1] + 1 if live.size else 0:] = True
+    return mask
 
 
 def live_answer(qp: QP, inert: np.ndarray) -> tuple[np.ndarray, int]:
@@ -48,9 +56,10 @@ def test_answers_are_those_of_the_live_rows_alone(rng, warm_start, working_set_f
     """Random QPs with inert rows that change from tick to tick, 6 ticks each on one workspace:
     the answer is that of DAQP's binding given only the live rows, the same exit status, the
     multipliers of the inert rows 0 and the KKT conditions of the whole QP hold; the warm
-    start never holds an inert row active (nor DAQP's mark of a zero row it was given)."""
+    start never holds a trailing inert row (left out) active, nor DAQP's mark of a zero row it
+    was given, and the equality rows keep their state."""
     library = daqp_probe.native()
-    solved = 0
+    solved = left_out_count = 0
     for _ in range(150):
         n, p, e = int(rng.integers(1, 10)), int(rng.integers(1, 12)), int(rng.integers(0, 3))
         e = min(e, n - 1)
@@ -73,22 +82,25 @@ def test_answers_are_those_of_the_live_rows_alone(rng, warm_start, working_set_f
             assert np.all(workspace.lam[rows][inert] == 0.0)
             assert_kkt(qp, workspace.x, workspace.lam)
             if warm_start:
-                states = workspace.working_set[rows]
+                states, left_out = workspace.working_set[rows], trailing(inert)
                 inequality = np.arange(p + e) < p
-                assert not np.any(states[inert & inequality] & kernels.DAQP_SENSE_ACTIVE)
-                assert not np.any(states[inert] & DAQP_ZERO_ROW)  # DAQP never saw them
-                assert np.all(states[~inequality] & daqp_abi.SENSE_EQUALITY == daqp_abi.SENSE_EQUALITY)
+                left_out_count += left_out.sum()
+                assert not np.any(states[left_out & inequality] & kernels.DAQP_SENSE_ACTIVE)
+                assert not np.any(states[left_out] & kernels.DAQP_SENSE_ZERO_ROW)  # DAQP never saw them
+                equality = ~inequality & ~(inert & ~left_out)  # (DAQP marks a zero row it is given)
+                assert np.all(states[equality] & daqp_abi.SENSE_EQUALITY == daqp_abi.SENSE_EQUALITY)
     assert solved >= 300
+    assert left_out_count > 300 or not warm_start
 
 
 def test_inert_rows_leave_the_unconstrained_first_try_open(rng):
     """A warm workspace whose QP has inert rows and whose unconstrained minimiser meets every
-    live row answers without DAQP (0 iterations) on the next solve: the inert rows reached
-    neither DAQP's working set nor its zero-row marks (which would count as active states)."""
+    live row answers without DAQP (0 iterations) on the next solve: the trailing inert rows
+    reached neither DAQP's working set nor its zero-row marks (which count as active states)."""
     library = daqp_probe.native()
     qp = QP(4, 6)
     fill_random(rng, qp)
-    qp.C[3:] = 0.0  # inert: 0 <= h
+    qp.C[3:] = 0.0  # trailing inert rows: 0 <= h
     qp.h[...] = 1.0
     qp.lb[...], qp.ub[...] = -1e3, 1e3
     qp.C[:3] = 0.0
@@ -107,7 +119,7 @@ def test_inert_rows_leave_the_unconstrained_first_try_open(rng):
 def test_collision_commands_match_another_solver():
     """youbot_circle's stack with CollisionAvoidance (self-collision and a sphere the arm passes
     close to; most rows inert every tick) on the native DAQP tick against quadprog given every
-    row: the same commands along a closed loop."""
+    row: the same commands along a closed loop (the constraint's rows are the QP's last)."""
     robot = wbc.load_robot("youbot")
     q0 = robot.neutral()
     ee = robot.frame_pose(q0, "ee")[:3, 3]
@@ -132,3 +144,40 @@ def test_collision_commands_match_another_solver():
         inert_ticks += len(data.active_labels()) + data.corners < data.n_inequalities
         q = robot.integrate(q, v, 0.01)
     assert inert_ticks == 150
+
+
+def _row_zero_then_binding() -> tuple[QP, list[tuple[float, float]]]:
+    """min 1/2 |x - (1, 1)|^2, x <= 0.8, with row 0 (x0 + x1 <= h0) zero, then binding; row 1 live after it."""
+    qp = QP(2, 2)
+    qp.H[...] = np.eye(2)
+    qp.c[...] = (-1.0, -1.0)
+    qp.lb[...], qp.ub[...] = -10.0, 0.8  # the bounds bind while row 0 is zero: DAQP solves
+    qp.C[1] = (1.0, -1.0)
+    qp.h[1] = 5.0
+    return qp, [(0.0, 1.0), (1.0, 0.5), (0.0, 1.0), (1.0, 0.5)]  # (row 0's coefficient, h0) per solve
+
+
+@pytest.mark.parametrize("native", [True, False])
+def test_a_row_that_was_zero_binds_again_on_a_warm_workspace(native, monkeypatch):
+    """A zero row DAQP was given (not trailing: a live row follows) is marked by DAQP as
+    ignored; when it is nonzero again the warm update must bring it back (UPDATE_M, also in the
+    binding's update): the answer is the projection onto x0 + x1 <= 0.5, not (0.8, 0.8). The
+    native workspace and DaqpBackend on DAQP's binding."""
+    if not native:
+        daqp_abi._load.cache_clear()
+        daqp_probe._probe_failure.cache_clear()
+        monkeypatch.setattr(daqp_abi.importlib.metadata, "version", lambda name: "0.99.0")
+    try:
+        qp, ticks = _row_zero_then_binding()
+        backend = DaqpBackend()
+        assert backend.native == native
+        for coefficient, h0 in ticks:
+            qp.C[0] = coefficient
+            qp.h[0] = h0
+            solution = backend.solve(qp)
+            assert solution.success
+            expected = (0.25, 0.25) if coefficient else (0.8, 0.8)
+            np.testing.assert_allclose(solution.x, expected, rtol=0, atol=1e-12)
+    finally:
+        daqp_abi._load.cache_clear()
+        daqp_probe._probe_failure.cache_clear()
