@@ -39,7 +39,10 @@ from . import (
     DAQP_SENSE_ZERO_ROW,
     DAQP_WORKSPACE_M,
     DAQP_WORKSPACE_SENSE,
+    prepare_cache,
 )
+
+CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
 
 @intrinsic
@@ -60,7 +63,7 @@ def _float64_at(typingctx, address):
     return types.CPointer(types.float64)(types.int64), codegen
 
 
-@njit(inline="always")
+@njit(cache=CACHE, nogil=True)
 def leave_out(problem: np.ndarray, n: int, m: int) -> int:
     """Give DAQP's ``problem`` (n variables, m = n + rows constraints) only the constraints up to
     its last row that not every x satisfies; returns the m it now has (m: none left out)."""
@@ -87,7 +90,7 @@ def leave_out(problem: np.ndarray, n: int, m: int) -> int:
     return n + last
 
 
-@njit(inline="always")
+@njit(cache=CACHE, nogil=True)
 def restore(problem: np.ndarray, workspace: np.ndarray, lam: np.ndarray, given: int, sense_word: int) -> None:
     """Undo :func:`leave_out` (which gave DAQP ``given`` constraints) after DAQP's solve: the
     problem's and DAQP's m back to the QP's (``len(lam)``), the multipliers of the rows left out
