@@ -55,6 +55,15 @@ def _int32_at(typingctx, address):
 
 
 @intrinsic
+def _int64_at(typingctx, address):
+    """The int64 pointer at integer ``address`` (the words of DAQP's structures)."""
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
+
+    return types.CPointer(types.int64)(types.int64), codegen
+
+
+@intrinsic
 def _float64_at(typingctx, address):
     """The float64 pointer at integer ``address`` (the rows and bounds DAQP's problem points to)."""
     def codegen(context, builder, signature, args):
@@ -67,7 +76,7 @@ def _float64_at(typingctx, address):
 def leave_out(problem: np.ndarray, n: int, m: int) -> int:
     """Give DAQP's ``problem`` (n variables, m = n + rows constraints) only the constraints up to
     its last row that not every x satisfies; returns the m it now has (m: none left out)."""
-    words = problem.view(np.int64)
+    words = _int64_at(problem.ctypes.data)
     rows = m - n
     if rows == 0 or words[DAQP_PROBLEM_A] == 0:
         return m
@@ -86,7 +95,7 @@ def leave_out(problem: np.ndarray, n: int, m: int) -> int:
             break
         last = row
     if last < rows:
-        problem.view(np.int32)[DAQP_PROBLEM_M] = n + last
+        _int32_at(problem.ctypes.data)[DAQP_PROBLEM_M] = n + last
     return n + last
 
 
@@ -99,12 +108,12 @@ def restore(problem: np.ndarray, workspace: np.ndarray, lam: np.ndarray, given: 
     m = lam.shape[0]
     if given == m:
         return
-    problem.view(np.int32)[DAQP_PROBLEM_M] = m
-    workspace.view(np.int32)[DAQP_WORKSPACE_M] = m
+    _int32_at(problem.ctypes.data)[DAQP_PROBLEM_M] = m
+    _int32_at(workspace.ctypes.data)[DAQP_WORKSPACE_M] = m
     for i in range(given, m):
         lam[i] = 0.0
-    address = problem.view(np.int64)[sense_word]
-    if address == 0 or address != workspace.view(np.int64)[DAQP_WORKSPACE_SENSE]:
+    address = _int64_at(problem.ctypes.data)[sense_word]
+    if address == 0 or address != _int64_at(workspace.ctypes.data)[DAQP_WORKSPACE_SENSE]:
         return  # a cold start: the next solve starts from the initial states again
     sense = carray(_int32_at(address), (m,))
     for i in range(given, m):
