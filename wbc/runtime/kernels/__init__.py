@@ -136,6 +136,9 @@ CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
 #: int32 indices of DAQPResult's exitflag and iter (checked likewise)
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
+#: int32 index of DAQPProblem's m, word of its A (bupper and blower the next two), int32 index of
+#: DAQPWorkspace's m, word of its sense (checked likewise; the packing of wbc.runtime.kernels._inert_rows)
+DAQP_PROBLEM_M, DAQP_PROBLEM_A, DAQP_WORKSPACE_M, DAQP_WORKSPACE_SENSE = 1, 4, 3, 8
 #: layout of the control vector of the compiled DAQP solve (wbc.solvers.daqp.native): the update mask
 #: of this tick in; the exit flag, the answer's defect (qp_defect; inf for a non-finite
 #: answer), the solve time [s] and DAQP's iterations out; the solve time of the latest answer that
@@ -152,6 +155,8 @@ DAQP_OPTIMAL = 1
 #: bits of DAQP's constraint states: active, at its lower side, immutable (an equality row)
 #: (DAQP's ACTIVE, LOWER, IMMUTABLE; its other bits mark soft and binary constraints and its own use)
 DAQP_SENSE_ACTIVE, DAQP_SENSE_LOWER, DAQP_SENSE_IMMUTABLE = 1, 2, 4
+#: DAQP's soft bit, and its own mark of a zero row it was given (constants.h DAQP_SOFT, DAQP_ZERO_ROW)
+DAQP_SENSE_SOFT, DAQP_SENSE_ZERO_ROW = 8, 2048
 
 # ------------------------------------------------------- compiled functions
 

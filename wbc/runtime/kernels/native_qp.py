@@ -37,6 +37,7 @@ from . import (
     prepare_cache,
 )
 from ._clock import now_ns
+from ._inert_rows import _int32_at, leave_out, restore
 from ._lazy import declared
 from .assembly import _minimiser, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
@@ -85,15 +86,6 @@ def _solve(typingctx, function, result, workspace):
         return context.get_dummy_value()
 
     return signature, codegen
-
-
-@intrinsic
-def _int32_at(typingctx, address):
-    """The int32 pointer at integer ``address`` (DAQP's constraint states, whose address DAQP's problem holds)."""
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int32)))
-
-    return types.CPointer(types.int32)(types.int64), codegen
 
 
 @njit(inline="always")
@@ -376,14 +368,16 @@ def _answered(control: np.ndarray, defect: float, start: int, clock_gettime: int
 
 @njit(inline="always")
 def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray, data: np.ndarray,
-          x: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
-          start: int) -> None:
+          x: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
+          steady_mask: int, sense_word: int, start: int) -> None:
     """DAQP's solve: ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d)
     from the fresh buffers, ``daqp_solve`` writes x and lam (``result`` points to both); the
     answer is then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative
     violation of the bounds and rows) is written, inf when x is not finite; and the time
-    since ``start``. The next tick's mask is ``steady_mask``."""
+    since ``start``. The next tick's mask is ``steady_mask``. DAQP is not given the trailing
+    rows that every x satisfies (:mod:`._inert_rows`); the answer is checked against every row."""
     flags = result.view(np.int32)
+    given = leave_out(problem, x.shape[0], lam.shape[0])
     flag = _update_ldp(update_ldp, np.int32(control[DAQP_CONTROL_MASK]), workspace.ctypes.data,
                        problem.ctypes.data)
     control[DAQP_CONTROL_MASK] = steady_mask
@@ -395,6 +389,7 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
         iterations = flags[DAQP_RESULT_ITERATIONS]
         if flag >= 1:
             defect = qp_defect(data, x)  # inf when x is not finite
+    restore(problem, workspace, lam, given, sense_word)
     control[DAQP_CONTROL_EXITFLAG] = flag
     control[DAQP_CONTROL_DEFECT] = defect
     control[DAQP_CONTROL_ITERATIONS] = iterations
@@ -420,8 +415,8 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
             and _unconstrained_answer(data, x, factor, lam)):
         _answered(control, 0.0, start, clock_gettime, clock_id)
     else:
-        _daqp(problem, workspace, result, control, data, x, update_ldp, solve, clock_gettime, clock_id, steady_mask,
-              start)
+        _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
+              steady_mask, sense_word, start)
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
@@ -447,8 +442,8 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     if defect >= 0.0:
         _answered(control, defect, start, clock_gettime, clock_id)
     else:
-        _daqp(problem, workspace, result, control, data, x, update_ldp, solve, clock_gettime, clock_id, steady_mask,
-              start)
+        _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
+              steady_mask, sense_word, start)
 
 
 # ------------------------------------------------------- tick-program ops

@@ -81,8 +81,11 @@ class Workspace(ctypes.Structure):
 
 # constants.h: what daqp_update_ldp re-forms, and the constraint states
 UPDATE_RINV, UPDATE_M, UPDATE_V, UPDATE_D, UPDATE_SENSE = 1, 2, 4, 8, 16
-#: a warm tick: H changed (R^-1, then M = A R^-1, v and d follow); the working set is kept
-WARM_UPDATE = UPDATE_RINV | UPDATE_SENSE
+#: a warm tick: H and A changed (R^-1, then M = A R^-1, v and d follow); the working set is kept.
+#: UPDATE_M also restores the state of a row that was zero when DAQP last saw it (DAQP marks it
+#: immutable and ignores it until an update with UPDATE_M: without it, the row, nonzero again,
+#: would stay ignored)
+WARM_UPDATE = UPDATE_RINV | UPDATE_M | UPDATE_SENSE
 #: a cold tick: everything re-formed from the problem's sense array
 COLD_UPDATE = UPDATE_RINV | UPDATE_M | UPDATE_V | UPDATE_D | UPDATE_SENSE
 SENSE_EQUALITY = 5  # DAQP_ACTIVE | DAQP_IMMUTABLE

@@ -170,8 +170,8 @@ class DaqpBackend(QPSolver):
                 exitflag = self._model.update(H=qp.H, f=qp.c, A=qp.C if len(qp.C) else None, bupper=qp.upper,
                                               blower=qp.lower, sense=sense)
                 self._data = qp.data
-            else:
-                exitflag = self._model.update(qp.H, sense=sense)
+            else:  # A too: DAQP then restores the state of a row that was zero (abi.WARM_UPDATE)
+                exitflag = self._model.update(qp.H, A=qp.C if len(qp.C) else None, sense=sense)
             if exitflag >= 0:
                 x, _, exitflag, _ = self._model.solve()
         except Exception as exc:

@@ -56,7 +56,13 @@ def probe(library: Library) -> str | None:
               "workspace words": (words(Workspace), kernels.DAQP_WORKSPACE_WORDS),
               "result words": (words(Result), kernels.DAQP_RESULT_WORDS),
               "result exit flag": (Result.exitflag.offset // 4, kernels.DAQP_RESULT_EXITFLAG),
-              "result iterations": (Result.iter.offset // 4, kernels.DAQP_RESULT_ITERATIONS)}
+              "result iterations": (Result.iter.offset // 4, kernels.DAQP_RESULT_ITERATIONS),
+              "problem m": (Problem.m.offset // 4, kernels.DAQP_PROBLEM_M),
+              "problem A": (Problem.A.offset // 8, kernels.DAQP_PROBLEM_A),
+              "problem bounds": ((Problem.bupper.offset // 8, Problem.blower.offset // 8),
+                                 (kernels.DAQP_PROBLEM_A + 1, kernels.DAQP_PROBLEM_A + 2)),
+              "workspace m": (Workspace.m.offset // 4, kernels.DAQP_WORKSPACE_M),
+              "workspace sense": (Workspace.sense.offset // 8, kernels.DAQP_WORKSPACE_SENSE)}
     for name, (here, compiled) in layout.items():
         if here != compiled:  # a constant of wbc.runtime.kernels out of step with the layouts above
             return f"the compiled kernels assume {name} = {compiled}, the DAQP layout has {here}"
