@@ -99,7 +99,7 @@ class Controller:
         strict: raise :class:`~wbc.core.errors.SolverError` when the QP cannot be solved, instead
             of the fallback below.
         warm_up: tick a throwaway copy of the controller twice when it is built
-            (:mod:`wbc.control.warm_up`), so that its first tick runs code just run (~3.5x a
+            (:mod:`wbc.control.warm_up`), so that its first tick runs code just run (~5x a
             steady tick instead of ~12x in a fresh process), at the cost of about one more
             build (~1.6 ms on the youBot). The controller's own state and commands are the same
             either way; False skips it (copies never warm up).
