@@ -41,6 +41,7 @@ from . import (
     DAQP_WORKSPACE_SENSE,
     prepare_cache,
 )
+from .tick import _float64_at, _int64_at
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -52,24 +53,6 @@ def _int32_at(typingctx, address):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int32)))
 
     return types.CPointer(types.int32)(types.int64), codegen
-
-
-@intrinsic
-def _int64_at(typingctx, address):
-    """The int64 pointer at integer ``address`` (the words of DAQP's structures)."""
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
-
-    return types.CPointer(types.int64)(types.int64), codegen
-
-
-@intrinsic
-def _float64_at(typingctx, address):
-    """The float64 pointer at integer ``address`` (the rows and bounds DAQP's problem points to)."""
-    def codegen(context, builder, signature, args):
-        return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
-
-    return types.CPointer(types.float64)(types.int64), codegen
 
 
 @njit(cache=CACHE, nogil=True)

@@ -72,7 +72,8 @@ BUILTIN_SIGNATURE = types.void(types.CPointer(types.int64), types.CPointer(types
 
 @intrinsic
 def _float64_at(typingctx, address):
-    """The float64 pointer at integer ``address`` (registered arrays only: see TickProgram)."""
+    """The float64 pointer at integer ``address`` (memory the caller knows: a registered array, see
+    TickProgram; the rows DAQP's problem points to, :mod:`._inert_rows`)."""
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.float64)))
 
@@ -81,7 +82,8 @@ def _float64_at(typingctx, address):
 
 @intrinsic
 def _int64_at(typingctx, address):
-    """The int64 pointer at integer ``address`` (registered arrays only: see TickProgram)."""
+    """The int64 pointer at integer ``address`` (memory the caller knows: a registered array, see
+    TickProgram; the words of DAQP's structures, :mod:`._inert_rows`)."""
     def codegen(context, builder, signature, args):
         return builder.inttoptr(args[0], context.get_value_type(types.CPointer(types.int64)))
 
