@@ -15,8 +15,9 @@ compiled in process, as without the pool.
 
 Each worker runs :func:`._worker.run_worker` of this process's wbc (no pool of its own) with
 ``wbc`` itself *not* executed (:data:`BOOTSTRAP`): :mod:`wbc.runtime` imports nothing else of wbc,
-so the worker skips Pinocchio, SciPy and the solvers and is ready in ~0.4 s (numba and the kernel
-modules) instead of ~1.3 s; the process compiles alone until then. It says ``ready``, then reads
+so the worker skips Pinocchio, SciPy and the solvers and imports only numba and the kernel
+modules (ready in 0.9-1.1 s instead of 1.1-2.4 s, measured under load ~2 on 2 cores); the process
+compiles alone until then. It says ``ready``, then reads
 one job a line on stdin and answers ``ok <job>`` or ``failed <job>``; it exits when its stdin
 closes (this process exits or :meth:`CompilePool.close`).
 """
