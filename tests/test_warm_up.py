@@ -19,7 +19,7 @@ import pytest
 import wbc
 from wbc.app.scenario import load_scenario
 from wbc.control import controller as controller_module
-from wbc.control.warm_up import warm_up_twin
+from wbc.control.warm_up import WARM_UP_TICKS, warm_up_twin
 
 TICKS = 60
 
@@ -156,3 +156,23 @@ def test_the_twin_of_a_subclass_never_runs_the_subclass_step(youbot):
 def test_warm_up_must_be_a_bool(youbot):
     with pytest.raises(wbc.InvalidInputError, match="warm_up"):
         wbc.Controller(youbot, [wbc.PostureTask(1e-2)], warm_up="no")
+
+
+class _CountingTwin:
+    """A twin that counts its ticks (warm_up_twin's Steppable)."""
+
+    def __init__(self, robot) -> None:
+        self.robot, self.tasks, self.q = robot, [], []
+
+    def step(self, q):
+        self.q.append(q.copy())
+        return np.zeros(self.robot.nv)
+
+
+def test_the_twin_ticks_past_the_interpreters_warm_up(youbot):
+    """CPython 3.11 specialises a function's bytecode after its 8th call: the twin's ticks must
+    reach past it at build, within the position limits."""
+    twin = _CountingTwin(youbot)
+    assert warm_up_twin(lambda: twin)
+    assert len(twin.q) == WARM_UP_TICKS and WARM_UP_TICKS > 8
+    assert all(np.all(youbot.lower <= q) and np.all(q <= youbot.upper) for q in twin.q)

@@ -98,7 +98,7 @@ class Controller:
             ``S = I``: both forms are the same QP there (``self.reduced`` is then False).
         strict: raise :class:`~wbc.core.errors.SolverError` when the QP cannot be solved, instead
             of the fallback below.
-        warm_up: tick a throwaway copy of the controller twice when it is built
+        warm_up: tick a throwaway copy of the controller ten times when it is built
             (:mod:`wbc.control.warm_up`), so that its first tick runs code just run (~5x a
             steady tick instead of ~12x in a fresh process), at the cost of about one more
             build (~1.6 ms on the youBot). The controller's own state and commands are the same

@@ -4,8 +4,8 @@ The first tick of a process used to take 12-15x a steady tick (``python -m bench
 not page faults nor lazy binding, but code and data run for the first time after the build
 (Python's inline caches, numba's dispatch, the ops' callbacks, DAQP's solve). A throwaway
 *twin* -- a deep copy of the controller, with copies of its robot, tasks, constraints and
-solver and buffers, program and DAQP workspaces of its own -- ticks twice when the controller
-is built, as the controller's first and later ticks run: on the control loop's one-call native
+solver and buffers, program and DAQP workspaces of its own -- ticks :data:`WARM_UP_TICKS` times
+when the controller is built, as the controller's first and later ticks run: on the control loop's one-call native
 path where the controller has it (the first tick checks the tasks first), else on the pipeline.
 The controller itself is not touched: its tick counter, previous command, DAQP working sets,
 items' targets and ``last`` stay as they were.
@@ -41,11 +41,18 @@ class Steppable(Protocol):
     def step(self, q: NDArray[np.float64]) -> NDArray[np.float64]: ...
 
 
+#: ticks of the twin: past CPython 3.11's warm-up of a function's bytecode (specialised after its 8th
+#: call; code objects are shared by every controller, so the twin's calls count). With two, the
+#: quickening fell into the controller's own 6th tick: 7.0-7.3 us against 2.9-3.3 us around it
+#: (youbot_circle, fresh processes); with ten it happens at build (+~30 us of a ~3 ms build)
+WARM_UP_TICKS = 10
+
+
 def warm_up_twin(make_twin: Callable[[], Steppable]) -> bool:
     """Make a throwaway twin of a controller (``make_twin``: a deep copy, as a plain
     ``Controller`` -- a subclass's own ``step``, which may act on the world, never runs here)
-    and tick it twice at Pinocchio's neutral configuration clipped into the position limits;
-    True when both ticks ran.
+    and tick it :data:`WARM_UP_TICKS` times at Pinocchio's neutral configuration clipped into the
+    position limits; True when every tick ran.
 
     The twin's :class:`~wbc.tasks.error_task.ErrorTask` copies that still wait for their first
     target (``needs_target``) tick toward the one their constructor left (a finite default;
@@ -61,8 +68,8 @@ def warm_up_twin(make_twin: Callable[[], Steppable]) -> bool:
                 task._has_target = True  # (the twin's copy only)
         robot = twin.robot
         q = np.clip(robot.neutral(), robot.lower, robot.upper)
-        twin.step(q)  # as the controller's first tick (its tasks checked, then the native call or the pipeline)
-        twin.step(q)  # as its later ticks
+        for _ in range(WARM_UP_TICKS):  # the first as the controller's first tick, the others as its later ones
+            twin.step(q)
     except Exception:  # noqa: BLE001 -- any failure only means no warm-up (see the docstring)
         return False
     return True
