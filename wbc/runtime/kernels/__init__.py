@@ -302,7 +302,7 @@ def batch() -> Iterator[None]:
     program's before it first runs). Elsewhere, and without workers, nothing changes."""
     global _batch_depth
     _batch_depth += 1
-    _compile_pool()  # (started now: a worker takes ~0.4 s to start)
+    _compile_pool()  # (started now: a worker takes ~1 s to start, see _pool)
     try:
         yield
     finally:
