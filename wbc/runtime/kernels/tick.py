@@ -28,8 +28,6 @@ Without a writable cache directory the callbacks are compiled in memory.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 from types import ModuleType
 
@@ -190,15 +188,4 @@ def callbacks(ops: list[Op], stamp: str, directory: Path | None) -> ModuleType:
     """The module of :func:`callbacks_source`: imported from a file in ``directory`` (numba's cache
     directory of the package: the callbacks compiled from it are cached next to it), or built in
     memory when ``directory`` is None or cannot be written."""
-    source = callbacks_source(ops, stamp)
-    path = _cache.write_generated(directory, GENERATED_PREFIX, source) if directory is not None else None
-    if path is None:
-        module = ModuleType(f"{__name__}_generated")
-        exec(compile(source, "<wbc tick ops>", "exec"), module.__dict__)  # noqa: S102
-        return module
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[path.stem] = module
-    spec.loader.exec_module(module)
-    return module
+    return _cache.load_generated(directory, GENERATED_PREFIX, callbacks_source(ops, stamp), f"{__name__}_generated")
