@@ -426,18 +426,18 @@ def _kinematics_rows(controller) -> int:
 
 
 def test_the_kinematics_are_computed_once_per_tick_when_python_items_read_them():
-    """A Python item (here CollisionAvoidance without pairs: one inert row) makes
-    Kinematics.update compute the kinematics before the program: the program then has no
-    forward-kinematics op of its own (it had one, computing them a second time every tick);
-    without Python items it keeps it."""
+    """A Python item (here a LinearConstraint holding the base's x velocity at 0, which the posture
+    task leaves at 0 anyway) makes Kinematics.update compute the kinematics before the program: the
+    program then has no forward-kinematics op of its own (it had one, computing them a second time
+    every tick); without Python items it keeps it."""
     import wbc
 
     robot = wbc.load_robot("youbot")
     q = robot.neutral()
     posture = wbc.PostureTask(cost=1.0, target=q)
     compiled = wbc.Controller(robot, [posture], [wbc.JointVelocityLimits()])
-    guarded = wbc.Controller(robot, [posture],
-                             [wbc.JointVelocityLimits(), wbc.CollisionAvoidance(self_collision=False)])
+    still = np.eye(1, robot.nv)  # v_x of the base = 0
+    guarded = wbc.Controller(robot, [posture], [wbc.JointVelocityLimits(), wbc.LinearConstraint(still)])
     assert _kinematics_rows(compiled) == 1
     assert _kinematics_rows(guarded) == 0
     target = q.copy()
@@ -447,3 +447,75 @@ def test_the_kinematics_are_computed_once_per_tick_when_python_items_read_them()
     bent[-3] += 0.4
     for configuration in (q, bent):  # fresh kinematics every tick: the same command as the compiled stack
         np.testing.assert_allclose(guarded.step(configuration), compiled.step(configuration), atol=1e-9)
+
+
+_OP_MODULE = '''
+from numba import njit
+
+from wbc.runtime.compiled_op import CompiledOp
+
+
+@njit(nogil=True)
+def scale(x, n, dt):
+    for i in range(n):
+        x[i] *= FACTOR * dt
+
+
+SCALE = CompiledOp("SCALE", scale, (("x", ("n",)), ("n", None)))
+'''
+
+_RUN_OP = '''
+import sys
+
+import numpy as np
+
+import scaled_op
+from wbc.runtime.program import TickProgram
+
+x = np.ones(3)
+program = TickProgram()
+program.add(scaled_op.SCALE, x=x, n=3)
+program.run(0.5)
+print(x[0], scaled_op.SCALE._callback.cache_hits)
+'''
+
+
+def _run_op(tmp_path, factor: float) -> tuple[float, int]:
+    """Run ``_OP_MODULE`` (its kernel multiplying by ``factor * dt``) in a fresh process: (x[0] after
+    one run from 1, the cache hits of the op's callback)."""
+    (tmp_path / "scaled_op.py").write_text(_OP_MODULE.replace("FACTOR", repr(factor)))
+    script = tmp_path / "run_op.py"
+    script.write_text(_RUN_OP)
+    env = {**child_environment(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, env=env,
+                         check=True).stdout.split()
+    return float(out[0]), int(out[1])
+
+
+@pytest.mark.slow  # three fresh processes (~4 s each)
+def test_a_compiled_op_of_a_module_is_cached_and_recompiled_when_its_folder_changes(tmp_path):
+    """The callback of a module-level kernel is compiled by the first process, loaded from numba's
+    cache by the next, and compiled again -- not loaded stale -- after the kernel's file changes."""
+    assert _run_op(tmp_path, 2.0) == (1.0, 0)  # 1 * 2 * 0.5, compiled
+    assert _run_op(tmp_path, 2.0) == (1.0, 1)  # loaded from the cache
+    value, hits = _run_op(tmp_path, 3.0)  # the kernel's file edited
+    assert (value, hits) == (1.5, 0)
+    generated = list((tmp_path / "cache").rglob("wbc_compiled_op_SCALE_*.py"))
+    assert len(generated) == 1  # the stale source was deleted
+
+
+def test_a_compiled_op_of_a_local_function_is_compiled_in_memory():
+    from numba import njit
+
+    @njit(nogil=True)
+    def add_dt(x, n, dt):
+        for i in range(n):
+            x[i] += dt
+
+    op = CompiledOp("ADD_DT", add_dt, (("x", ("n",)), ("n", None)))
+    assert not hasattr(op._module(), "__file__")  # no file: nothing cached for it
+    x = np.zeros(2)
+    program = TickProgram()
+    program.add(op, x=x, n=2)
+    program.run(0.25)
+    np.testing.assert_array_equal(x, [0.25, 0.25])

@@ -6,7 +6,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -20,10 +20,14 @@ from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..runtime.native_entry import fits_signature, unchecked_entry
 from .braking import RowBraking
-from .distances import Distances, PairBuffers
+from .distances import _SCRATCH, Distances, PairBuffers
 from .geometry import RobotGeometry
-from .layout import DETECTION, GAIN, MIN_DISTANCE
+from .layout import BOX, COAL, DETECTION, GAIN, KIND, MIN_DISTANCE, PAIR_A, PAIR_B, PAIR_COLUMNS, PLANE, ROW
 from .obstacles import Obstacle
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..runtime.compiled_op import CompiledOp
+    from ..runtime.program import TickProgram
 
 #: [m/s] a capsule end gets no row (:func:`wbc.collision.kernels.corner_rows`) when its distance exceeds
 #: the pair's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
@@ -180,10 +184,10 @@ class CollisionAvoidanceData(ConstraintData):
         self.n_inequalities = capacity + min(capacity, CORNER_ROWS)
         #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
         self.corner_pair = np.zeros(min(capacity, CORNER_ROWS), dtype=np.int64)
-        self.corners = 0
+        #: (pairs.count, corners) of the last tick: written by the tick program's op or by :meth:`compute`
+        self._counts = np.zeros(2, dtype=np.int64)
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
-        #: this tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)
-        self.pairs: PairBuffers = self.distances.buffers()
+        self._pairs: PairBuffers = self.distances.buffers()
         #: (dt, CORNER_SPEED) of the kernel; dt copied every tick
         self._tick = np.array([0.0, CORNER_SPEED])
         #: (kinematics, rows, the kernel's arguments, the kernel bound to them) of the last tick
@@ -200,8 +204,38 @@ class CollisionAvoidanceData(ConstraintData):
         rows.G[:] = 0.0
         rows.h[:] = INERT
 
+    @property
+    def pairs(self) -> PairBuffers:
+        """This tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)."""
+        self._pairs.count = int(self._counts[0])  # (the tick program's op writes the count there)
+        return self._pairs
+
+    @property
+    def corners(self) -> int:
+        """The corner rows of the last tick (after the pairs' rows)."""
+        return int(self._counts[1])
+
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        """The rows as one op of the tick program (:func:`avoidance_op`): when every candidate pair
+        has a compiled distance (:func:`compiled_pairs_only`), the kinematics are the compiled chain's
+        and no acceleration bounds ask for braking (:class:`~wbc.collision.braking.RowBraking`, in
+        Python); else :meth:`compute` every tick."""
+        if not (kin.native and rows.G.flags.c_contiguous and not self._braking.active
+                and compiled_pairs_only(self.distances)):
+            return False
+        distances, pairs = self.distances, self._pairs
+        program.add(avoidance_op(), table=distances.table, pairs=distances.pairs, placements=kin.placements,
+                    jacobians_t=kin.joint_jacobians.T, support=distances._support, world=distances._world,
+                    index=pairs.index, distance=pairs.distance, points=pairs.points, rows=pairs.rows,
+                    scratch=distances._scratch, G=rows.G, h=rows.h, settings=self.constraint._settings,
+                    tick=self._tick, corner_slot=self.corner_pair, counts=self._counts,
+                    shapes=distances.table.shape[0], candidates=distances.pairs.shape[0],
+                    joints=kin.placements.shape[0], nv=rows.G.shape[1], capacity=pairs.capacity,
+                    pending=pairs.pending.size, inequalities=self.n_inequalities, corners=self.corner_pair.size)
+        return True
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        pairs, settings = self.pairs, self.constraint._settings
+        pairs, settings, counts = self._pairs, self.constraint._settings, self._counts
         self._tick[0] = dt
         call = self._call
         if call is None or call[0] is not kin or call[1] is not rows:
@@ -209,13 +243,13 @@ class CollisionAvoidanceData(ConstraintData):
         _, _, arguments, rows_of_tick = call
         if not kin.native:
             fill_kinematics(kin.data, self._placements, self._jacobians_t)
-        packed, self.corners = rows_of_tick()
+        packed, counts[1] = rows_of_tick()
         if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
             self._finish_with_coal(packed, arguments, dt)
         else:
-            pairs.count = packed
+            counts[0] = packed
         G, h = arguments[11], arguments[12]
-        self._braking.apply(kin.q, G, h, settings[GAIN], dt, pairs.count + self.corners)
+        self._braking.apply(kin.q, G, h, settings[GAIN], dt, int(counts[0] + counts[1]))
         if G is not rows.G:
             rows.G[:] = G
 
@@ -226,7 +260,7 @@ class CollisionAvoidanceData(ConstraintData):
         its compiled entry without numba's dispatch (:func:`~wbc.runtime.native_entry.unchecked_entry`,
         ~0.04 us per argument saved), as every argument is one of these C-contiguous buffers of the
         kernel's dtypes and dimensions -- checked here, else the dispatcher, which checks them itself."""
-        distances, pairs = self.distances, self.pairs
+        distances, pairs = self.distances, self._pairs
         if kin.native:
             placements, jacobians_t = kin.placements, kin.joint_jacobians.T
         else:
@@ -242,12 +276,12 @@ class CollisionAvoidanceData(ConstraintData):
 
     def _finish_with_coal(self, packed: int, arguments: tuple[Any, ...], dt: float) -> None:
         """After a kernel call that left pairs to coal: measure them, then every row."""
-        distances, pairs, kernels = self.distances, self.pairs, self.distances._kernels
+        distances, pairs, kernels = self.distances, self._pairs, self.distances._kernels
         settings = self.constraint._settings
         jacobians_t, G, h = arguments[3], arguments[11], arguments[12]
-        pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
+        pairs.count = self._counts[0] = distances.finish_with_coal(pairs, packed, jacobians_t)
         kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
-        self.corners = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
+        self._counts[1] = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
                                            self.corner_pair, distances._scratch)
@@ -269,3 +303,31 @@ class CollisionAvoidanceData(ConstraintData):
         active = self.active_labels()
         active += [f"{active[i]} corner" for i in self.corner_pair[:self.corners].tolist()]
         return active + [f"row {i} (no pair)" for i in range(len(active), self.n_inequalities)]
+
+
+def compiled_pairs_only(distances: Distances) -> bool:
+    """Whether every candidate pair of ``distances`` has a compiled distance at every configuration
+    (:func:`wbc.collision.kernels.pair_distance`), so that a tick never needs coal: no shape of kind
+    ``COAL`` (cylinder, mesh), no two boxes (coal measures their overlap), no two planes."""
+    kinds = distances.table[:, KIND][distances.pairs[:, [PAIR_A, PAIR_B]]]
+    return not ((kinds == COAL).any() or ((kinds[:, 0] == kinds[:, 1]) & ((kinds[:, 0] == BOX)
+                                                                        | (kinds[:, 0] == PLANE))).any())
+
+
+@functools.cache
+def avoidance_op() -> CompiledOp:
+    """The op of the tick program that computes a :class:`CollisionAvoidance`'s rows
+    (:func:`wbc.collision.kernels.avoidance_op`): compiled once per process, when a controller first
+    uses it."""
+    from ..runtime.compiled_op import CompiledOp
+    from . import kernels
+
+    return CompiledOp("COLLISION_AVOIDANCE", kernels.avoidance_op, (
+        ("table", ("shapes", ROW)), ("pairs", ("candidates", PAIR_COLUMNS), "int64"), ("placements", ("joints", 12)),
+        ("jacobians_t", ("nv", 6)), ("support", ("joints", "nv")), ("world", ("shapes", kernels.POSE_COLUMNS)),
+        ("index", ("capacity + pending",), "int64"), ("distance", ("capacity",)), ("points", (3, "capacity", 3)),
+        ("rows", ("capacity", "nv")), ("scratch", (_SCRATCH,)), ("G", ("inequalities", "nv")),
+        ("h", ("inequalities",)), ("settings", (3,)), ("tick", (2,)), ("corner_slot", ("corners",), "int64"),
+        ("counts", (2,), "int64"), ("shapes", None), ("candidates", None), ("joints", None), ("nv", None),
+        ("capacity", None), ("pending", None), ("inequalities", None), ("corners", None)),
+        checks=("capacity >= 1", "pending >= candidates", "pending >= 1", "inequalities == capacity + corners"))

@@ -41,6 +41,11 @@ class RowBraking:
         """Read the acceleration bounds of ``context``'s controller (its damper rows' data calls this)."""
         self._context = context
 
+    @property
+    def active(self) -> bool:
+        """Whether the controller has acceleration bounds (known once its items are bound)."""
+        return self._context is not None and self._context.braking is not None
+
     def apply(self, q: NDArray[np.float64], G: NDArray[np.float64], h: NDArray[np.float64], gain: float,
               dt: float, count: int | None = None) -> None:
         """Cap ``h`` (rows ``G``, ``G = -g``; at most ``rows``; only the first ``count`` when given)

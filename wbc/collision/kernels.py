@@ -783,3 +783,17 @@ def distance_of(table, world, a, b, out, scratch):
 def bound_of(table, world, a, b):
     """:func:`bound_distance`, compiled for the tests."""
     return bound_distance(table, world, a, b)
+
+
+@njit(cache=CACHE, nogil=True)
+def avoidance_op(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch, G, h,
+                 settings, tick, corner_slot, counts, shapes, candidates, joints, nv, capacity, pending, inequalities,
+                 corners, dt):
+    """:func:`avoidance_rows` as an op of the tick program (:class:`wbc.runtime.compiled_op.CompiledOp`,
+    declared by :func:`wbc.collision.avoidance.avoidance_op`): ``dt`` into ``tick``, then (the entries,
+    the corner rows) into ``counts``. Only for pairs that all have a compiled distance (the op is not
+    used otherwise), so nothing is left for coal. The int operands size the arrays only."""
+    tick[DT] = dt
+    packed, corner_rows_written = avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
+                                                 distance, points, rows, scratch, G, h, settings, tick, corner_slot)
+    counts[0], counts[1] = packed, corner_rows_written
