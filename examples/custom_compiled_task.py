@@ -10,8 +10,9 @@ The arithmetic is one ``@njit`` kernel, declared as a :class:`wbc.runtime.compil
 controller's tick program, in the same native call as wbc's own items: the data's
 ``add_ops`` registers it with the task's settings and the controller's buffers (checked
 against the declaration there, when the controller is built), and it writes its rows
-straight into the controller's task stack. The op is compiled once per process, when this
-module is imported (~0.5 s). See docs/extending.md.
+straight into the controller's task stack. The op is compiled when this module is imported:
+in every process (~1 s) when it runs as a script; imported as a module, its callback is cached
+by numba (see docs/extending.md).
 
 Run: ``python examples/custom_compiled_task.py``
 """
