@@ -21,13 +21,13 @@ Array operands are C-contiguous float64, or int64 when declared ``(name, shape, 
 is built, exactly as for wbc's ops, so a wrong operand raises there and never reaches the
 kernel. The op is compiled here into a C callback (a numba ``cfunc`` generated from the
 declaration, which unpacks the operands and calls the kernel); the program calls it
-through its address, when the op is created, never in a tick. When the kernel is a module-level
-function of an importable module (not ``__main__``), the callback's source is written to a file in numba's cache
-directory for that module and the callback is cached like wbc's own (loaded in ~10 ms by later
-processes; its key: the callback's source, whose header holds a hash of every ``*.py`` file of the
-kernel's folder and numba's version, so an edit there recompiles it -- callees in other folders
-are not part of the key, as with numba's own cache); otherwise it is compiled in memory in every
-process (~1 s).
+through its address, when the op is created, never in a tick. When the kernel is a
+module-level function of an imported module (not ``__main__``, not a file run by
+``runpy.run_path``), the callback's source is written to a file in numba's cache directory for
+that module and the callback is cached like wbc's own (~16 ms to load in later processes; its key:
+the callback's source, whose header holds a hash of every ``*.py`` file of the kernel's folder and
+numba's version, so an edit there recompiles it -- callees in other folders are not part of the
+key, as with numba's own cache); otherwise it is compiled in memory in every process (~1 s).
 """
 
 from __future__ import annotations
@@ -83,7 +83,8 @@ class CompiledOp:
         directory of the kernel's module when the kernel can be imported by name, else in memory."""
         function = getattr(self.kernel, "py_func", self.kernel)
         module_name, name = str(getattr(function, "__module__", "")), str(getattr(function, "__name__", ""))
-        source_file = _source_file(function) if module_name in sys.modules and module_name != "__main__" else None
+        named = module_name != "__main__" and all(part.isidentifier() for part in module_name.split("."))
+        source_file = _source_file(function) if named and module_name in sys.modules else None
         importable = source_file is not None and getattr(sys.modules[module_name], name, None) is self.kernel
         directory = _cache.cache_dir(Path(source_file)) if importable and source_file is not None else None
         stamp = (_cache.source_stamp(Path(source_file).parent, numba.__version__)
