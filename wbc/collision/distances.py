@@ -30,7 +30,7 @@ from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
 #: floats of scratch space the kernels use
-_SCRATCH = 64
+_SCRATCH = 96
 #: coal's GJK tolerance on the coal path [m]
 COAL_GJK_TOLERANCE = 1e-9
 

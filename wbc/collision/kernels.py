@@ -307,35 +307,91 @@ def _flip(out):
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
+def _box_edge(world, src, axis, corner, half):
+    """Edge ``corner`` (0..3) along ``axis`` of box ``src`` (half extents ``half``): its middle c and
+    half-vector u (world), the edge from c - u to c + u."""
+    j, k = (axis + 1) % 3, (axis + 2) % 3
+    local_j = half[j] * (1.0 if corner & 1 else -1.0)
+    local_k = half[k] * (1.0 if corner & 2 else -1.0)
+    cx = world[src, 9] + world[src, j] * local_j + world[src, k] * local_k
+    cy = world[src, 10] + world[src, 3 + j] * local_j + world[src, 3 + k] * local_k
+    cz = world[src, 11] + world[src, 6 + j] * local_j + world[src, 6 + k] * local_k
+    return (cx, cy, cz, world[src, axis] * half[axis], world[src, 3 + axis] * half[axis],
+            world[src, 6 + axis] * half[axis])
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _edge_bound(x, y, z, ux, uy, uz, hx, hy, hz):
+    """A lower bound of the distance of the box ``|x_i| <= h_i`` to the edge of middle m = (x, y,
+    z) and half-vector u (both in the box's frame): the box's signed distance f is convex, so along
+    the edge ``f(m + s u) >= f(m) + s g . u >= f(m) - |g . u|`` with g a subgradient of f at m (the
+    unit vector from the box to m outside, the normal of the nearest face inside): nearly f(m) for
+    an edge across g, f(m) - |u| at worst."""
+    ex, ey, ez = abs(x) - hx, abs(y) - hy, abs(z) - hz
+    if ex <= 0.0 and ey <= 0.0 and ez <= 0.0:  # inside: f = the largest e_i, g = that face's normal
+        if ex >= ey and ex >= ez:
+            return ex - abs(ux)
+        return ey - abs(uy) if ey >= ez else ez - abs(uz)
+    ex, ey, ez = max(ex, 0.0), max(ey, 0.0), max(ez, 0.0)
+    f = math.sqrt(ex * ex + ey * ey + ez * ez)  # > 0; g_i = (|x_i| - h_i)+ sign(x_i) / f
+    along = ex * (ux if x >= 0.0 else -ux) + ey * (uy if y >= 0.0 else -uy) + ez * (uz if z >= 0.0 else -uz)
+    return f - abs(along) / f
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
 def box_box(table, world, a, b, out, scratch):
     """Two boxes that do not overlap: ``out`` as in :func:`segment_segment`, False when they
     overlap (coal measures the penetration). The closest points of two disjoint convex polytopes
     include a point on an edge of one of them (vertex-face, edge-edge; a face-face contact
     contains an edge's point too), so the distance is the smallest of the 24 edge-to-box
-    distances (:func:`box_segment` with radius 0, exact). ``scratch``: >= 42 floats."""
-    best = np.inf
-    edge = scratch[32:42]
-    for which in range(2):
+    distances (:func:`box_segment` with radius 0, exact). Best first: every edge's lower bound
+    (:func:`_edge_bound`, in the other box's frame) into ``scratch[64:88]``, then the edges in increasing order of
+    their bounds, measured (~0.1 us each) until the next bound is not below the best distance (on
+    the youBot's platform against a crate 1 to 3 of the 24); at a tie the edge measured first
+    gives the witness points. ``scratch``: >= 96 floats."""
+    edge, bounds, frame = scratch[32:42], scratch[64:88], scratch[88:96]
+    for which in range(2):  # the edges of src (a, then b) in the frame of box: M = R_box^T R_src, t
         src, box = (a, b) if which == 0 else (b, a)
+        for r in range(3):
+            for col in range(3):
+                frame[3 * r + col] = (world[box, r] * world[src, col] + world[box, 3 + r] * world[src, 3 + col]
+                                      + world[box, 6 + r] * world[src, 6 + col])
+        dx, dy, dz = world[src, 9] - world[box, 9], world[src, 10] - world[box, 10], world[src, 11] - world[box, 11]
+        tx = world[box, 0] * dx + world[box, 3] * dy + world[box, 6] * dz
+        ty = world[box, 1] * dx + world[box, 4] * dy + world[box, 7] * dz
+        tz = world[box, 2] * dx + world[box, 5] * dy + world[box, 8] * dz
+        hx, hy, hz = table[box, _HX], table[box, _HX + 1], table[box, _HX + 2]
         for axis in range(3):
             j, k = (axis + 1) % 3, (axis + 2) % 3
+            half, half_j, half_k = table[src, _HX + axis], table[src, _HX + j], table[src, _HX + k]
+            ux, uy, uz = frame[axis] * half, frame[3 + axis] * half, frame[6 + axis] * half
             for corner in range(4):
-                local_j = table[src, _HX + j] * (1.0 if corner & 1 else -1.0)
-                local_k = table[src, _HX + k] * (1.0 if corner & 2 else -1.0)
-                half = table[src, _HX + axis]
-                # the edge's middle c and half-vector u (world): ends c - u, c + u
-                cx = world[src, 9] + world[src, j] * local_j + world[src, k] * local_k
-                cy = world[src, 10] + world[src, 3 + j] * local_j + world[src, 3 + k] * local_k
-                cz = world[src, 11] + world[src, 6 + j] * local_j + world[src, 6 + k] * local_k
-                ux, uy, uz = world[src, axis] * half, world[src, 3 + axis] * half, world[src, 6 + axis] * half
-                p = (cx - ux, cy - uy, cz - uz, cx + ux, cy + uy, cz + uz)
-                box_segment(table, world, box, p, 0.0, edge, scratch)  # (d, on box, on edge, box -> edge)
-                if edge[0] < best:
-                    best = edge[0]
-                    for m in range(10):
-                        out[m] = edge[m]
-                    if which == 0:  # the edge is on a: make it (d, w_a, w_b, a -> b)
-                        _flip(out)
+                lj = half_j if corner & 1 else -half_j
+                lk = half_k if corner & 2 else -half_k
+                bounds[12 * which + 4 * axis + corner] = _edge_bound(
+                    tx + frame[j] * lj + frame[k] * lk, ty + frame[3 + j] * lj + frame[3 + k] * lk,
+                    tz + frame[6 + j] * lj + frame[6 + k] * lk, ux, uy, uz, hx, hy, hz)
+    best = np.inf
+    for _ in range(24):
+        index, bound = -1, best
+        for k in range(24):
+            if bounds[k] < bound:
+                index, bound = k, bounds[k]
+        if index < 0:  # no edge left whose bound is below the best distance
+            break
+        bounds[index] = np.inf  # measured
+        which, axis, corner = index // 12, (index // 4) % 3, index % 4
+        src, box = (a, b) if which == 0 else (b, a)
+        half = (table[src, _HX], table[src, _HX + 1], table[src, _HX + 2])
+        c = _box_edge(world, src, axis, corner, half)
+        p = (c[0] - c[3], c[1] - c[4], c[2] - c[5], c[0] + c[3], c[1] + c[4], c[2] + c[5])
+        box_segment(table, world, box, p, 0.0, edge, scratch)  # (d, on box, on edge, box -> edge)
+        if edge[0] < best:
+            best = edge[0]
+            for m in range(10):
+                out[m] = edge[m]
+            if which == 0:  # the edge is on a: make it (d, w_a, w_b, a -> b)
+                _flip(out)
     return best > 0.0
 
 
