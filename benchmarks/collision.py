@@ -1,6 +1,7 @@
 """Cost of collision avoidance: the youBot tick with self-collision and 10 obstacles vs without.
 
     python -m benchmarks.collision [tasks/youbot_circle.toml] [--repeats 5] [--ticks 2000]
+    python -m benchmarks.collision --reference PATH   # against another checkout's plain tick
 
 The scenario's controller ("today") and the same stack plus ``wbc.CollisionAvoidance`` (self-
 collision and 10 spheres/boxes whose centres lie 0.5-0.85 m from the platform's centre, seeded;
@@ -10,11 +11,20 @@ reports the medians and the mean number of pairs within the detection distance p
 summary the median ratio over the repeats with its spread (min-max), for wbc (collision / today)
 and, with ``--mink``, for mink (its ``CollisionAvoidanceLimit`` on the same scene / mink without
 it) and mink's collision tick over wbc's.
+
+``--reference PATH`` (a checkout of wbc, e.g. ``git worktree add --detach /tmp/ref b826357``, the
+last commit before collision avoidance, the "today" of the issue that asked for it) also times, in
+fresh processes alternating in order, that checkout's plain tick and this checkout's collision
+tick, each along its own closed loop, and prints their ratio: the cost of collision avoidance
+against a fixed tick rather than against today's, which gets faster.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -121,6 +131,59 @@ def measure(scenario: Scenario, ticks: int, with_mink: bool) -> tuple[dict[str, 
     return times, close / ticks, rows
 
 
+#: one process's median tick [us] along its own closed loop: argv = scenario, "plain" or "collision", ticks,
+#: warm-up; runs with the wbc of PYTHONPATH (any checkout since 2026-11-25: wbc.scenario before wbc.app)
+_OWN_LOOP = """
+import sys, time
+import numpy as np
+import wbc
+try:
+    from wbc.app.scenario import load_scenario
+except ImportError:
+    from wbc.scenario import load_scenario
+scenario = load_scenario(sys.argv[1])
+constraints = list(scenario.constraints)
+if sys.argv[2] == "collision":
+    from benchmarks.collision import obstacles
+    constraints.append(wbc.CollisionAvoidance(obstacles(), self_collision=True))
+controller = wbc.Controller(scenario.robot, scenario.tasks, constraints, solver=scenario.solver, dt=scenario.dt,
+                            damping=scenario.damping, reduced=scenario.reduced)
+ticks, warmup = int(sys.argv[3]), int(sys.argv[4])
+times, q = np.zeros(ticks), scenario.q0.copy()
+for k in range(ticks):
+    pose, twist = scenario.reference(k * scenario.dt)
+    scenario.reference_task.set_target(pose, twist)
+    start = time.perf_counter()
+    v = controller.step(q)
+    times[k] = time.perf_counter() - start
+    q = scenario.robot.integrate(q, v, scenario.dt)
+print(float(np.median(times[warmup:])) * 1e6)
+"""
+
+
+def own_loop(checkout: Path, scenario: str, kind: str, ticks: int, warmup: int) -> float:
+    """Median tick [us] of ``kind`` ("plain" or "collision") along its own closed loop, in a fresh
+    process running the wbc of ``checkout``."""
+    env = {**os.environ, "PYTHONPATH": str(checkout)}
+    result = subprocess.run([sys.executable, "-c", _OWN_LOOP, scenario, kind, str(ticks), str(warmup)], env=env,
+                            cwd=checkout, capture_output=True, text=True, check=True)
+    return float(result.stdout.split()[-1])
+
+
+def reference_ratios(reference: Path, scenario: str, repeats: int, ticks: int, warmup: int) -> list[float]:
+    """This checkout's collision tick over ``reference``'s plain tick, one ratio per repeat (the two
+    processes alternate in order)."""
+    ratios = []
+    for repeat in range(repeats):
+        runs = [(reference, "plain"), (ROOT, "collision")]
+        medians = {kind: own_loop(checkout, scenario, kind, ticks, warmup)
+                   for checkout, kind in (runs if repeat % 2 == 0 else runs[::-1])}
+        ratios.append(medians["collision"] / medians["plain"])
+        print(f"reference repeat {repeat + 1}: {reference.name} plain {medians['plain']:.1f} µs, this checkout's "
+              f"collision {medians['collision']:.1f} µs")
+    return ratios
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("scenario", nargs="?", default=str(ROOT / "tasks" / "youbot_circle.toml"))
@@ -128,6 +191,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--ticks", type=int, default=2000, help="ticks per repeat (default 2000)")
     parser.add_argument("--warmup", type=int, default=200, help="first ticks of each repeat left out (default 200)")
     parser.add_argument("--mink", action="store_true", help="also time mink without and with CollisionAvoidanceLimit")
+    parser.add_argument("--reference", type=Path, help="a wbc checkout whose plain tick the collision tick is also "
+                        "compared with, each in its own processes")
     args = parser.parse_args(argv)
     scenario = load_scenario(args.scenario)
     print(f"{scenario.name}: {args.repeats} repeats x {args.ticks} ticks, first {args.warmup} left out; "
@@ -152,6 +217,11 @@ def main(argv: list[str] | None = None) -> int:
               f"max {max(values):.2f})")
     if not args.mink:
         print("  mink: not measured (add --mink for mink's CollisionAvoidanceLimit on the same scene)")
+    if args.reference is not None:
+        values = reference_ratios(args.reference.resolve(), str(Path(args.scenario).resolve()), args.repeats,
+                                  args.ticks, args.warmup)
+        print(f"  wbc: median ratio collision / {args.reference.name}'s plain tick (own processes and loops): "
+              f"{np.median(values):.2f} (min {min(values):.2f}, max {max(values):.2f})")
     return 0
 
 

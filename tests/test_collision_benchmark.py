@@ -21,3 +21,13 @@ def test_the_benchmark_runs(capsys):
     out = capsys.readouterr().out
     assert "median ratio collision / today" in out and "median ratio mink collision / mink" in out
     assert "median ratio mink collision / wbc collision" in out
+
+
+def test_the_reference_comparison_runs_each_side_in_its_own_process(capsys):
+    """``--reference``: this checkout as its own reference (its plain tick in a fresh process)."""
+    assert collision.main(["--repeats", "1", "--ticks", "20", "--warmup", "5", "--reference",
+                           str(collision.ROOT)]) == 0
+    out = capsys.readouterr().out
+    assert "plain" in out and "median ratio collision / " in out
+    ratio = float(out.rsplit("(own processes and loops): ", 1)[1].split()[0])
+    assert ratio > 0.0
