@@ -202,20 +202,21 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     if k > n:
         return -1.0
     d = n - k
-    start = n * n + n
-    H, c = data[:n * n].reshape((n, n)), data[n * n:start]
-    C = data[start:start + (m - n) * n].reshape((m - n, n))
-    upper = data[start + (m - n) * n:start + (m - n) * n + m]
-    lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
-    scale, index, perm, w, g, mu, r = kkt[0], kkt[1], kkt[2], kkt[3], kkt[4], kkt[5], kkt[6]
-    Z, HZ, R = kkt[7:7 + d], kkt[7 + d:7 + 2 * d], kkt[7 + 2 * d:7 + 3 * d]
+    # data indexed flat (no reshaped views: numba's reshape calls a runtime helper): H (n x n), c, C ((m - n) x n:
+    # constraint i >= n at n * n + n + (i - n) n = n + i n), upper, lower (m each)
+    upper = n * n + n + (m - n) * n
+    lower = upper + m
+    # kkt's rows indexed in kkt (a view of each row costs as much as the work on it): 0 scale, 1 index, 2 perm,
+    # 3 w, 4 g, 5 mu, 6 r (a view: the triangular solves take it), Z from 7, H Z from 7 + d, R (a view) from 7 + 2d
+    z, hz = 7, 7 + d
+    r, R = kkt[6], kkt[7 + 2 * d:7 + 3 * d]
     j = 0
     for i in range(m):  # Â^T in lu's first k columns, D b_W in w
         state = sense[i]
         if state & DAQP_SENSE_ACTIVE:
             largest = 0.0
             for a in range(n):
-                value = C[i - n, a] if i >= n else (1.0 if a == i else 0.0)
+                value = data[n + i * n + a] if i >= n else (1.0 if a == i else 0.0)
                 lu[a, j] = value
                 largest = max(largest, abs(value))
             if not largest > 0.0:
@@ -223,12 +224,12 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
             inverse = 1.0 / largest
             for a in range(n):
                 lu[a, j] *= inverse
-            w[j] = (lower[i] if state & DAQP_SENSE_LOWER else upper[i]) * inverse
-            scale[j] = inverse
-            index[j] = i
+            kkt[3, j] = data[(lower if state & DAQP_SENSE_LOWER else upper) + i] * inverse
+            kkt[0, j] = inverse
+            kkt[1, j] = i
             j += 1
     for a in range(n):
-        perm[a] = a
+        kkt[2, a] = a
     for col in range(k):  # Â^T = P L U in place, the variables swapped along
         pivot, best = col, abs(lu[col, col])
         for row in range(col + 1, n):
@@ -239,7 +240,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
         if pivot != col:
             for a in range(k):
                 lu[col, a], lu[pivot, a] = lu[pivot, a], lu[col, a]
-            perm[col], perm[pivot] = perm[pivot], perm[col]
+            kkt[2, col], kkt[2, pivot] = kkt[2, pivot], kkt[2, col]
         inverse = 1.0 / lu[col, col]
         lu[col, col] = inverse
         for row in range(col + 1, n):
@@ -248,17 +249,17 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
             for a in range(col + 1, k):
                 lu[row, a] -= factor * lu[col, a]
     for a in range(k):  # w = U^-T D b_W
-        total = w[a]
+        total = kkt[3, a]
         for p in range(a):
-            total -= lu[p, a] * w[p]
-        w[a] = total * lu[a, a]
+            total -= lu[p, a] * kkt[3, p]
+        kkt[3, a] = total * lu[a, a]
     for a in range(k - 1, -1, -1):  # y1 = L1^-T w (in w), x_p = P (y1, 0)
-        total = w[a]
+        total = kkt[3, a]
         for p in range(a + 1, k):
-            total -= lu[p, a] * w[p]
-        w[a] = total
+            total -= lu[p, a] * kkt[3, p]
+        kkt[3, a] = total
     for a in range(n):
-        x[int(perm[a])] = w[a] if a < k else 0.0
+        x[int(kkt[2, a])] = kkt[3, a] if a < k else 0.0
     for t in range(d):  # Z's column t: P (-L1^-T (row k + t of L2), e_t)
         for a in range(k):
             r[a] = lu[k + t, a]
@@ -267,28 +268,27 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
             for p in range(a + 1, k):
                 total -= lu[p, a] * r[p]
             r[a] = total
-        column = Z[t]
         for a in range(n):
-            column[int(perm[a])] = -r[a] if a < k else (1.0 if a == k + t else 0.0)
+            kkt[z + t, int(kkt[2, a])] = -r[a] if a < k else (1.0 if a == k + t else 0.0)
     for a in range(n):  # g = H x_p + c, HZ = H Z
-        total = c[a]
+        total = data[n * n + a]
         for p in range(n):
-            total += H[a, p] * x[p]
-        g[a] = total
+            total += data[a * n + p] * x[p]
+        kkt[4, a] = total
         for t in range(d):
             total = 0.0
             for p in range(n):
-                total += H[a, p] * Z[t, p]
-            HZ[t, a] = total
+                total += data[a * n + p] * kkt[z + t, p]
+            kkt[hz + t, a] = total
     for t in range(d):  # Z^T H Z (lower triangle), -Z^T g
         total = 0.0
         for a in range(n):
-            total -= Z[t, a] * g[a]
+            total -= kkt[z + t, a] * kkt[4, a]
         r[t] = total
         for s in range(t + 1):
             total = 0.0
             for a in range(n):
-                total += Z[t, a] * HZ[s, a]
+                total += kkt[z + t, a] * kkt[hz + s, a]
             R[t, s] = total
     if not _reciprocal_cholesky(R, R, d, 0.0):
         return -1.0
@@ -297,23 +297,23 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     for t in range(d):
         step = r[t]
         for a in range(n):
-            x[a] += Z[t, a] * step
-            g[a] += HZ[t, a] * step
+            x[a] += kkt[z + t, a] * step
+            kkt[4, a] += kkt[hz + t, a] * step
     for a in range(k):  # D^-1 lam_W = -U^-1 L1^-1 (P^T g)_1
-        total = -g[int(perm[a])]
+        total = -kkt[4, int(kkt[2, a])]
         for p in range(a):
-            total -= lu[a, p] * mu[p]
-        mu[a] = total
+            total -= lu[a, p] * kkt[5, p]
+        kkt[5, a] = total
     for a in range(k - 1, -1, -1):
-        total = mu[a]
+        total = kkt[5, a]
         for p in range(a + 1, k):
-            total -= lu[a, p] * mu[p]
-        mu[a] = total * lu[a, a]
+            total -= lu[a, p] * kkt[5, p]
+        kkt[5, a] = total * lu[a, a]
     for i in range(m):
         lam[i] = 0.0
     for j in range(k):  # the multipliers: the sign of their side (lam then holds scratch when not)
-        i = int(index[j])
-        value = mu[j] * scale[j]
+        i = int(kkt[1, j])
+        value = kkt[5, j] * kkt[0, j]
         if not sense[i] & DAQP_SENSE_IMMUTABLE and (value > 0.0 if sense[i] & DAQP_SENSE_LOWER else value < 0.0):
             return -1.0
         lam[i] = value
