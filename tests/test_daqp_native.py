@@ -212,8 +212,9 @@ def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.nda
 def test_the_working_set_try_refuses_what_is_not_an_answer():
     """The try of a working set returns -1 (DAQP then solves) for a set whose multipliers have
     the wrong sign, whose minimiser violates another constraint, with two copies of one row
-    (dependent: S singular), with a bit it does not know (soft), or on a semidefinite H; and
-    the right set gives the binding's answer."""
+    (dependent: a zero pivot), with a bit it does not know (soft), or where H is only
+    semidefinite on the set (the reduced Hessian singular); and the right set gives the
+    binding's answer."""
     qp = QP(3, 2, 0)
     qp.H[...] = np.diag([1.0, 2.0, 3.0])
     qp.c[...] = [-4.0, 0.0, 0.0]  # the unconstrained minimiser x = (4, 0, 0)
@@ -263,7 +264,7 @@ def _vertex_qp(rng: np.random.Generator, n: int, lower_side: np.ndarray) -> tupl
 
 
 def test_a_working_set_of_n_constraints_is_solved_by_one_lu(rng):
-    """A working set that pins x (n independent active constraints, :func:`native_qp._vertex_answer`)
+    """A working set that pins x (n independent active constraints, :func:`native_qp._working_set_answer`)
     gives x* and lam* of the KKT conditions written out, the binding's answer and its defect; a
     warm workspace then answers it without DAQP (0 iterations) after a small change of c."""
     library = daqp_probe.native()

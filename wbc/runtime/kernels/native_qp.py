@@ -180,7 +180,8 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
 
     x is the QP's answer when it is primal feasible (defect at most :data:`WORKING_SET_DEFECT`)
     and dual feasible (``lam >= 0`` on an upper side, ``<= 0`` on a lower side -- DAQP's sign
-    convention -- any sign on an equality row): the KKT conditions of a convex QP. -1 also when a
+    convention -- any sign on an equality row): the KKT conditions of a convex QP (H is not
+    factorised, so not checked: a level's H is a sum of squares plus damping). -1 also when a
     state holds another bit (soft, binary, ...), the set holds more than n constraints or
     dependent ones (a zero row, a pivot of ``Â^T`` at most :data:`WORKING_SET_LU_PIVOT`), or the
     reduced Hessian is not positive definite: DAQP then solves.
