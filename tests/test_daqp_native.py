@@ -204,7 +204,7 @@ def test_the_last_working_set_answers_when_it_is_still_optimal(rng):
 
 def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
     n = qp.n
-    x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((3 * n + 2, n))
+    x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((4 * n + 7, n))
     defect = native_qp._working_set_answer(qp.data, sense.astype(np.int32), x, scratch[:n], lam, scratch[n:])
     return defect, x, lam
 
@@ -212,8 +212,9 @@ def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.nda
 def test_the_working_set_try_refuses_what_is_not_an_answer():
     """The try of a working set returns -1 (DAQP then solves) for a set whose multipliers have
     the wrong sign, whose minimiser violates another constraint, with two copies of one row
-    (dependent: S singular), with a bit it does not know (soft), or on a semidefinite H; and
-    the right set gives the binding's answer."""
+    (dependent: a zero pivot), with a bit it does not know (soft), or where H is only
+    semidefinite on the set (the reduced Hessian singular); and the right set gives the
+    binding's answer."""
     qp = QP(3, 2, 0)
     qp.H[...] = np.diag([1.0, 2.0, 3.0])
     qp.c[...] = [-4.0, 0.0, 0.0]  # the unconstrained minimiser x = (4, 0, 0)
@@ -263,7 +264,7 @@ def _vertex_qp(rng: np.random.Generator, n: int, lower_side: np.ndarray) -> tupl
 
 
 def test_a_working_set_of_n_constraints_is_solved_by_one_lu(rng):
-    """A working set that pins x (n independent active constraints, :func:`native_qp._vertex_answer`)
+    """A working set that pins x (n independent active constraints, :func:`native_qp._working_set_answer`)
     gives x* and lam* of the KKT conditions written out, the binding's answer and its defect; a
     warm workspace then answers it without DAQP (0 iterations) after a small change of c."""
     library = daqp_probe.native()
@@ -285,6 +286,59 @@ def test_a_working_set_of_n_constraints_is_solved_by_one_lu(rng):
                 assert workspace.solve()[0] == 1 and workspace.iterations == 0
                 np.testing.assert_allclose(workspace.x, binding_answer(qp)[0], rtol=0, atol=1e-8)
                 assert_kkt(qp, workspace.x, workspace.lam)
+
+
+def test_a_working_set_of_fewer_than_n_constraints_gives_the_kkt_point(rng):
+    """A working set of k < n constraints (bounds, rows on either side, equality rows; the
+    null-space method of :func:`native_qp._working_set_answer`) gives the x* and lam* of the KKT
+    conditions written out (``c = -H x* - A_W^T lam*``, the other constraints slack) and
+    quadprog's answer (a second solver, through qpsolvers); with one multiplier's sign turned
+    round it refuses (-1)."""
+    qpsolvers = pytest.importorskip("qpsolvers")
+    for n in (2, 5, 8, 9):
+        for _ in range(10):
+            k, e = int(rng.integers(0, n)), int(rng.integers(0, 2))
+            e = min(e, k)
+            bounds = int(rng.integers(0, k - e + 1))
+            qp = QP(n, k - e - bounds + 2, e)
+            fill_random(rng, qp)
+            qp.C[...] *= 10.0 ** rng.uniform(-1.0, 1.0, (qp.C.shape[0], 1))
+            qp.sync_equalities()
+            x_star = rng.uniform(-0.5, 0.5, n)
+            values = np.concatenate([x_star, qp.C @ x_star])
+            qp.upper[...], qp.lower[...] = values + 1.0, values - 1.0
+            m = qp.upper.size
+            active = [*rng.choice(n, bounds, replace=False), *range(n, n + k - e - bounds), *range(m - e, m)]
+            sense = np.zeros(m, dtype=np.int32)
+            lam_star = np.zeros(m)
+            for i in active:
+                equality, lower = i >= m - e, bool(rng.random() < 0.5)
+                sense[i] = kernels.DAQP_SENSE_ACTIVE | (kernels.DAQP_SENSE_IMMUTABLE if equality else 0)
+                if equality:
+                    qp.upper[i] = qp.lower[i] = values[i]
+                    lam_star[i] = rng.uniform(-2.0, 2.0)
+                else:
+                    sense[i] |= kernels.DAQP_SENSE_LOWER if lower else 0
+                    (qp.lower if lower else qp.upper)[i] = values[i]
+                    lam_star[i] = rng.uniform(0.1, 2.0) * (-1.0 if lower else 1.0)
+            qp.c[...] = -qp.H @ x_star - lam_star[:n] - qp.C.T @ lam_star[n:]
+            defect, x, lam = _kernel_answer(qp, sense)
+            assert 0.0 <= defect == kernels.qp_defect(qp.data, x) <= 1e-9
+            np.testing.assert_allclose(x, x_star, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(lam, lam_star, rtol=1e-7, atol=1e-8)
+            assert_kkt(qp, x, lam)
+            p = qp.n_ineq
+            reference = qpsolvers.solve_qp(qp.H, qp.c, np.vstack([qp.C[:p], -qp.C[:p]]),
+                                           np.concatenate([qp.upper[n:n + p], -qp.lower[n:n + p]]),
+                                           qp.C[p:], qp.upper[n + p:], qp.lower[:n], qp.upper[:n], solver="quadprog")
+            np.testing.assert_allclose(x, reference, rtol=0, atol=1e-7)
+            inequalities = [i for i in active if i < m - e]
+            if inequalities:
+                i = inequalities[0]
+                flipped = sense.copy()
+                flipped[i] ^= kernels.DAQP_SENSE_LOWER  # the other side, at the same value: the sign is wrong
+                qp.upper[i] = qp.lower[i] = values[i]
+                assert _kernel_answer(qp, flipped)[0] == -1.0
 
 
 def test_a_working_set_of_n_constraints_refuses_what_is_not_an_answer(rng):

@@ -235,6 +235,40 @@ def test_a_level_infeasible_alone_takes_its_least_squares_optimum(solver):
     assert checked >= 3, "most draws must make level 0 infeasible alone"
 
 
+def test_four_levels_under_active_bounds_match_the_brute_force_cascade():
+    """PUMA 560, four levels in the tick program (native DAQP): the wrist centre asked faster
+    than the joint speed limits allow, then postures of joints 1-2, of joint 3 and of every
+    joint (their rows pin v at the last level). Levels below the second get the controller's
+    limits and the bands of the levels above copied from the level above them
+    (Hierarchy._add_level_copy); against the brute-force cascade written out."""
+    robot = wbc.load_robot("puma560")
+    rng = np.random.default_rng(11)
+    solved = 0
+    for _ in range(6):
+        q = rng.uniform(-1.0, 1.0, 6) + np.array([0, -0.5, 0.5, 0, 0.8, 0])
+        goal = robot.frame_pose(q, "wrist_center")[:3, 3] + rng.uniform(-0.3, 0.3, 3)
+        targets = [q + rng.uniform(-1, 1, 6) for _ in range(3)]
+        wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=0.5)
+        wrist.set_target(goal)
+        joints = [["joint_1", "joint_2"], ["joint_3"], None]
+        postures = [wbc.PostureTask(1.0, target=target, gain=0.01, joints=names)
+                    for target, names in zip(targets, joints, strict=True)]
+        controller = wbc.Controller(robot, [[wrist], *[[posture] for posture in postures]],
+                                    [wbc.JointVelocityLimits()], lm_damping=0.0)
+        assert controller._hierarchy.in_program
+        v = controller.step(q)
+        levels = [position_rows(robot, q, "wrist_center", goal, 1.0, 0.5)]
+        levels += [posture_rows(q, target, 1.0, 0.01, index) for target, index
+                   in zip(targets, [slice(0, 2), slice(2, 3), slice(0, 6)], strict=True)]
+        limit = robot.velocity_limit
+        reference, _ = brute_force_cascade(levels, -limit, limit, controller.damping)
+        assert np.isclose(np.abs(reference), limit, atol=1e-9).any(), "the test needs active bounds"
+        np.testing.assert_allclose(v, reference, rtol=0, atol=1e-6)
+        assert np.all(np.abs(v) <= limit * (1 + 1e-6))  # (DAQP's primal tolerance in the levels, main's too)
+        solved += controller.last.success
+    assert solved >= 4, "most ticks answered by the cascade itself, not the fallback"
+
+
 # ------------------------------------------------------------ mobile bases
 def deluca_setup(rng):
     robot = wbc.load_robot("deluca_mm")

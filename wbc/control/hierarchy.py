@@ -145,7 +145,9 @@ class Hierarchy:
 
     Level 0's QP is the controller's own (``buffers.qp``); level k > 0 has the same bounds
     and rows (copied by the program each tick) plus the band rows of the levels above, after the
-    inequality rows. ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
+    inequality rows. With the cascade in the program, a level below the second copies them from
+    the level above it once that level holds its bands (each band computed once per tick, not once
+    per level below). ``controller.qp`` is the last level's QP (the reduced one with ``reduced``).
     It reads the controller's :class:`~wbc.control.tick_buffers.TickBuffers`, never the controller.
     """
 
@@ -234,17 +236,6 @@ class Hierarchy:
                 b.task_stack.add_linear_op(rest, qp)
             if lm.add_task_ops(rest, stack, self._blocks[k], k):  # the error-scaled damping of the level's tasks
                 lm.add_level_op(rest, k, qp.Hc, scaling_last if k == self.count - 1 else self._upper_scaling)
-        first_qp = self.qps[0]
-        b.bounds.add_op(rest, first_qp)
-        for k, qp in enumerate(self.qps):
-            if k:
-                rest.add(kernels.LEVEL_CONSTRAINTS, source=first_qp.data, target=qp.data, n=nv,
-                         p=first_qp.n_ineq, e=first_qp.n_eq, band=qp.n_ineq - first_qp.n_ineq,
-                         source_size=first_qp.data.size, target_size=qp.data.size)
-            scaling = scaling_last if k == self.count - 1 else self._upper_scaling
-            rest.add(kernels.NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
-            screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
-            rest.add(kernels.HAS_NAN, data=screened, size=screened.size, infinite=0)
         solver = self.solver = backend.for_levels() if isinstance(backend, DaqpBackend) else backend
         self._upper_scaling[1] = 0.0 if solver.name in SEMIDEFINITE_SOLVERS else scaling_last[1]
         self._workspaces = workspaces = None
@@ -253,16 +244,37 @@ class Hierarchy:
             self._workspaces = workspaces = [w for k, qp in enumerate(self.solver_qps)
                                              if (w := solver.workspace(qp, working_set_first=k > 0)) is not None]
         self.in_program = workspaces is not None and b.reduction is None
+        first_qp = self.qps[0]
+        b.bounds.add_op(rest, first_qp)
+        for k, qp in enumerate(self.qps):
+            if k == 1 or (k and not self.in_program):  # (in the program, levels below the second: _add_level_copy)
+                self._add_level_copy(rest, first_qp, qp)
+            scaling = scaling_last if k == self.count - 1 else self._upper_scaling
+            rest.add(kernels.NORMALISE_LEVEL, Hc=qp.Hc, scaling=scaling, nv=nv)
+            screened = qp.data if k == 0 else qp.data[:nv * nv + nv]  # below: level 0's limits, copied
+            rest.add(kernels.HAS_NAN, data=screened, size=screened.size, infinite=0)
         if workspaces is not None and self.in_program:
+            # level k's solve, its band into level k + 1, then level k + 1's limits -- the controller's and the
+            # bands of levels 0..k -- copied into level k + 2, whose band rows of level k + 1 come next
             for k, workspace in enumerate(workspaces):
                 workspace.add_op(rest)
-                for j in range(k + 1, self.count):
-                    self._add_band_op(rest, k, workspace, self.qps[j])
+                if k + 1 < self.count:
+                    self._add_band_op(rest, k, workspace, self.qps[k + 1])
+                if k + 2 < self.count:
+                    self._add_level_copy(rest, self.qps[k + 1], self.qps[k + 2])
             self._native_answers: list[NDArray[np.float64] | None] = [workspace.x for workspace in workspaces]
             self._last_answer = workspaces[-1].x
             self._last_control = workspaces[-1].control
             self._upper_controls = [workspace.control for workspace in workspaces[:-1]]
         return python_preview, rest, self.solver_qps[-1], self.in_program
+
+    @staticmethod
+    def _add_level_copy(program: TickProgram, source: QP, target: QP) -> None:
+        """The bounds and rows of the level QP ``source`` into those of ``target``, a level below
+        it: the target's rows after them (its band rows of the levels in between) are left as they are."""
+        program.add(kernels.LEVEL_CONSTRAINTS, source=source.data, target=target.data, n=source.n, p=source.n_ineq,
+                    e=source.n_eq, band=target.n_ineq - source.n_ineq, source_size=source.data.size,
+                    target_size=target.data.size)
 
     def _add_band_op(self, program: TickProgram, k: int, workspace: NativeWorkspace, target: QP) -> None:
         stack, nv = self._buffers.task_stack.stack_t, self._buffers.nv

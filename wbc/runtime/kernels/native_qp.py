@@ -50,13 +50,8 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 #: answer is); far below DAQP's primal tolerance and the controller's answer check (1e-6), so
 #: DAQP, warm-started from the same set, would stop at the same point
 WORKING_SET_DEFECT = 1e-9
-#: the smallest pivot of ``S = A_W H^-1 A_W^T``, relative to its diagonal, of a working set
-#: solved directly (:func:`_working_set_answer`): below it the rows are taken as dependent
-WORKING_SET_PIVOT = 1e-10
-#: the smallest pivot of the LU factorisation of a working set of n constraints (:func:`_vertex_answer`;
-#: its rows scaled to largest entry 1): below it the rows are taken as dependent. The square root of
-#: :data:`WORKING_SET_PIVOT`: S's pivots are the squares of those of A_W (with H = I and orthogonal
-#: factorisations; LU's are of the same size)
+#: the smallest pivot of the LU factorisation of a working set's rows (:func:`_working_set_answer`;
+#: the rows scaled to largest entry 1): below it the rows are taken as dependent and DAQP solves
 WORKING_SET_LU_PIVOT = 1e-5
 
 _I8P = ir.IntType(8).as_pointer()
@@ -164,129 +159,38 @@ def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
 
 
 @njit(cache=CACHE, nogil=True)
-def _vertex_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lam: np.ndarray, lu: np.ndarray,
-                   kkt: np.ndarray) -> float:
-    """:func:`_working_set_answer` of a working set of n constraints (``A_W``: n x n), which pins x:
-    ``x = A_W^-1 b_W`` and the multipliers from stationarity ``H x + c + A_W^T lam_W = 0``, both by
-    one LU factorisation with partial pivoting of ``A_W`` -- no Cholesky of H nor of S. Each row
-    ``a_i`` (and ``b_i``) is first divided by its largest entry ``s_i``: ``A_W = D^-1 Â``, so
-    ``x = Â^-1 D b_W`` and ``lam_W = -D Â^-T (H x + c)``; a pivot of ``Â`` at most
-    :data:`WORKING_SET_LU_PIVOT` (dependent rows, a zero row) gives -1. The same checks as the
-    general case accept x: multipliers of their sides' signs and a defect at most
-    :data:`WORKING_SET_DEFECT` -- KKT conditions of a convex QP, x a vertex of its feasible set.
-
-    ``lu`` (n x n scratch): ``Â`` and its factors ``L U`` (rows swapped as pivoted; U's diagonal
-    holds the reciprocals of its pivots: the solves multiply); ``kkt`` (4 x n
-    scratch at least): row 0 the row scales ``1 / s_i``, 1 each row's constraint index, 2 ``D b_W``
-    then ``L^-1 D b_W``, 3 ``-(H x + c)`` then ``D^-1 lam_W``, all in ``lu``'s row order.
-    """
-    n, m = x.shape[0], lam.shape[0]
-    start = n * n + n
-    H, c = data[:n * n].reshape((n, n)), data[n * n:start]
-    C = data[start:start + (m - n) * n].reshape((m - n, n))
-    upper = data[start + (m - n) * n:start + (m - n) * n + m]
-    lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
-    A, scale, index, b, y = lu, kkt[0], kkt[1], kkt[2], kkt[3]
-    j = 0
-    for i in range(m):
-        state = sense[i]
-        if state & DAQP_SENSE_ACTIVE:
-            row = A[j]
-            largest = 0.0
-            for a in range(n):
-                row[a] = C[i - n, a] if i >= n else (1.0 if a == i else 0.0)
-                largest = max(largest, abs(row[a]))
-            if not largest > 0.0:
-                return -1.0
-            inverse = 1.0 / largest
-            for a in range(n):
-                row[a] *= inverse
-            b[j] = (lower[i] if state & DAQP_SENSE_LOWER else upper[i]) * inverse
-            scale[j] = inverse
-            index[j] = i
-            j += 1
-    for col in range(n):  # Â = P^T L U in place (unit L below the diagonal), the rows swapped along
-        pivot, best = col, abs(A[col, col])
-        for r in range(col + 1, n):
-            if abs(A[r, col]) > best:
-                pivot, best = r, abs(A[r, col])
-        if not best > WORKING_SET_LU_PIVOT:
-            return -1.0
-        if pivot != col:
-            for a in range(n):
-                A[col, a], A[pivot, a] = A[pivot, a], A[col, a]
-            b[col], b[pivot] = b[pivot], b[col]
-            scale[col], scale[pivot] = scale[pivot], scale[col]
-            index[col], index[pivot] = index[pivot], index[col]
-        inverse = 1.0 / A[col, col]
-        A[col, col] = inverse
-        for r in range(col + 1, n):
-            factor = A[r, col] * inverse
-            A[r, col] = factor
-            for a in range(col + 1, n):
-                A[r, a] -= factor * A[col, a]
-    for a in range(n):  # x = U^-1 L^-1 (D b_W)
-        total = b[a]
-        for p in range(a):
-            total -= A[a, p] * b[p]
-        b[a] = total
-    for a in range(n - 1, -1, -1):
-        total = b[a]
-        for p in range(a + 1, n):
-            total -= A[a, p] * x[p]
-        x[a] = total * A[a, a]
-    for a in range(n):  # y = -(H x + c), then Â^-T y = L^-T U^-T y = D^-1 lam_W
-        total = c[a]
-        for p in range(n):
-            total += H[a, p] * x[p]
-        y[a] = -total
-    for a in range(n):
-        total = y[a]
-        for p in range(a):
-            total -= A[p, a] * y[p]
-        y[a] = total * A[a, a]
-    for a in range(n - 1, -1, -1):
-        total = y[a]
-        for p in range(a + 1, n):
-            total -= A[p, a] * y[p]
-        y[a] = total
-    for i in range(m):
-        lam[i] = 0.0
-    for j in range(n):  # the multipliers: the sign of their side (lam then holds scratch when not)
-        i = int(index[j])
-        mu = y[j] * scale[j]
-        if not sense[i] & DAQP_SENSE_IMMUTABLE and (mu > 0.0 if sense[i] & DAQP_SENSE_LOWER else mu < 0.0):
-            return -1.0
-        lam[i] = mu
-    defect = qp_defect(data, x)
-    if defect > WORKING_SET_DEFECT:
-        return -1.0
-    return defect
-
-
-@njit(cache=CACHE, nogil=True)
-def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray,
+def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: np.ndarray, lam: np.ndarray,
                         kkt: np.ndarray) -> float:
     """The minimiser of the QP in ``data`` (:func:`wbc.runtime.kernels.qp_defect`'s layout) with
     the constraints of DAQP's working set ``sense`` (the last answer's active constraints) held as
     equalities, when it meets every optimality condition of the QP: then it is the QP's answer
     (``x``, multipliers ``lam``) and its defect is returned; else -1 (x and lam hold scratch).
 
-    With ``H = L L^T`` (``factor``), ``x0 = -H^-1 c`` and the k active constraints ``A_W x = b_W``
-    (a bound: a row of I; ``b`` the side DAQP marks: upper unless its LOWER bit is set), the
-    equality-constrained minimiser is ``x = x0 - H^-1 A_W^T mu``, ``S mu = A_W x0 - b_W``,
-    ``S = A_W H^-1 A_W^T = Y Y^T`` with ``Y^T = L^-1 A_W^T``. It is the QP's answer when it is
-    primal feasible (defect at most :data:`WORKING_SET_DEFECT`) and dual feasible (``mu >= 0``
-    on an upper side, ``<= 0`` on a lower side -- DAQP's sign convention for ``lam`` -- any
-    sign on an equality row): the KKT conditions of a strictly convex QP, which have one
-    solution. -1 also when H is not positive definite, a state holds another bit (soft,
-    binary, ...), the set holds more than n constraints or dependent ones (a pivot of S below
-    :data:`WORKING_SET_PIVOT` times its diagonal): DAQP then solves. A set of exactly n
-    constraints pins x: :func:`_vertex_answer` solves it without H's factor (``factor`` holds its LU).
+    A null-space method on one LU factorisation of the k active constraints ``A_W x = b_W`` (a
+    bound: a row of I; ``b`` the side DAQP marks: upper unless its LOWER bit is set). Each row
+    ``a_i`` (and ``b_i``) is first divided by its largest entry ``s_i``: ``Â = D A_W``,
+    ``D = diag(1 / s_i)``. With ``Â^T = P L U`` (partial pivoting over the n variables; ``L = [L1; L2]``,
+    L1 k x k unit lower, U k x k upper) and ``y = P^T x = (y1, y2)``, the constraints read
+    ``L1^T y1 + L2^T y2 = w``, ``w = U^-T D b_W``: ``x = x_p + Z y2`` with ``x_p = P (L1^-T w, 0)``
+    and the null space ``Z = P (-L1^-T L2^T; I)``. ``y2`` minimises the cost on it:
+    ``(Z^T H Z) y2 = -Z^T (H x_p + c)`` (Cholesky of the reduced Hessian, n - k square); the
+    multipliers come from the first k rows of stationarity ``H x + c + A_W^T lam_W = 0``:
+    ``L1 U (D^-1 lam_W) = -(P^T (H x + c))_1`` (the other n - k rows are ``Z^T (H x + c) = 0``,
+    met by y2). A set of n constraints pins x (no reduced problem); none gives ``-H^-1 c``.
 
-    ``kkt`` ((2n + 2) x n scratch): rows 0..k-1 Y, rows n..2n-1 S and its Cholesky factor, row
-    2n mu, 2n + 1 the step ``x0 - x``. The factors hold the reciprocals of their diagonals
-    (:func:`_reciprocal_cholesky`).
+    x is the QP's answer when it is primal feasible (defect at most :data:`WORKING_SET_DEFECT`)
+    and dual feasible (``lam >= 0`` on an upper side, ``<= 0`` on a lower side -- DAQP's sign
+    convention -- any sign on an equality row): the KKT conditions of a convex QP (H is not
+    factorised, so not checked: a level's H is a sum of squares plus damping). -1 also when a
+    state holds another bit (soft, binary, ...), the set holds more than n constraints or
+    dependent ones (a zero row, a pivot of ``Â^T`` at most :data:`WORKING_SET_LU_PIVOT`), or the
+    reduced Hessian is not positive definite: DAQP then solves.
+
+    ``lu`` (n x n scratch): ``Â^T`` (its first k columns), then L and U in place (rows swapped as
+    pivoted; U's diagonal holds the reciprocals of its pivots: the solves multiply). ``kkt``
+    ((3n + 7) x n scratch): rows 0-6 the row scales ``1 / s_i``, each row's constraint index, the
+    pivoting P, ``w``, ``H x + c``, ``D^-1 lam_W``, the reduced gradient; then n - k rows each
+    of Z's columns, of ``H Z``, and the reduced Hessian with its factor (reciprocal diagonal).
     """
     n, m = x.shape[0], lam.shape[0]
     k = 0  # the active constraints
@@ -298,59 +202,122 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, fact
             k += 1
     if k > n:
         return -1.0
-    if k == n:
-        return _vertex_answer(data, sense, x, lam, factor, kkt)
-    Hc = data[:n * n + n].reshape((n + 1, n))  # x0 = -H^-1 c
-    if not _reciprocal_cholesky(Hc, factor, n, 0.0):
-        return -1.0
-    for a in range(n):
-        x[a] = -Hc[n, a]
-    _forward(factor, n, x)
-    _back(factor, n, x)
-    start = n * n + n
-    C = data[start:start + (m - n) * n].reshape((m - n, n))
-    upper = data[start + (m - n) * n:start + (m - n) * n + m]
-    lower = data[start + (m - n) * n + m:start + (m - n) * n + 2 * m]
-    mu, z = kkt[2 * n], kkt[2 * n + 1]
-    k = 0  # the active constraints: a_i in row k of kkt, a_i x0 - b_i in mu
-    for i in range(sense.shape[0]):
+    d = n - k
+    # data indexed flat (no reshaped views: numba's reshape calls a runtime helper): H (n x n), c, C ((m - n) x n:
+    # constraint i >= n at n * n + n + (i - n) n = n + i n), upper, lower (m each)
+    upper = n * n + n + (m - n) * n
+    lower = upper + m
+    # kkt's rows indexed in kkt (a view of each row costs as much as the work on it): 0 scale, 1 index, 2 perm,
+    # 3 w, 4 g, 5 mu, 6 r (a view: the triangular solves take it), Z from 7, H Z from 7 + d, R (a view) from 7 + 2d
+    z, hz = 7, 7 + d
+    r, R = kkt[6], kkt[7 + 2 * d:7 + 3 * d]
+    j = 0
+    for i in range(m):  # Â^T in lu's first k columns, D b_W in w
         state = sense[i]
         if state & DAQP_SENSE_ACTIVE:
-            y = kkt[k]
-            value = 0.0
+            largest = 0.0
             for a in range(n):
-                y[a] = C[i - n, a] if i >= n else (1.0 if a == i else 0.0)
-                value += y[a] * x[a]
-            mu[k] = value - (lower[i] if state & DAQP_SENSE_LOWER else upper[i])
-            k += 1
-    S = kkt[n:2 * n]  # S = Y Y^T, Y^T = L^-1 A_W^T (its lower triangle), then its factor G in place
-    for j in range(k):
-        _forward(factor, n, kkt[j])
-        for r in range(j + 1):
+                value = data[n + i * n + a] if i >= n else (1.0 if a == i else 0.0)
+                lu[a, j] = value
+                largest = max(largest, abs(value))
+            if not largest > 0.0:
+                return -1.0
+            inverse = 1.0 / largest
+            for a in range(n):
+                lu[a, j] *= inverse
+            kkt[3, j] = data[(lower if state & DAQP_SENSE_LOWER else upper) + i] * inverse
+            kkt[0, j] = inverse
+            kkt[1, j] = i
+            j += 1
+    for a in range(n):
+        kkt[2, a] = a
+    for col in range(k):  # Â^T = P L U in place, the variables swapped along
+        pivot, best = col, abs(lu[col, col])
+        for row in range(col + 1, n):
+            if abs(lu[row, col]) > best:
+                pivot, best = row, abs(lu[row, col])
+        if not best > WORKING_SET_LU_PIVOT:
+            return -1.0
+        if pivot != col:
+            for a in range(k):
+                lu[col, a], lu[pivot, a] = lu[pivot, a], lu[col, a]
+            kkt[2, col], kkt[2, pivot] = kkt[2, pivot], kkt[2, col]
+        inverse = 1.0 / lu[col, col]
+        lu[col, col] = inverse
+        for row in range(col + 1, n):
+            factor = lu[row, col] * inverse
+            lu[row, col] = factor
+            for a in range(col + 1, k):
+                lu[row, a] -= factor * lu[col, a]
+    for a in range(k):  # w = U^-T D b_W
+        total = kkt[3, a]
+        for p in range(a):
+            total -= lu[p, a] * kkt[3, p]
+        kkt[3, a] = total * lu[a, a]
+    for a in range(k - 1, -1, -1):  # y1 = L1^-T w (in w), x_p = P (y1, 0)
+        total = kkt[3, a]
+        for p in range(a + 1, k):
+            total -= lu[p, a] * kkt[3, p]
+        kkt[3, a] = total
+    for a in range(n):
+        x[int(kkt[2, a])] = kkt[3, a] if a < k else 0.0
+    for t in range(d):  # Z's column t: P (-L1^-T (row k + t of L2), e_t)
+        for a in range(k):
+            r[a] = lu[k + t, a]
+        for a in range(k - 1, -1, -1):
+            total = r[a]
+            for p in range(a + 1, k):
+                total -= lu[p, a] * r[p]
+            r[a] = total
+        for a in range(n):
+            kkt[z + t, int(kkt[2, a])] = -r[a] if a < k else (1.0 if a == k + t else 0.0)
+    for a in range(n):  # g = H x_p + c, HZ = H Z
+        total = data[n * n + a]
+        for p in range(n):
+            total += data[a * n + p] * x[p]
+        kkt[4, a] = total
+        for t in range(d):
+            total = 0.0
+            for p in range(n):
+                total += data[a * n + p] * kkt[z + t, p]
+            kkt[hz + t, a] = total
+    for t in range(d):  # Z^T H Z (lower triangle), -Z^T g
+        total = 0.0
+        for a in range(n):
+            total -= kkt[z + t, a] * kkt[4, a]
+        r[t] = total
+        for s in range(t + 1):
             total = 0.0
             for a in range(n):
-                total += kkt[j, a] * kkt[r, a]
-            S[j, r] = total
-    if not _reciprocal_cholesky(S, S, k, WORKING_SET_PIVOT):
+                total += kkt[z + t, a] * kkt[hz + s, a]
+            R[t, s] = total
+    if not _reciprocal_cholesky(R, R, d, 0.0):
         return -1.0
-    _forward(S, k, mu)  # mu = S^-1 (A_W x0 - b_W)
-    _back(S, k, mu)
-    j = 0  # the multipliers: the sign of their side (lam then holds scratch when not)
+    _forward(R, d, r)  # y2 = (Z^T H Z)^-1 (-Z^T g); x += Z y2, g += H Z y2
+    _back(R, d, r)
+    for t in range(d):
+        step = r[t]
+        for a in range(n):
+            x[a] += kkt[z + t, a] * step
+            kkt[4, a] += kkt[hz + t, a] * step
+    for a in range(k):  # D^-1 lam_W = -U^-1 L1^-1 (P^T g)_1
+        total = -kkt[4, int(kkt[2, a])]
+        for p in range(a):
+            total -= lu[a, p] * kkt[5, p]
+        kkt[5, a] = total
+    for a in range(k - 1, -1, -1):
+        total = kkt[5, a]
+        for p in range(a + 1, k):
+            total -= lu[a, p] * kkt[5, p]
+        kkt[5, a] = total * lu[a, a]
     for i in range(m):
         lam[i] = 0.0
-        if sense[i] & DAQP_SENSE_ACTIVE:
-            if not sense[i] & DAQP_SENSE_IMMUTABLE and (mu[j] > 0.0 if sense[i] & DAQP_SENSE_LOWER else mu[j] < 0.0):
-                return -1.0
-            lam[i] = mu[j]
-            j += 1
-    for a in range(n):  # x = x0 - L^-T Y^T mu
-        total = 0.0
-        for j in range(k):
-            total += kkt[j, a] * mu[j]
-        z[a] = total
-    _back(factor, n, z)
-    for a in range(n):
-        x[a] -= z[a]
+    for j in range(k):  # the multipliers: the sign of their side (lam then holds scratch when not)
+        i = int(kkt[1, j])
+        value = kkt[5, j] * kkt[0, j]
+        if not sense[i] & DAQP_SENSE_IMMUTABLE and (value > 0.0 if sense[i] & DAQP_SENSE_LOWER else value < 0.0):
+            return -1.0
+        lam[i] = value
     defect = qp_defect(data, x)
     if defect > WORKING_SET_DEFECT:
         return -1.0
@@ -425,8 +392,8 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
                            data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int,
                            solve: int, clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int) -> None:
     """:func:`daqp_solve` trying DAQP's working set first: the minimiser with the last answer's
-    active constraints held as equalities (:func:`_working_set_answer`; ``scratch``: (3n + 2) x n,
-    H's Cholesky factor in its first n rows) is the answer when it meets every optimality
+    active constraints held as equalities (:func:`_working_set_answer`; ``scratch``: (4n + 7) x n,
+    its LU factors in the first n rows) is the answer when it meets every optimality
     condition of the QP (exit flag 1, 0 iterations, its multipliers in ``lam``); DAQP is then not
     called and its working set stays as it was. With no active constraint that is the
     unconstrained minimiser, taken when it meets every bound and row exactly. Otherwise DAQP
@@ -492,7 +459,7 @@ def _daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: 
 #: DAQP_SOLVE trying the last working set first (daqp_solve_working_set): the lower levels of strict
 #: priorities, whose band rows are active tick after tick
 DAQP_SOLVE_WORKING_SET = Op("DAQP_SOLVE_WORKING_SET", _daqp_solve_working_set, (
-    *_QP_OPERANDS, ("scratch", ("3 * n + 2", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("sense_word", None),
+    *_QP_OPERANDS, ("scratch", ("4 * n + 7", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("sense_word", None),
     FLAGS_OPERAND), checks=_DAQP_CHECKS)
 
 

@@ -73,7 +73,7 @@ class NativeWorkspace:
         self.x = np.zeros(n)  #: DAQP's answer of the latest solve
         self.lam = np.zeros(m)  #: its multipliers (bounds, then rows)
         # scratch of the first try: H's Cholesky factor (then, trying the working set, the rest: kernels.native_qp)
-        self._scratch = np.zeros((3 * n + 2 if working_set_first else n, n))
+        self._scratch = np.zeros((4 * n + 7 if working_set_first else n, n))
         self._op = kernels.DAQP_SOLVE_WORKING_SET if working_set_first else kernels.DAQP_SOLVE
         self.control = np.zeros(DAQP_CONTROL_SIZE)  #: mask in; exit flag, defect, time [s], iterations out
         self.control_view = self.control.data  #: the same memory (a memoryview), read item by item as Python floats
