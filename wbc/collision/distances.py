@@ -6,8 +6,8 @@ the obstacles keep up to date) and the candidate pairs: the robot's self-collisi
 obstacle. :meth:`Distances.compute` fills a :class:`PairBuffers` -- caller-owned arrays of a
 fixed capacity -- with the pairs closer than ``detection_distance``: one compiled call
 (:func:`wbc.collision.kernels.pair_distances`) for the broad phase, the exact distances of
-spheres, capsules, boxes and planes (overlapping boxes excepted) and every row; coal measures the
-other pairs (cylinders, meshes, overlapping boxes) in Python, only when they pass the broad phase.
+spheres, capsules, boxes (apart or overlapping) and planes and every row; coal measures the
+other pairs (cylinders, meshes) in Python, only when they pass the broad phase.
 """
 
 from __future__ import annotations

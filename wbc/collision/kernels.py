@@ -5,9 +5,9 @@ One call, :func:`pair_distances`, does a tick's work for every candidate pair: t
 poses from the joint placements, the broad phase (bounding spheres: a pair whose spheres are
 ``detection`` apart or more costs ~10 flops), the exact signed distance of the pairs that pass
 (sphere, capsule and box against each other, overlapping boxes included, and against a plane;
-any other pair -- a ``COAL`` shape, two planes -- is flagged for coal), and the row ``grad d(q)^T`` of each. Nothing is allocated: the results go into the
-caller's arrays, at most ``capacity`` pairs (when more are within ``detection``, the closest are
-kept).
+any other pair -- a ``COAL`` shape, two planes -- is flagged for coal), and the row
+``grad d(q)^T`` of each. Nothing is allocated: the results go into the caller's arrays, at most
+``capacity`` pairs (when more are within ``detection``, the closest are kept).
 
 Conventions: joint placements and joint Jacobians in the layouts of
 :class:`wbc.model.kinematics.Kinematics` (``placements[j] = (R_j column-major (9), p_j (3))``,
