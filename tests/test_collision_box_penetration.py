@@ -158,3 +158,41 @@ def test_row_is_the_gradient_of_coals_distance():
             assert (values[0] - values[1]) / (2 * h) == pytest.approx(row, abs=1e-4 * (1 + abs(row)))
         checked += 1
     assert checked > 20
+
+
+def test_robot_rows_match_finite_differences_of_coal():
+    """The youBot's platform box overlapping a box obstacle, at random configurations near the
+    neutral one: the pair's row against central differences of coal's signed distance (the
+    Oracle of test_collision_distances, the URDF's box) along random velocities."""
+    import wbc
+    from test_collision_distances import Oracle
+    from wbc.constraints.constraint import ConstraintRows
+    from wbc.model.kinematics import Kinematics
+
+    robot = wbc.load_robot("youbot")
+    rng = np.random.default_rng(31)
+    geometry = wbc.collision.RobotGeometry(robot)
+    platform = next(i for i, link in enumerate(geometry.links) if geometry.table[i, 0] == 3)
+    link = geometry.links[platform]
+    pose = np.eye(4)
+    pose[:3, :3] = pin.utils.rpyToMatrix(0.1, 0.2, 0.3)
+    pose[:3, 3] = robot.frame_pose(robot.neutral(), link)[:3, 3] + (0.25, 0.05, 0.0)
+    box = wbc.Box(pose, (0.2, 0.2, 0.2))
+    data = wbc.CollisionAvoidance([box], self_collision=False).bind(robot)
+    oracle, kin = Oracle(robot, [box]), Kinematics(robot)
+    n, nv = data.n_inequalities, robot.nv
+    rows = ConstraintRows(np.zeros(nv), np.zeros(nv), np.zeros((n, nv)), np.zeros(n), np.zeros((0, nv)), np.zeros(0))
+    key = frozenset((link, "obstacle0"))
+    for _ in range(5):
+        q = pin.integrate(robot.model, robot.neutral(), 0.05 * rng.normal(size=nv))
+        kin.update(q)
+        data.compute(kin, 0.01, rows)
+        entry = data.active_labels().index(f"{link}↔box0")
+        distance = data.pairs.distance[entry]
+        assert distance == pytest.approx(oracle.distances(q)[key], abs=1e-8)
+        assert distance < 0.0
+        for _ in range(3):
+            v, h = rng.normal(size=nv), 1e-6
+            difference = (oracle.distances(pin.integrate(robot.model, q, h * v))[key]
+                          - oracle.distances(pin.integrate(robot.model, q, -h * v))[key]) / (2 * h)
+            assert data.pairs.rows[entry] @ v == pytest.approx(difference, abs=1e-5)
