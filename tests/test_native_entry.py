@@ -64,9 +64,9 @@ def test_a_function_without_exactly_one_signature_does_not_fit():
     assert not fits_signature(lambda x: x, (np.zeros(1),))
 
 
-def test_a_tick_with_a_pair_left_to_coal_gets_coals_distance(monkeypatch):
-    """A box obstacle overlapping the youBot's platform box (coal measures overlapping boxes): the
-    kernel's bound entry hands the pair over and the tick's entry is coal's distance (oracle: the
+def test_a_tick_with_overlapping_boxes_gets_coals_distance_without_coal(monkeypatch):
+    """A box obstacle overlapping the youBot's platform box: the kernel's bound entry measures the
+    pair itself (nothing handed to coal) and the tick's entry is coal's distance (oracle: the
     platform's URDF box and the obstacle as coal shapes, measured here)."""
     from test_collision_distances import Oracle
 
@@ -85,10 +85,10 @@ def test_a_tick_with_a_pair_left_to_coal_gets_coals_distance(monkeypatch):
     finish = data.distances.finish_with_coal
     monkeypatch.setattr(data.distances, "finish_with_coal", lambda *a: handed_over.append(a[1]) or finish(*a))
     data.compute(kin, 0.01, rows)
-    assert handed_over  # the kernel left a pair to coal
+    assert not handed_over  # the kernel measured every pair
     labels = data.active_labels()
     entry = labels.index(f"{geometry.links[platform]}↔box0")
     expected = Oracle(robot, [box]).distances(NEUTRAL)[frozenset((geometry.links[platform], "obstacle0"))]
-    assert expected < 0.0  # overlapping: only coal measures it
+    assert expected < 0.0  # overlapping
     assert data.pairs.distance[entry] == pytest.approx(expected, abs=1e-6)
     assert data._call[3].func is not kernels.avoidance_rows  # through the compiled entry

@@ -20,9 +20,9 @@ from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..runtime.native_entry import fits_signature, unchecked_entry
 from .braking import RowBraking
-from .distances import _SCRATCH, Distances, PairBuffers
+from .distances import Distances, PairBuffers
 from .geometry import RobotGeometry
-from .layout import BOX, COAL, DETECTION, GAIN, KIND, MIN_DISTANCE, PAIR_A, PAIR_B, PAIR_COLUMNS, PLANE, ROW
+from .layout import COAL, DETECTION, GAIN, KIND, MIN_DISTANCE, PAIR_A, PAIR_B, PAIR_COLUMNS, PLANE, ROW, SCRATCH
 from .obstacles import Obstacle
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -308,10 +308,9 @@ class CollisionAvoidanceData(ConstraintData):
 def compiled_pairs_only(distances: Distances) -> bool:
     """Whether every candidate pair of ``distances`` has a compiled distance at every configuration
     (:func:`wbc.collision.kernels.pair_distance`), so that a tick never needs coal: no shape of kind
-    ``COAL`` (cylinder, mesh), no two boxes (coal measures their overlap), no two planes."""
+    ``COAL`` (cylinder, mesh), no two planes."""
     kinds = distances.table[:, KIND][distances.pairs[:, [PAIR_A, PAIR_B]]]
-    return not ((kinds == COAL).any() or ((kinds[:, 0] == kinds[:, 1]) & ((kinds[:, 0] == BOX)
-                                                                        | (kinds[:, 0] == PLANE))).any())
+    return not ((kinds == COAL).any() or ((kinds[:, 0] == PLANE) & (kinds[:, 1] == PLANE)).any())
 
 
 @functools.cache
@@ -326,7 +325,7 @@ def avoidance_op() -> CompiledOp:
         ("table", ("shapes", ROW)), ("pairs", ("candidates", PAIR_COLUMNS), "int64"), ("placements", ("joints", 12)),
         ("jacobians_t", ("nv", 6)), ("support", ("joints", "nv")), ("world", ("shapes", kernels.POSE_COLUMNS)),
         ("index", ("capacity + pending",), "int64"), ("distance", ("capacity",)), ("points", (3, "capacity", 3)),
-        ("rows", ("capacity", "nv")), ("scratch", (_SCRATCH,)), ("G", ("inequalities", "nv")),
+        ("rows", ("capacity", "nv")), ("scratch", (SCRATCH,)), ("G", ("inequalities", "nv")),
         ("h", ("inequalities",)), ("settings", (3,)), ("tick", (2,)), ("corner_slot", ("corners",), "int64"),
         ("counts", (2,), "int64"), ("shapes", None), ("candidates", None), ("joints", None), ("nv", None),
         ("capacity", None), ("pending", None), ("inequalities", None), ("corners", None)),

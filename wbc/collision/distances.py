@@ -6,8 +6,8 @@ the obstacles keep up to date) and the candidate pairs: the robot's self-collisi
 obstacle. :meth:`Distances.compute` fills a :class:`PairBuffers` -- caller-owned arrays of a
 fixed capacity -- with the pairs closer than ``detection_distance``: one compiled call
 (:func:`wbc.collision.kernels.pair_distances`) for the broad phase, the exact distances of
-spheres, capsules, boxes and planes (overlapping boxes excepted) and every row; coal measures the
-other pairs (cylinders, meshes, overlapping boxes) in Python, only when they pass the broad phase.
+spheres, capsules, boxes (apart or overlapping) and planes and every row; coal measures the
+other pairs (cylinders, meshes) in Python, only when they pass the broad phase.
 """
 
 from __future__ import annotations
@@ -29,8 +29,6 @@ from . import layout
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
 
-#: floats of scratch space the kernels use
-_SCRATCH = 96
 #: coal's GJK tolerance on the coal path [m]
 COAL_GJK_TOLERANCE = 1e-9
 
@@ -125,7 +123,7 @@ class Distances:
         self._coal_shapes: dict[int, tuple[tuple[float, ...], coal.CollisionGeometry]] = {}
         self._support = _support(robot.model)
         self._world = np.zeros((self.table.shape[0], self._kernels.POSE_COLUMNS))
-        self._scratch = np.zeros(_SCRATCH)
+        self._scratch = np.zeros(layout.SCRATCH)
         self._entry = np.zeros(10)  # one pair measured by coal: (d, w_a, w_b, normal)
         self._kinematics = Kinematics(robot)
         if self._kinematics.native:

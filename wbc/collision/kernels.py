@@ -4,10 +4,10 @@ gradient rows.
 One call, :func:`pair_distances`, does a tick's work for every candidate pair: the shapes' world
 poses from the joint placements, the broad phase (bounding spheres: a pair whose spheres are
 ``detection`` apart or more costs ~10 flops), the exact signed distance of the pairs that pass
-(sphere, capsule and box against each other, and against a plane; any other pair is flagged for
-coal), and the row ``grad d(q)^T`` of each. Nothing is allocated: the results go into the
-caller's arrays, at most ``capacity`` pairs (when more are within ``detection``, the closest are
-kept).
+(sphere, capsule and box against each other, overlapping boxes included, and against a plane;
+any other pair -- a ``COAL`` shape, two planes -- is flagged for coal), and the row
+``grad d(q)^T`` of each. Nothing is allocated: the results go into the caller's arrays, at most
+``capacity`` pairs (when more are within ``detection``, the closest are kept).
 
 Conventions: joint placements and joint Jacobians in the layouts of
 :class:`wbc.model.kinematics.Kinematics` (``placements[j] = (R_j column-major (9), p_j (3))``,
@@ -55,6 +55,7 @@ from .layout import (
     PAIR_B,
     PLANE,
     RADIUS,
+    SCRATCH,
     SPHERE,
 )
 
@@ -306,6 +307,104 @@ def _flip(out):
         out[7 + m] = -out[7 + m]
 
 
+#: |a_i x b_j| below this: the two edge directions are parallel and their cross product is no
+#: axis (a face axis of either box then separates, or measures the overlap, as well)
+_PARALLEL = 1e-6
+#: |n . axis| at most this: n is orthogonal to the box's axis (support point: a face's or edge's middle)
+_TIE = 1e-9
+#: an edge-edge axis must beat the face axes by this much [m]: faces win ties (and rounding)
+_EDGE_BIAS = 1e-12
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _support(table, world, box, nx, ny, nz, toward, skip, out, at):
+    """``out[at:at + 3]``: the point of ``box`` farthest along ``toward * n`` (``toward`` = +-1),
+    ``c + sum_i h_i sign(toward n . R_i) R_i`` over the axes i != ``skip``. An axis with
+    ``|n . R_i| <= _TIE`` contributes 0: the middle of the farthest edge or face, the point that
+    moves least as n turns through the tie."""
+    for m in range(3):
+        out[at + m] = world[box, 9 + m]
+    for i in range(3):
+        along = toward * (nx * world[box, i] + ny * world[box, 3 + i] + nz * world[box, 6 + i])
+        if i != skip and abs(along) > _TIE:
+            step = table[box, _HX + i] if along > 0.0 else -table[box, _HX + i]
+            for m in range(3):
+                out[at + m] += step * world[box, 3 * m + i]
+
+
+@njit(cache=CACHE, nogil=True)  # not inlined: rare (boxes in contact), and large
+def box_penetration(table, world, a, b, out):
+    """Two overlapping boxes: ``out`` as in :func:`segment_segment`, by the separating-axis
+    theorem. Along a unit axis L the boxes' projections overlap by
+
+        o(L) = r_a(L) + r_b(L) - |L . (c_b - c_a)|,   r_x(L) = sum_i h_x,i |L . R_x,i|,
+
+    and the smallest translation that separates two convex polytopes is along one of 15 axes: the
+    3 face normals of each box and the 9 cross products ``a_i x b_j`` of their edge directions
+    (normalised; skipped when ``|a_i x b_j| < _PARALLEL``, where a face axis covers the pair). So
+    ``d = -min_L o(L)``, n is that L pointing from a to b (``sign(L . (c_b - c_a)) L``) and the
+    witnesses are
+
+    - a face of a (L = a_i): ``w_b`` the point of b deepest along -n (:func:`_support`: a vertex,
+      or the middle of the deepest edge or face on a tie), ``w_a = w_b - d n`` on a's face plane;
+      a face of b: the same with the roles swapped, ``w_a`` the point of a farthest along n;
+    - two edges (L ~ a_i x b_j): the edge of a along a_i farthest along n and the edge of b along
+      b_j deepest along -n; ``w_a`` the point of a's edge closest to b's edge's line (clamped to
+      the edge), ``w_b = w_a + d n``.
+
+    Face axes win ties (an edge axis must be ``_EDGE_BIAS`` smaller). The row of the module
+    docstring is d's gradient here too: d is a minimum of support functions (envelope theorem),
+    and ``w_a``, ``w_b`` lie on the normal line through the support points."""
+    tx, ty, tz = world[b, 9] - world[a, 9], world[b, 10] - world[a, 10], world[b, 11] - world[a, 11]
+    best, which, nx, ny, nz = np.inf, -1, 0.0, 0.0, 0.0
+    for axis in range(15):
+        if axis < 6:
+            box = a if axis < 3 else b
+            lx, ly, lz = world[box, axis % 3], world[box, 3 + axis % 3], world[box, 6 + axis % 3]
+            bias = 0.0
+        else:
+            i, j = (axis - 6) // 3, (axis - 6) % 3
+            ax, ay, az = world[a, i], world[a, 3 + i], world[a, 6 + i]
+            bx, by, bz = world[b, j], world[b, 3 + j], world[b, 6 + j]
+            lx, ly, lz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+            norm = math.sqrt(lx * lx + ly * ly + lz * lz)
+            if norm < _PARALLEL:
+                continue
+            lx, ly, lz = lx / norm, ly / norm, lz / norm
+            bias = _EDGE_BIAS
+        overlap = -abs(lx * tx + ly * ty + lz * tz)
+        for i in range(3):
+            overlap += (table[a, _HX + i] * abs(lx * world[a, i] + ly * world[a, 3 + i] + lz * world[a, 6 + i])
+                        + table[b, _HX + i] * abs(lx * world[b, i] + ly * world[b, 3 + i] + lz * world[b, 6 + i]))
+        if overlap + bias < best:
+            sign = 1.0 if lx * tx + ly * ty + lz * tz >= 0.0 else -1.0
+            best, which, nx, ny, nz = overlap, axis, sign * lx, sign * ly, sign * lz
+    d = -best
+    out[0], out[7], out[8], out[9] = d, nx, ny, nz
+    if which < 3:
+        _support(table, world, b, nx, ny, nz, -1.0, -1, out, 4)
+        for m in range(3):
+            out[1 + m] = out[4 + m] - d * out[7 + m]
+        return
+    if which < 6:
+        _support(table, world, a, nx, ny, nz, 1.0, -1, out, 1)
+    else:
+        i, j = (which - 6) // 3, (which - 6) % 3
+        _support(table, world, a, nx, ny, nz, 1.0, i, out, 1)  # the middle of a's edge
+        _support(table, world, b, nx, ny, nz, -1.0, j, out, 4)  # the middle of b's edge
+        # the point a_mid + s a_i closest to the line b_mid + u b_j: s = (c f - e) / (1 - c^2)
+        c = world[a, i] * world[b, j] + world[a, 3 + i] * world[b, 3 + j] + world[a, 6 + i] * world[b, 6 + j]
+        e = f = 0.0
+        for m in range(3):
+            e += world[a, 3 * m + i] * (out[1 + m] - out[4 + m])
+            f += world[b, 3 * m + j] * (out[1 + m] - out[4 + m])
+        s = min(max((c * f - e) / (1.0 - c * c), -table[a, _HX + i]), table[a, _HX + i])
+        for m in range(3):
+            out[1 + m] += s * world[a, 3 * m + i]
+    for m in range(3):
+        out[4 + m] = out[1 + m] + d * out[7 + m]
+
+
 @njit(cache=CACHE, nogil=True, inline="always")
 def _box_edge(world, src, axis, corner, half):
     """Edge ``corner`` (0..3) along ``axis`` of box ``src`` (half extents ``half``): its middle c and
@@ -340,15 +439,16 @@ def _edge_bound(x, y, z, ux, uy, uz, hx, hy, hz):
 
 @njit(cache=CACHE, nogil=True, inline="always")
 def box_box(table, world, a, b, out, scratch):
-    """Two boxes that do not overlap: ``out`` as in :func:`segment_segment`, False when they
-    overlap (coal measures the penetration). The closest points of two disjoint convex polytopes
-    include a point on an edge of one of them (vertex-face, edge-edge; a face-face contact
-    contains an edge's point too), so the distance is the smallest of the 24 edge-to-box
-    distances (:func:`box_segment` with radius 0, exact). Best first: every edge's lower bound
-    (:func:`_edge_bound`, in the other box's frame) into ``scratch[64:88]``, then the edges in increasing order of
-    their bounds, measured (~0.1 us each) until the next bound is not below the best distance (on
-    the youBot's platform against a crate 1 to 3 of the 24); at a tie the edge measured first
-    gives the witness points. ``scratch``: >= 96 floats."""
+    """Two boxes: ``out`` as in :func:`segment_segment`. Apart, the closest points of two disjoint
+    convex polytopes include a point on an edge of one of them (vertex-face, edge-edge; a
+    face-face contact contains an edge's point too), so the distance is the smallest of the 24
+    edge-to-box distances (:func:`box_segment` with radius 0, exact); when that is <= 0 the boxes
+    touch or overlap (then an edge of one meets the other) and :func:`box_penetration` measures the
+    depth. Best first: every edge's lower bound (:func:`_edge_bound`, in the other box's frame)
+    into ``scratch[64:88]``, then the edges in increasing order of their bounds, measured (~0.1 us
+    each) until the next bound is not below the best distance (on the youBot's platform against a
+    crate 1 to 3 of the 24); at a tie the edge measured first gives the witness points.
+    ``scratch``: >= 96 floats."""
     edge, bounds, frame = scratch[32:42], scratch[64:88], scratch[88:96]
     for which in range(2):  # the edges of src (a, then b) in the frame of box: M = R_box^T R_src, t
         src, box = (a, b) if which == 0 else (b, a)
@@ -392,13 +492,16 @@ def box_box(table, world, a, b, out, scratch):
                 out[m] = edge[m]
             if which == 0:  # the edge is on a: make it (d, w_a, w_b, a -> b)
                 _flip(out)
-    return best > 0.0
+    if best <= 0.0:
+        box_penetration(table, world, a, b, out)
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
 def pair_distance(table, world, a, b, out, scratch):
     """Signed distance of shapes a and b (rows of ``table``, world poses in ``world``) into ``out``;
-    returns False for a pair that has no compiled distance (coal measures it)."""
+    returns False for a pair that has no compiled distance (coal measures it): a shape of kind
+    ``COAL`` (cylinder, mesh) or two planes. Every pair of spheres, capsules and boxes, apart or
+    overlapping, and each of them against a plane, is measured here."""
     ka, kb = table[a, KIND], table[b, KIND]
     swapped = ka > kb
     if swapped:
@@ -406,8 +509,7 @@ def pair_distance(table, world, a, b, out, scratch):
     if kb == COAL or ka == PLANE:
         return False
     if ka == BOX and kb == BOX:
-        if not box_box(table, world, a, b, out, scratch):
-            return False
+        box_box(table, world, a, b, out, scratch)
     elif ka == BOX:  # against a plane
         box_plane(table, world, a, b, out)
     else:
@@ -829,7 +931,9 @@ def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, 
       nogil=True)
 def distance_of(table, world, a, b, out, scratch):
     """The signed distance of one pair (world poses already in ``world``) into ``out``; NaN when the
-    pair has no compiled distance. For the tests."""
+    pair has no compiled distance. For the tests (``scratch``: at least ``SCRATCH`` floats)."""
+    if scratch.shape[0] < SCRATCH or out.shape[0] < 10:
+        raise ValueError("distance_of: out needs 10 floats, scratch layout.SCRATCH")
     if pair_distance(table, world, a, b, out, scratch):
         return out[0]
     return np.nan

@@ -45,3 +45,6 @@ PAIR_COLUMNS = 3
 #: slots of an avoidance constraint's settings array (detection distance, min distance, gain), the
 #: operand of :func:`wbc.collision.kernels.avoidance_rows`
 DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
+
+#: floats of the scratch array the kernels use (:func:`wbc.collision.kernels.box_box` needs 96)
+SCRATCH = 96
