@@ -335,7 +335,7 @@ def _support(table, world, box, nx, ny, nz, toward, skip, out, at):
 @njit(cache=CACHE, nogil=True)  # not inlined: rare (boxes in contact), and large
 def box_penetration(table, world, a, b, out):
     """Two overlapping boxes: ``out`` as in :func:`segment_segment`, by the separating-axis
-    theorem. Along a unit axis L the boxes' projections overlap by
+    theorem. Along a unit axis L the boxes' projections overlap by::
 
         o(L) = r_a(L) + r_b(L) - |L . (c_b - c_a)|,   r_x(L) = sum_i h_x,i |L . R_x,i|,
 
