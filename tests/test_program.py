@@ -41,6 +41,7 @@ INTS = {
     "BAND": dict(first=1, last=3, first_preview=0, last_preview=1, nv=3, rows=5, size=9 + 9 + 8 * 5, row=1,
                  target_rows=8),
     "DAQP_ACCEPT": {},
+    "DAQP_ACCEPT_LEVEL": {},
     "DAQP_SOLVE": dict(n=3, size=9 + 9 + 2 * 5, m=5, update_ldp=1, solve=1, clock_gettime=1, clock_id=1,
                        steady_mask=0, unconstrained_first=1, sense_word=7),
     "DAQP_SOLVE_WORKING_SET": dict(n=3, size=9 + 9 + 2 * 5, m=5, update_ldp=1, solve=1, clock_gettime=1,
@@ -126,7 +127,7 @@ def test_every_declared_op_is_numbered_and_bound():
         assert getattr(kernels, name) is op and op.spec.name == name
 
 
-@pytest.mark.parametrize("name", sorted(set(DECLARED) - {*DAQP_OPS, "DAQP_ACCEPT"}))  # (flags only: below)
+@pytest.mark.parametrize("name", sorted(set(DECLARED) - {*DAQP_OPS, "DAQP_ACCEPT", "DAQP_ACCEPT_LEVEL"}))  # (below)
 def test_the_generated_decoder_calls_the_kernel_with_the_declared_operands(name):
     """One row run by run_program changes every array exactly as the kernel called directly on
     copies of the same arrays (operands in declaration order, then dt)."""
@@ -195,6 +196,25 @@ def test_the_accept_op_passes_exactly_the_answers_within_the_tolerance(exitflag,
     program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
     assert program.runner()(DT) == (ops.RUN_ACCEPTED if accepted else 0)
     assert program.run(DT) is False  # not a NaN either way
+
+
+@pytest.mark.parametrize("accepted", [True, False])
+def test_the_level_ops_add_the_levels_solve_times_to_an_accepted_answer_only(accepted):
+    """Strict priorities: DAQP_ACCEPT on the last level's control, then DAQP_ACCEPT_LEVEL per level
+    above: the accepted solve time is the three solve times' sum (written out here); a run that is
+    not accepted leaves the accepted time of the run before."""
+    last, upper = np.zeros(kernels.DAQP_CONTROL_SIZE), np.zeros((2, kernels.DAQP_CONTROL_SIZE))
+    last[[kernels.DAQP_CONTROL_EXITFLAG, kernels.DAQP_CONTROL_DEFECT, kernels.DAQP_CONTROL_TIME]] = (
+        1.0 if accepted else -1.0, 0.0, 3e-6)
+    last[kernels.DAQP_CONTROL_ACCEPTED_TIME] = 7.0  # an earlier accepted run's
+    upper[:, kernels.DAQP_CONTROL_TIME] = (1e-6, 2e-6)
+    program = TickProgram()
+    program.add(kernels.DAQP_ACCEPT, control=last, tolerance=np.array([1e-6]))
+    for control in upper:
+        program.add(kernels.DAQP_ACCEPT_LEVEL, control=last, upper=control)
+    assert program.runner()(DT) == (ops.RUN_ACCEPTED if accepted else 0)
+    assert last[kernels.DAQP_CONTROL_ACCEPTED_TIME] == ((3e-6 + 1e-6) + 2e-6 if accepted else 7.0)
+    assert last[kernels.DAQP_CONTROL_TIME] == 3e-6 and (upper[:, kernels.DAQP_CONTROL_TIME] == (1e-6, 2e-6)).all()
 
 
 def test_a_nan_screen_outranks_an_accepted_answer_and_flags_start_clean():

@@ -187,8 +187,8 @@ class Controller:
             self._solver: QPSolver = solver()
             self._q_shape = (robot.nq,)
             self._last: TickDiagnostics | None = None  # (read through the property last)
-            #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or on the
-            #: control loop's path v (one QP) or (v, solve time) (strict priorities) (:meth:`_full_record`):
+            #: the latest tick's (tick, solver, outcome, status, solve time, tick time, v, u), or v on the
+            #: control loop's path (:meth:`_full_record`):
             #: what ``last`` is built from when read (a record object per tick would cost ~4 % of a tick)
             self._record: TickRecord | NativeRecord | None = None
             self._last_record: TickRecord | NativeRecord | None = None  # the record self._last was built from
@@ -245,7 +245,6 @@ class Controller:
     _lifted: LiftedQP | None  # the lifted QP at high DOF (wbc.qp.lifting), None otherwise
     _answer_copy: Callable[[], NDArray[np.float64]]  # the native tick's: a copy of DAQP's answer (with _stepper)
     _outcome: memoryview  # the native tick's: DAQP's control vector (kernels.DAQP_CONTROL_*; with _stepper)
-    _native_collect: Callable[[], tuple[NDArray[np.float64], float]] | None  # the native tick's, with priorities
 
     @property
     def last(self) -> TickDiagnostics:
@@ -264,21 +263,20 @@ class Controller:
         return last
 
     def _full_record(self) -> TickRecord:
-        """The latest tick's record: the control loop's path records v (and, with strict
-        priorities, the levels' solve time) only -- the rest of it is the same on every tick of
-        that path: the tick is the counter's (a step that raised neither counted nor recorded),
-        the solver this program's, optimal, v = u; the tick time is the program's own clock's
-        and the one QP's solve time DAQP_ACCEPT's copy, each of the latest accepted native run
-        (written by that run only: a later step that raised leaves them)."""
+        """The latest tick's record: the control loop's path records v only -- the rest of it is
+        the same on every tick of that path: the tick is the counter's (a step that raised neither
+        counted nor recorded), the solver this program's, optimal, v = u; the tick time is the
+        program's own clock's and the solve time DAQP_ACCEPT's copy (with strict priorities the
+        levels' sum, DAQP_ACCEPT_LEVEL's), each of the latest accepted native run (written by that
+        run only: a later step that raised leaves them); with strict priorities the levels'
+        answers are then the workspaces' (:meth:`~wbc.control.hierarchy.Hierarchy.use_native_answers`)."""
         record = self._record
         assert record is not None  # (read after the first step)
-        if isinstance(record, np.ndarray):  # one QP
+        if isinstance(record, np.ndarray):
+            if self._hierarchy is not None:
+                self._hierarchy.use_native_answers()
             return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", self._outcome[_ACCEPTED_SOLVE_TIME],
                     self._program.accepted_run_time(), record, record)
-        if len(record) == 2:  # strict priorities
-            v, solve_time = record
-            return (self._buffers.tick, self._solver_name, _OPTIMAL, "optimal", solve_time,
-                    self._program.accepted_run_time(), v, v)
         return record
 
     @property
@@ -521,10 +519,11 @@ class Controller:
         split = self._program_after_preview is not None
         # the workspace whose answer is the command when the program solves: the one QP's, or the last level's
         bound = self._solver.bound if type(solve) is ProgramSolve and isinstance(self._solver, DaqpBackend) else None
+        levels_above: list[NativeWorkspace] = []  # with strict priorities: their solve times add up
         if type(solve) is CascadeInProgram and self._hierarchy is not None:
-            bound = self._hierarchy.workspaces[-1]  # (the BAND ops stop the levels below a failed one)
+            *levels_above, bound = self._hierarchy.workspaces  # (the BAND ops stop the levels below a failed one)
         if bound is not None and not split:  # the program checks DAQP's answer itself (see step)
-            bound.add_accept_op(program, self._answer_tolerance)
+            bound.add_accept_op(program, self._answer_tolerance, levels_above)
         if self._kinematics_op is not None and self._q_screened:
             program.set_input(self.kinematics.q)  # q copied in by the program (the native tick's stepper)
         self._assembly = Assembly(self._context, self.robot, self._buffers, self._task_data, self._python_tasks,
@@ -542,9 +541,7 @@ class Controller:
                 and self._kinematics_op is not None and self._q_screened):
             program.set_clock(*bound.clock)  # the native tick's tick time (see step)
             self._stepper = program.stepper()
-            self._answer_copy, self._outcome = bound.x.copy, bound.control_view
-            #: with priorities, what collects the cascade's accepted answer and solve time (None: one QP)
-            self._native_collect = None if self._hierarchy is None else self._hierarchy.collect_accepted
+            self._answer_copy, self._outcome = bound.x.copy, bound.control_view  # (the last level's)
         self._solver_name = self._solver.name
 
     # --------------------------------------------------------------- hot path
@@ -581,15 +578,9 @@ class Controller:
             # the program run, DAQP's answer checked (_finish_program)
             run = native(q, self._dt)
             self.kinematics.current = NOTHING_CURRENT  # (the program wrote q: Pinocchio's data is stale)
-            if run == RUN_ACCEPTED:
+            if run == RUN_ACCEPTED:  # the solve and tick times are the program's (see _full_record)
                 self._buffers.tick += 1
-                collect = self._native_collect
-                if collect is None:  # one QP: the solve and tick times are the program's (see _full_record)
-                    v = self._context.previous = self._record = self._answer_copy()
-                    return v
-                v, solve_time = collect()  # the cascade of strict priorities: its last level's answer
-                self._context.previous = v
-                self._record = (v, solve_time)  # the tick time: the program's clock's (see _full_record)
+                v = self._context.previous = self._record = self._answer_copy()  # (the last level's answer)
                 return v
             if run == RUN_BAD_INPUT:
                 self.robot.check_configuration(q)  # raises: q has the wrong size
@@ -692,9 +683,8 @@ def _velocity_names(robot: Robot) -> list[str]:
 
 #: what one step records for its diagnostics (:class:`TickDiagnostics`' arguments after the buffers)
 TickRecord = tuple[int, str, Outcome, str, float, float, NDArray[np.float64], NDArray[np.float64]]
-#: what a step on the control loop's path records: v, or (v, solve time) with strict priorities
-#: (:meth:`Controller._full_record`)
-NativeRecord = NDArray[np.float64] | tuple[NDArray[np.float64], float]
+#: what a step on the control loop's path records: v (:meth:`Controller._full_record`)
+NativeRecord = NDArray[np.float64]
 
 
 class WarmState(NamedTuple):

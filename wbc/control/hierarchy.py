@@ -286,23 +286,25 @@ class Hierarchy:
                     target_rows=target.n_ineq + target.n_eq)
 
     def collect_optimal(self, tolerance: float) -> tuple[NDArray[np.float64], float] | None:
-        """The control loop's fast path with the cascade in the program: ``(x, solve time [s])``
-        when the last level solved and its answer's defect is at most ``tolerance`` -- which the
-        program's BAND ops allow only after every level above did the same, with
+        """The pipeline's fast path with the cascade in the program: ``(x, solve time [s])`` -- a
+        copy of the last level's answer, the levels' solve times summed (in the order of
+        DAQP_ACCEPT_LEVEL's sum, which the controller's native tick reads) -- when the last level
+        solved and its answer's defect is at most ``tolerance`` -- which the program's BAND ops
+        allow only after every level above did the same, with
         :data:`wbc.control.fallback.ANSWER_TOLERANCE`; None otherwise (then :meth:`solve` says which
         level failed)."""
-        exitflag, defect, _ = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
-        return self.collect_accepted() if exitflag >= 1.0 and defect <= tolerance else None
-
-    def collect_accepted(self) -> tuple[NDArray[np.float64], float]:
-        """``(x, solve time [s])`` of a cascade whose last level's answer was accepted (by
-        :meth:`collect_optimal`, or by the program's DAQP_ACCEPT op on the last workspace: the
-        controller's native tick): a copy of the last level's answer, the levels' solve times summed."""
-        elapsed = self._last_control.item(DAQP_CONTROL_TIME)
+        exitflag, defect, elapsed = self._last_control[DAQP_CONTROL_OUTCOME].tolist()
+        if not (exitflag >= 1.0 and defect <= tolerance):
+            return None
         for control in self._upper_controls:
             elapsed += control.item(DAQP_CONTROL_TIME)
-        self.answers = self.solutions = self._native_answers
+        self.use_native_answers()
         return self._last_answer.copy(), elapsed
+
+    def use_native_answers(self) -> None:
+        """:attr:`answers` and :attr:`solutions`: the levels' workspaces' (a cascade solved in the
+        program; the controller's native tick sets them only when its diagnostics are read)."""
+        self.answers = self.solutions = self._native_answers
 
     # -------------------------------------------------------------------- tick
     def solve(self) -> QPSolution:

@@ -475,3 +475,17 @@ def _daqp_accept(control: np.ndarray, tolerance: np.ndarray, flags: np.ndarray, 
 #: the solve time of an accepted answer is kept in ``control[DAQP_CONTROL_ACCEPTED_TIME]``
 DAQP_ACCEPT = Op("DAQP_ACCEPT", _daqp_accept, (
     ("control", (DAQP_CONTROL_SIZE,)), ("tolerance", (1,)), FLAGS_OPERAND))
+
+
+@njit(inline="always")
+def _daqp_accept_level(control: np.ndarray, upper: np.ndarray, flags: np.ndarray, dt: float) -> None:
+    if flags[FLAG_ACCEPTED]:
+        control[DAQP_CONTROL_ACCEPTED_TIME] += upper[DAQP_CONTROL_TIME]
+
+
+#: strict priorities, after the last level's DAQP_ACCEPT: when it accepted, the solve time of a level
+#: above (``upper``, that level's control vector) added to the accepted solve time of the last level's
+#: ``control`` -- one op per level above, in order: the cascade's solve time (the levels' sum) is then
+#: kept as the one QP's is, written by an accepted run only
+DAQP_ACCEPT_LEVEL = Op("DAQP_ACCEPT_LEVEL", _daqp_accept_level, (
+    ("control", (DAQP_CONTROL_SIZE,)), ("upper", (DAQP_CONTROL_SIZE,)), FLAGS_OPERAND))

@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import ctypes
 import weakref
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -163,11 +164,16 @@ class NativeWorkspace:
         entry = self._library.entry
         return entry.clock_gettime, entry.clock_id
 
-    def add_accept_op(self, program: TickProgram, tolerance: NDArray[np.float64]) -> None:
+    def add_accept_op(self, program: TickProgram, tolerance: NDArray[np.float64],
+                      levels_above: Sequence[NativeWorkspace] = ()) -> None:
         """Append the check of this workspace's latest solve to ``program`` (after :meth:`add_op`):
         the program's flag ``FLAG_ACCEPTED`` (its run returns ``RUN_ACCEPTED``) when DAQP solved
-        and the answer's defect is at most ``tolerance[0]``."""
+        and the answer's defect is at most ``tolerance[0]``; the solve time is then kept in
+        ``control[DAQP_CONTROL_ACCEPTED_TIME]``, with the solve times of the workspaces
+        ``levels_above`` added (strict priorities: this is the last level's)."""
         program.add(kernels.DAQP_ACCEPT, control=self.control, tolerance=tolerance)
+        for upper in levels_above:
+            program.add(kernels.DAQP_ACCEPT_LEVEL, control=self.control, upper=upper.control)
 
     def solve(self) -> tuple[int, float, float]:
         """Solve now (one compiled call): (exit flag, answer defect, solve time [s])."""
