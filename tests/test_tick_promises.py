@@ -114,6 +114,33 @@ def test_constraint_defect_is_the_relative_violation():
     assert kernels.constraint_defect(C, upper, lower, np.array([np.nan, 0.0])) == np.inf
 
 
+@pytest.mark.parametrize("seed", range(20))
+def test_qp_defect_is_the_constraint_defect_of_the_qp_buffer(seed):
+    """qp_defect indexes the QP's flat buffer in place: equal to constraint_defect on the QP's own
+    C and bounds (what the flat layout means, wbc.qp.problem.QP), near the bounds, past them,
+    with infinite bounds and equality rows, and inf for a NaN answer."""
+    from wbc.qp.problem import QP
+
+    rng = np.random.default_rng(seed)
+    n, p, e = int(rng.integers(1, 9)), int(rng.integers(0, 6)), int(rng.integers(0, 3))
+    qp = QP(n, p, e)
+    qp.data[:] = rng.normal(size=qp.data.size)  # H and c too: qp_defect must not read them
+    qp.C[:] = rng.normal(size=qp.C.shape) * 10.0 ** rng.integers(-3, 4, size=(p + e, 1))
+    x = rng.normal(size=n) * 10.0 ** rng.integers(-2, 3)
+    middle = np.r_[x, qp.C @ x]
+    qp.upper[:] = middle + rng.normal(size=middle.size) * 0.1
+    qp.lower[:] = np.minimum(qp.upper, middle - np.abs(rng.normal(size=middle.size)) * 0.1)
+    qp.upper[rng.random(middle.size) < 0.2] = np.inf
+    qp.lower[rng.random(middle.size) < 0.2] = -np.inf
+    qp.upper[0] = x[0] - 0.5  # (a violation in every draw)
+    expected = kernels.constraint_defect(qp.C, qp.upper, qp.lower, x)
+    assert kernels.qp_defect(qp.data, x) == expected > 0.0
+    qp.upper[:], qp.lower[:] = middle + 1.0, middle - 1.0
+    assert kernels.qp_defect(qp.data, x) == 0.0
+    x[rng.integers(n)] = np.nan
+    assert kernels.qp_defect(qp.data, x) == np.inf
+
+
 @pytest.mark.parametrize("scale", [1e-12, 1e-9, 1e-6, 1e6, 1e9, 1e12])
 @pytest.mark.parametrize("solver", ["daqp", "proxqp", "osqp"])
 def test_the_command_does_not_depend_on_the_cost_scale(youbot, scale, solver):
