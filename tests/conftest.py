@@ -1,6 +1,7 @@
 import importlib
 import os
 import re
+import sys
 import tempfile
 from collections.abc import Generator
 from pathlib import Path
@@ -10,6 +11,12 @@ import numpy as np
 import pytest
 
 import wbc
+
+#: the checkout: its ``benchmarks`` package (not installed) is importable by the tests. Appended
+#: after ``import wbc``: an installed wbc (``pip install .``) stays the one tested
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.append(str(ROOT))
 
 # CI replays the same examples every run (a red CI must be reproducible); locally
 # hypothesis explores new ones (that is how the HiGHS cycling case was found)

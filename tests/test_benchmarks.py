@@ -9,18 +9,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import qpsolvers
 
+from benchmarks import dataset as ds
+from benchmarks import solvers as sb
+from benchmarks import wbc_qpbenchmark as qb
+from benchmarks.common import scenario_files, shifted_geometric_mean
 from conftest import ROOT, TASKS
-
-if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-    sys.path.insert(0, str(ROOT))
-
-import qpsolvers  # noqa: E402
-
-from benchmarks import dataset as ds  # noqa: E402
-from benchmarks import solvers as sb  # noqa: E402
-from benchmarks import wbc_qpbenchmark as qb  # noqa: E402
-from benchmarks.common import scenario_files, shifted_geometric_mean  # noqa: E402
 
 
 @pytest.fixture(scope="module")

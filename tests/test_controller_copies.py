@@ -11,7 +11,6 @@ from __future__ import annotations
 import copy
 import multiprocessing
 import pickle
-import sys
 from collections.abc import Callable
 
 import numpy as np
@@ -19,13 +18,9 @@ import pinocchio as pin
 import pytest
 
 import wbc
-from conftest import ROOT, require
+from benchmarks.scaling import chain_urdf
+from conftest import require
 from wbc.control.diagnostics import NoTickYetError
-
-if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-    sys.path.insert(0, str(ROOT))
-
-from benchmarks.scaling import chain_urdf  # noqa: E402
 
 YOUBOT = wbc.load_robot("youbot")
 DELUCA = wbc.load_robot("deluca_mm")

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 import wbc
-from conftest import ROOT
 from test_look_at_task import rows
 from wbc.qp import lifting
 
@@ -55,9 +54,6 @@ def test_high_dof_lifted_qps_keep_the_rows_diagonal_and_agree_with_the_dense_one
     """On a 32-joint chain the damping rows (diagonal_rows) take no auxiliary variable of the lifted
     QP (k = 6: the frame task's rows only), and the lifted controller commands what a dense one does,
     before and after the costs change."""
-    import sys
-    if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-        sys.path.insert(0, str(ROOT))
     from benchmarks.scaling import chain_urdf, initial_configuration
 
     path = tmp_path / "chain32.urdf"

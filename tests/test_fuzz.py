@@ -66,8 +66,8 @@ def _chain24() -> wbc.Robot:
     (wbc.qp.lifting) whenever at most 12 task rows are dense."""
     from conftest import ROOT
 
-    if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-        sys.path.insert(0, str(ROOT))
+    if str(ROOT) not in sys.path:  # (the fuzz worker, a script of its own, has no conftest to append it)
+        sys.path.append(str(ROOT))
     from benchmarks.scaling import chain_urdf
 
     folder = Path(tempfile.mkdtemp(prefix="wbc-fuzz-"))

@@ -454,12 +454,8 @@ def test_the_priorities_scenario_holds_the_pose_and_improves_the_posture_in_the_
 # -------------------------------------------------------------------- benchmark harness
 def test_the_priorities_benchmark_measures_both_controllers_on_one_loop(capsys):
     """benchmarks/priorities.py (correctness only: no timing is asserted)."""
-    import sys
 
-    from conftest import ROOT
 
-    if str(ROOT) not in sys.path:
-        sys.path.insert(0, str(ROOT))
     from benchmarks import priorities
 
     scenario = load_scenario(TASKS / "youbot_circle.toml")

@@ -1,21 +1,14 @@
 """The lifted form of high-DOF QPs (wbc.qp.lifting): the same minimiser over v as the dense
 normal equations, written out here from the task stack and solved by two other solvers."""
 
-import sys
-
 import numpy as np
 import pytest
 
 import wbc
-from conftest import ROOT
+from benchmarks.peer_setups import WorldVelocityLimits
+from benchmarks.scaling import chain_urdf, initial_configuration
 from wbc import solvers
 from wbc.qp import lifting
-
-if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-    sys.path.insert(0, str(ROOT))
-
-from benchmarks.peer_setups import WorldVelocityLimits  # noqa: E402
-from benchmarks.scaling import chain_urdf, initial_configuration  # noqa: E402
 from wbc.tasks.task import TaskData
 
 

@@ -11,7 +11,6 @@ import pytest
 import qpsolvers
 
 import wbc
-from conftest import ROOT
 
 Q = np.array([0.1, -0.2, 0.3, 0.2, 0.9, -0.8, 1.0, 0.4])
 C = np.array([2e-3, -1e-3, 4e-3, 0.0, 1e-3, -2e-3, 0.0, 3e-3])
@@ -83,9 +82,6 @@ def test_in_a_hierarchy_it_belongs_to_the_last_level(youbot):
 def test_a_high_dof_controller_with_a_linear_cost_solves_it(tmp_path):
     """A 32-joint chain, where the lifted QP would be used: the formula still holds (the linear
     term is kept in the dense QP)."""
-    import sys
-    if str(ROOT) not in sys.path:
-        sys.path.insert(0, str(ROOT))
     from benchmarks.scaling import chain_urdf, initial_configuration
 
     path = tmp_path / "chain32.urdf"

@@ -11,22 +11,17 @@ import socket
 import subprocess
 import sys
 
+import distributed  # [test] has it: a missing install must fail, not skip
 import numpy as np
 import pandas
 import pytest
 
+from benchmarks import dataset as ds
+from benchmarks import solvers as sb
+from benchmarks import starts as st
+from benchmarks import sweep
+from benchmarks.common import scenario_files
 from conftest import ROOT, TASKS
-
-if str(ROOT) not in sys.path:  # benchmarks/ is a top-level package of the checkout, not installed
-    sys.path.insert(0, str(ROOT))
-
-import distributed  # noqa: E402  - [test] has it: a missing install must fail, not skip
-
-from benchmarks import dataset as ds  # noqa: E402
-from benchmarks import solvers as sb  # noqa: E402
-from benchmarks import starts as st  # noqa: E402
-from benchmarks import sweep  # noqa: E402
-from benchmarks.common import scenario_files  # noqa: E402
 
 SCENARIOS = ["deluca_parking", "youbot_reach"]  # equality rows; active limits
 #: 2 scenarios x 2 starts x 3 ticks, 2 solvers, 2 settings
