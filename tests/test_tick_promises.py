@@ -116,9 +116,9 @@ def test_constraint_defect_is_the_relative_violation():
 
 @pytest.mark.parametrize("seed", range(20))
 def test_qp_defect_is_the_constraint_defect_of_the_qp_buffer(seed):
-    """qp_defect indexes the QP's flat buffer in place: equal to constraint_defect on the QP's own
-    C and bounds (what the flat layout means, wbc.qp.problem.QP), near the bounds, past them,
-    with infinite bounds and equality rows, and inf for a NaN answer."""
+    """qp_defect reads C and the bounds from the QP's flat buffer (wbc.qp.problem.QP's layout): the
+    relative violation written out here (numpy, from the QP's own C and bounds), with infinite
+    bounds and equality rows, equal to constraint_defect's; 0 inside; inf for a NaN answer."""
     from wbc.qp.problem import QP
 
     rng = np.random.default_rng(seed)
@@ -133,8 +133,15 @@ def test_qp_defect_is_the_constraint_defect_of_the_qp_buffer(seed):
     qp.upper[rng.random(middle.size) < 0.2] = np.inf
     qp.lower[rng.random(middle.size) < 0.2] = -np.inf
     qp.upper[0] = x[0] - 0.5  # (a violation in every draw)
-    expected = kernels.constraint_defect(qp.C, qp.upper, qp.lower, x)
-    assert kernels.qp_defect(qp.data, x) == expected > 0.0
+    value = np.r_[x, qp.C @ x]
+    size = np.r_[np.abs(x), np.abs(qp.C) @ np.abs(x)]  # sum_j |C_rj x_j|
+    excess = np.maximum(value - qp.upper, qp.lower - value)
+    bound = np.where(value > qp.upper, qp.upper, qp.lower)
+    with np.errstate(invalid="ignore"):  # (inf / inf where a row is inside an infinite bound: not taken)
+        relative = excess / np.maximum.reduce([np.ones_like(size), np.abs(bound), size])
+    expected = np.max(np.where(excess > 0.0, relative, 0.0))
+    assert kernels.qp_defect(qp.data, x) == pytest.approx(expected, rel=1e-12) and expected > 0.0
+    assert kernels.qp_defect(qp.data, x) == kernels.constraint_defect(qp.C, qp.upper, qp.lower, x)
     qp.upper[:], qp.lower[:] = middle + 1.0, middle - 1.0
     assert kernels.qp_defect(qp.data, x) == 0.0
     x[rng.integers(n)] = np.nan

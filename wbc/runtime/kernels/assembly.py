@@ -217,21 +217,8 @@ def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None
 
 
 @njit(inline="always")
-def _relative_excess(value: float, size: float, upper: float, lower: float) -> float:
-    """How far ``value`` lies outside ``[lower, upper]``, divided by ``max(1, |bound|, size)``
-    (the bound it violates; ``size``: the size of the numbers ``value`` was computed from); 0 inside."""
-    excess = max(value - upper, lower - value)
-    if not excess > 0.0:
-        return 0.0
-    bound = upper if value > upper else lower
-    return excess / max(1.0, abs(bound), size)
-
-
-@declared("float64(float64[:, :], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
-def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
-    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
-    :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
-    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
+def _defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
+    """:func:`constraint_defect` with ``C`` flat (row-major, ``len(upper) - len(x)`` rows)."""
     n = x.shape[0]
     worst = 0.0
     for i in range(upper.shape[0]):
@@ -241,14 +228,26 @@ def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np
         else:
             value = 0.0
             size = 0.0
+            row = (i - n) * n
             for j in range(n):
-                term = C[i - n, j] * x[j]
+                term = C[row + j] * x[j]
                 value += term
                 size += abs(term)
         if not math.isfinite(value):
             return math.inf
-        worst = max(worst, _relative_excess(value, size, upper[i], lower[i]))
+        excess = max(value - upper[i], lower[i] - value)
+        if excess > 0.0:
+            bound = upper[i] if value > upper[i] else lower[i]
+            worst = max(worst, excess / max(1.0, abs(bound), size))
     return worst
+
+
+@declared("float64(float64[:, ::1], float64[:], float64[:], float64[:])", cache=CACHE, nogil=True)
+def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
+    """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
+    :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
+    the size of the numbers it was computed from. NaN in ``x`` gives inf."""
+    return _defect(C.reshape(C.size), upper, lower, x)
 
 
 @declared("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)
@@ -256,31 +255,14 @@ def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
     """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.problem.QP`'s
     flat buffer: H (n x n), c (n), C (rows x n), upper, lower (n + rows each), so
     ``len(data) = n^2 + 3 n + rows (n + 2)``) with ``n = len(x)``: the check run on every
-    answer, with two arguments (each costs ~0.1 us to pass), indexing ``data`` in place (a
-    reshaped view of C costs a runtime call in numba)."""
+    answer, with two arguments (each costs ~0.1 us to pass), on slices of ``data`` (a reshaped
+    view of C would cost a runtime call in numba)."""
     n = x.shape[0]
     rows = (data.shape[0] - n * n - 3 * n) // (n + 2)
-    m = n + rows
     start = n * n + n  # C's first entry
     upper = start + rows * n
-    lower = upper + m
-    worst = 0.0
-    for i in range(m):
-        if i < n:
-            value = x[i]
-            size = abs(value)
-        else:
-            value = 0.0
-            size = 0.0
-            row = start + (i - n) * n
-            for j in range(n):
-                term = data[row + j] * x[j]
-                value += term
-                size += abs(term)
-        if not math.isfinite(value):
-            return math.inf
-        worst = max(worst, _relative_excess(value, size, data[upper + i], data[lower + i]))
-    return worst
+    lower = upper + n + rows
+    return _defect(data[start:upper], data[upper:lower], data[lower:], x)
 
 
 @declared("boolean(float64[:])", cache=CACHE, nogil=True)
