@@ -192,6 +192,45 @@ def test_a_robot_inside_the_margin_is_pushed_out(solver):
     assert np.all(closest[later:] >= MIN_DISTANCE - TOLERANCE)
 
 
+@pytest.mark.parametrize("overlap", [0.02, -0.01])
+def test_the_platform_is_pushed_out_of_a_crate(overlap):
+    """The platform (a box) starting 2 cm into a crate (a box: the separating-axis depth), or 1 cm
+    from it (inside the 2 cm margin), on the native tick with the rows an op: moving away from the
+    first tick (the coal distance grows every tick until it reaches the margin, then stays above
+    it), every command finite and within the joint speed limits. 2 cm in, the damper asks for an
+    escape of gain (d_min - d) / dt = 2 m/s, more than the base's 0.8: those first ticks are the
+    elastic fallback's, which names the conflict and pushes out at the speed limit; 1 cm out it
+    asks 0.5 m/s: every tick optimal."""
+    crate = _box((0.29 + 0.1 - overlap, 0.0, -0.06), (0.2, 0.2, 0.08))  # the platform's front face at x = 0.29
+    oracle, excluded = Oracle(YOUBOT, [crate]), _excluded(YOUBOT)
+    assert _closest(oracle, excluded, NEUTRAL) == pytest.approx(-overlap, abs=1e-9)
+    hold = wbc.PostureTask(cost=1e-2, gain=0.5, target=NEUTRAL)  # pulls back into the crate
+    avoidance = wbc.CollisionAvoidance([crate])
+    controller = wbc.Controller(YOUBOT, [hold], [*LIMITS, avoidance])
+    assert controller._stepper is not None  # the whole tick one native call
+    assert not any(isinstance(data, type(controller.data(avoidance))) for data, _ in controller._python_constraints)
+    limit = YOUBOT.velocity_limit
+    q, closest, elastic = NEUTRAL, [], []
+    for _ in range(60):
+        v = controller.step(q)
+        last = controller.last
+        assert np.all(np.isfinite(v)) and np.all(np.abs(v) <= limit + 1e-9)
+        if not last.success:
+            assert last.outcome is wbc.Outcome.ELASTIC and v[0] == pytest.approx(-limit[0])
+            assert sorted(last.conflicts) == ["CollisionAvoidance: base_link↔box0",
+                                              "JointVelocityLimits: base v_x lower"]
+        elastic.append(not last.success)
+        q = YOUBOT.integrate(q, v, 0.01)
+        closest.append(_closest(oracle, excluded, q))
+    closest = np.array(closest)
+    reached = int(np.flatnonzero(closest >= MIN_DISTANCE - TOLERANCE)[0])
+    assert np.all(np.diff(closest[:reached + 1]) > 0.0)  # pushed out every tick, never frozen
+    assert np.all(closest[reached:] >= MIN_DISTANCE - TOLERANCE)
+    fallbacks = int(np.sum(elastic))
+    assert not any(elastic[fallbacks:])  # a run of first ticks
+    assert (fallbacks > 0) == (overlap > 0)
+
+
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(st.floats(0.05, 0.3), st.floats(-0.15, 0.15), st.floats(-0.25, 0.05), st.floats(0.03, 0.1),
        st.sampled_from(["sphere", "box", "capsule"]))

@@ -32,6 +32,7 @@ from . import (
     DAQP_SENSE_ACTIVE,
     DAQP_SENSE_IMMUTABLE,
     DAQP_SENSE_LOWER,
+    DAQP_SENSE_ZERO_ROW,
     DAQP_SKIPPED,
     DAQP_WORKSPACE_WORDS,
     prepare_cache,
@@ -94,9 +95,13 @@ def _sense_at(problem: np.ndarray, sense_word: int, m: int) -> np.ndarray:
 @njit(inline="always")
 def _no_active_constraint(sense: np.ndarray) -> bool:
     """Whether DAQP's working set ``sense`` holds no active constraint (the last answer met no
-    limit): every state without a bit but the side (no equality row, soft or binary constraint)."""
+    limit): every state without a bit but the side (no equality row, soft or binary constraint),
+    or DAQP's mark of a row it was given as zero (``DAQP_SENSE_ZERO_ROW``, e.g. an inert row of
+    CollisionAvoidance before a live row): a zero row constrains nothing -- whether its bounds
+    hold 0 is the answer check's."""
     for i in range(sense.shape[0]):
-        if sense[i] & ~DAQP_SENSE_LOWER:
+        state = sense[i]
+        if state & ~DAQP_SENSE_LOWER and not state & DAQP_SENSE_ZERO_ROW:
             return False
     return True
 
@@ -196,6 +201,8 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     k = 0  # the active constraints
     for i in range(sense.shape[0]):
         state = sense[i]
+        if state & DAQP_SENSE_ZERO_ROW:
+            continue  # a row DAQP was given as zero: never in its set (see _no_active_constraint)
         if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
             return -1.0  # a soft or binary constraint, or a state this kernel does not know
         if state & DAQP_SENSE_ACTIVE:
@@ -214,7 +221,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     j = 0
     for i in range(m):  # Â^T in lu's first k columns, D b_W in w
         state = sense[i]
-        if state & DAQP_SENSE_ACTIVE:
+        if state & DAQP_SENSE_ACTIVE and not state & DAQP_SENSE_ZERO_ROW:
             largest = 0.0
             for a in range(n):
                 value = data[n + i * n + a] if i >= n else (1.0 if a == i else 0.0)
