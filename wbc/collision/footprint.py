@@ -3,7 +3,9 @@ every tick) and polygons in the world frame; velocity-damper rows on the base ve
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -18,7 +20,11 @@ from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from .avoidance import INERT, DistanceMargins
 from .braking import RowBraking
-from .layout import GAIN
+from .layout import GAIN, GRID_CELL_START, GRID_CELLS, GRID_ORDERED, GRID_POINTS
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..runtime.compiled_op import CompiledOp
+    from ..runtime.program import TickProgram
 
 #: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
 #: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
@@ -160,6 +166,9 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
         self._ordered = np.zeros((0, 2))  # fixed and scan points in grid order
         self._meta = np.zeros(5)  # grid (x0, y0, cell, nx, ny)
         self._n_points = 0
+        #: what the tick program's op reads the points through (footprint_kernels.GRID_*): the addresses of
+        #: the buffers above, which set_points replaces when a scan outgrows them, and the counts
+        self._grid = np.zeros(4, dtype=np.int64)
         self.set_points(np.zeros((0, 2)) if points is None else points)
 
     def set_points(self, points: ArrayLike) -> None:
@@ -197,6 +206,18 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
         self._scan[:n] = scan
         self._ordered, self._cell_of, self._cell_start = ordered, cell_of, cell_start
         self._n_scan, self._n_points = n, built
+        self._point_grid()
+
+    def _point_grid(self) -> None:
+        """:attr:`_grid`: this object's point buffers' addresses and counts."""
+        grid = self._grid
+        grid[GRID_ORDERED], grid[GRID_CELL_START] = self._ordered.ctypes.data, self._cell_start.ctypes.data
+        grid[GRID_POINTS], grid[GRID_CELLS] = self._n_points, self._cell_start.size
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """Copies and pickles: the grid points to the copy's own buffers."""
+        self.__dict__.update(state)
+        self._point_grid()
 
     @property
     def points(self) -> NDArray[np.float64]:
@@ -239,11 +260,10 @@ class BaseFootprintAvoidanceData(ConstraintData):
         kernels.edge_table(np.ascontiguousarray(vertices), self._edges)
         centroid = vertices.mean(axis=0)
         self._shape = np.r_[centroid, np.max(np.linalg.norm(vertices - centroid, axis=1))]
-        self._pose = np.zeros(3)
+        self._pose = np.array([0.0, 0.0, 0.0, self._turns])  # the chassis (x, y, theta), then _turns (the op's)
         angles = -np.pi + 2 * np.pi * np.arange(self.n_inequalities) / self.n_inequalities
         self._sectors = np.array([kernels.diamond_angle(np.cos(a), np.sin(a)) for a in angles])
         self._sectors[0] = 0.0  # -pi exactly (cos(-pi), sin(-pi) = -1, -1.2e-16 would give ~4)
-        self._settings = np.zeros(3)
         #: per sector: (d, n_b (2), p_b (2), point index) of the last tick's closest point (d = inf: none)
         self.closest = np.full((self.n_inequalities, kernels.BEST_COLUMNS), np.inf)
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
@@ -255,14 +275,27 @@ class BaseFootprintAvoidanceData(ConstraintData):
         rows.G[:] = 0.0
         rows.h[:] = INERT
 
+    def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
+        """The rows as one op of the tick program (:func:`footprint_op`) when the kinematics are the
+        compiled chain's (its configuration the program's) and no acceleration bounds ask for
+        braking (:class:`~wbc.collision.braking.RowBraking`, in Python); else :meth:`compute` every tick."""
+        if not (kin.native and rows.G.flags.c_contiguous and not self._braking.active):
+            return False
+        avoidance = self.constraint
+        program.add(footprint_op(), grid=avoidance._grid, meta=avoidance._meta, edges=self._edges, shape=self._shape,
+                    q=kin.q, pose=self._pose, settings=avoidance._settings, columns=self._columns,
+                    sectors=self._sectors, best=self.closest, G=rows.G, h=rows.h, vertices=self._edges.shape[0],
+                    capacity=self.n_inequalities, nv=rows.G.shape[1], nq=kin.q.shape[0])
+        program.keep_alive(avoidance)  # (the buffers the grid's addresses point to)
+        return True
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
-        avoidance, pose, settings = self.constraint, self._pose, self._settings
+        avoidance, pose = self.constraint, self._pose
         x, y, _ = self._columns
         pose[0], pose[1], pose[2] = kin.q[x], kin.q[y], kin.q[self._heading] * self._turns
-        settings[0], settings[1], settings[2] = avoidance.detection_distance, avoidance.min_distance, avoidance.gain
         self._kernels.footprint_rows(avoidance._ordered, avoidance._cell_start, avoidance._meta, avoidance._n_points,
-                                     self._edges, self._shape, pose, self._turns, settings, dt, self._columns,
-                                     self._sectors, self.closest, rows.G, rows.h)
+                                     self._edges, self._shape, pose, self._turns, avoidance._settings, dt,
+                                     self._columns, self._sectors, self.closest, rows.G, rows.h)
         self._braking.apply(kin.q, rows.G, rows.h, avoidance.gain, dt)  # with acceleration bounds: in time
 
     @property
@@ -275,3 +308,19 @@ class BaseFootprintAvoidanceData(ConstraintData):
         """``"sector k"`` of each row (its closest point's distance when it has one)."""
         return [f"sector {k} (d = {d:.3f} m)" if np.isfinite(d) else f"sector {k} (no point)"
                 for k, d in enumerate(self.closest[:, 0].tolist())]
+
+
+@functools.cache
+def footprint_op() -> CompiledOp:
+    """The op of the tick program that computes a :class:`BaseFootprintAvoidance`'s rows
+    (:func:`wbc.collision.footprint_kernels.footprint_op`): compiled once per process, when a
+    controller first uses it."""
+    from ..runtime.compiled_op import CompiledOp
+    from . import footprint_kernels as kernels
+
+    return CompiledOp("BASE_FOOTPRINT", kernels.footprint_op, (
+        ("grid", (4,), "int64"), ("meta", (5,)), ("edges", ("vertices", kernels.EDGE_COLUMNS)), ("shape", (3,)),
+        ("q", ("nq",)), ("pose", (4,)), ("settings", (3,)), ("columns", (3,), "int64"), ("sectors", ("capacity",)),
+        ("best", ("capacity", kernels.BEST_COLUMNS)), ("G", ("capacity", "nv")), ("h", ("capacity",)),
+        ("vertices", None), ("capacity", None), ("nv", None), ("nq", None)),
+        checks=("vertices >= 3", "capacity >= 1", "nq >= 3", "nv >= 3"))

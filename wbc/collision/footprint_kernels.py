@@ -27,10 +27,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from numba import njit
+from numba import carray, njit
 
 from ..runtime.kernels import _cache
+from ..runtime.kernels.tick import _float64_at, _int64_at
 from .avoidance import INERT  # the h of an inert row
+from .layout import GRID_CELL_START, GRID_CELLS, GRID_ORDERED, GRID_POINTS
 
 CACHE = _cache.prepare(Path(__file__).parent, ("kernels", "footprint_kernels"), cold=("footprint_kernels",)) is not None
 
@@ -215,3 +217,21 @@ def footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turn
             G[k, jx] = G[k, jy] = G[k, jh] = 0.0
             h[k] = INERT
     return active
+
+
+
+@njit(cache=CACHE, nogil=True)
+def footprint_op(grid, meta, edges, shape, q, pose, settings, columns, sectors, best, G, h, vertices, capacity, nv,
+                 nq, dt):
+    """:func:`footprint_rows` as an op of the tick program (:class:`wbc.runtime.compiled_op.CompiledOp`,
+    declared by :func:`wbc.collision.footprint.footprint_op`): the chassis pose from ``q`` (the
+    program's configuration) at ``columns`` (x, y, heading), its heading times ``pose[3]`` (1, or 0
+    for a synchro drive's chassis), into ``pose[:3]``; the points through ``grid`` (addresses and
+    counts, :data:`wbc.collision.layout.GRID_ORDERED` ...: read every tick, so a new scan's buffers are the ones used).
+    The int operands size the arrays only."""
+    pose[0], pose[1], pose[2] = q[columns[0]], q[columns[1]], q[columns[2]] * pose[3]
+    n_points = grid[GRID_POINTS]
+    ordered = carray(_float64_at(grid[GRID_ORDERED]), (max(n_points, 1), 2))
+    cell_start = carray(_int64_at(grid[GRID_CELL_START]), (grid[GRID_CELLS],))
+    footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose[:3], pose[3], settings, dt, columns,
+                   sectors, best, G, h)

@@ -48,3 +48,8 @@ DETECTION, MIN_DISTANCE, GAIN = 0, 1, 2
 
 #: floats of the scratch array the kernels use (:func:`wbc.collision.kernels.box_box` needs 96)
 SCRATCH = 96
+
+#: the entries of ``BaseFootprintAvoidance._grid`` (what its tick-program op reads the points
+#: through): the addresses of its point buffers (``set_points`` replaces them when a scan outgrows
+#: them; a copy has its own), the point count, the cell-start count
+GRID_ORDERED, GRID_CELL_START, GRID_POINTS, GRID_CELLS = range(4)
