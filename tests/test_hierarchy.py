@@ -202,6 +202,16 @@ def brute_force_cascade(levels, lower, upper, damping):
     return v, values
 
 
+def _puma_wrist_draw(robot: wbc.Robot, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, wbc.PositionTask]:
+    """(q, goal, wrist): a PUMA configuration within 1 rad of (0, -0.5, 0.5, 0, 0.8, 0), a wrist-centre goal up to
+    0.3 m away per axis, and the wrist-centre PositionTask (cost 1, gain 0.5) aiming at it."""
+    q = rng.uniform(-1.0, 1.0, 6) + np.array([0, -0.5, 0.5, 0, 0.8, 0])
+    goal = robot.frame_pose(q, "wrist_center")[:3, 3] + rng.uniform(-0.3, 0.3, 3)
+    wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=0.5)
+    wrist.set_target(goal)
+    return q, goal, wrist
+
+
 @pytest.mark.parametrize("solver", wbc.available_solvers())
 def test_a_level_infeasible_alone_takes_its_least_squares_optimum(solver):
     """PUMA 560: the wrist centre is asked to move faster than the joint speed limits allow
@@ -211,11 +221,8 @@ def test_a_level_infeasible_alone_takes_its_least_squares_optimum(solver):
     rng = np.random.default_rng(7)
     checked = 0
     for _ in range(6):
-        q = rng.uniform(-1.0, 1.0, 6) + np.array([0, -0.5, 0.5, 0, 0.8, 0])
-        goal = robot.frame_pose(q, "wrist_center")[:3, 3] + rng.uniform(-0.3, 0.3, 3)
+        q, goal, wrist = _puma_wrist_draw(robot, rng)
         posture_target = q + rng.uniform(-1, 1, 6)
-        wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=0.5)
-        wrist.set_target(goal)
         posture = wbc.PostureTask(1.0, target=posture_target, gain=0.005)
         controller = wbc.Controller(robot, [[wrist], [posture]], [wbc.JointVelocityLimits()], solver=solver,
                                     lm_damping=0.0)  # the exact lexicographic optimum
@@ -245,11 +252,8 @@ def test_four_levels_under_active_bounds_match_the_brute_force_cascade():
     rng = np.random.default_rng(11)
     solved = 0
     for _ in range(6):
-        q = rng.uniform(-1.0, 1.0, 6) + np.array([0, -0.5, 0.5, 0, 0.8, 0])
-        goal = robot.frame_pose(q, "wrist_center")[:3, 3] + rng.uniform(-0.3, 0.3, 3)
+        q, goal, wrist = _puma_wrist_draw(robot, rng)
         targets = [q + rng.uniform(-1, 1, 6) for _ in range(3)]
-        wrist = wbc.PositionTask("wrist_center", cost=1.0, gain=0.5)
-        wrist.set_target(goal)
         joints = [["joint_1", "joint_2"], ["joint_3"], None]
         postures = [wbc.PostureTask(1.0, target=target, gain=0.01, joints=names)
                     for target, names in zip(targets, joints, strict=True)]
