@@ -219,7 +219,6 @@ def footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turn
     return active
 
 
-
 @njit(cache=CACHE, nogil=True)
 def footprint_op(grid, meta, edges, shape, q, pose, settings, columns, sectors, best, G, h, vertices, capacity, nv,
                  nq, dt):
@@ -227,8 +226,8 @@ def footprint_op(grid, meta, edges, shape, q, pose, settings, columns, sectors, 
     declared by :func:`wbc.collision.footprint.footprint_op`): the chassis pose from ``q`` (the
     program's configuration) at ``columns`` (x, y, heading), its heading times ``pose[3]`` (1, or 0
     for a synchro drive's chassis), into ``pose[:3]``; the points through ``grid`` (addresses and
-    counts, :data:`wbc.collision.layout.GRID_ORDERED` ...: read every tick, so a new scan's buffers are the ones used).
-    The int operands size the arrays only."""
+    counts, :data:`wbc.collision.layout.GRID_ORDERED` ...: read every tick, so a new scan's buffers
+    are the ones used). The int operands size the arrays only."""
     pose[0], pose[1], pose[2] = q[columns[0]], q[columns[1]], q[columns[2]] * pose[3]
     n_points = grid[GRID_POINTS]
     ordered = carray(_float64_at(grid[GRID_ORDERED]), (max(n_points, 1), 2))
