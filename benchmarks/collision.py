@@ -7,7 +7,8 @@ The scenario's controller ("today") and the same stack plus ``wbc.CollisionAvoid
 collision and 10 spheres/boxes whose centres lie 0.5-0.85 m from the platform's centre, seeded;
 the default capacity of one row per candidate pair, and ``capacity=16``) step the same closed
 loop (today's q) tick by tick in alternating order, so machine noise hits all alike. Each repeat
-reports the medians and the mean number of pairs within the detection distance per tick; the
+reports the medians and the mean number of pairs given a row per tick (within the detection
+distance and within reach of the speed limits: ``wbc.CollisionAvoidance``'s *Reach*); the
 summary the median ratio over the repeats with its spread (min-max), for wbc (collision / today)
 and, with ``--mink``, for mink (its ``CollisionAvoidanceLimit`` on the same scene / mink without
 it) and mink's collision tick over wbc's.
@@ -102,7 +103,7 @@ def controllers(scenario: Scenario) -> dict[str, tuple[wbc.Controller, wbc.Colli
 
 def measure(scenario: Scenario, ticks: int, with_mink: bool) -> tuple[dict[str, np.ndarray], float, int]:
     """Tick times [s] of every controller (and mink's setups) along today's closed loop, the mean
-    number of pairs within the detection distance, and the collision controllers' rows."""
+    number of pairs given a row, and the collision controllers' rows."""
     stack: dict[str, Any] = dict(controllers(scenario))
     peers = mink_setups(scenario) if with_mink else {}
     stack.update({name: (setup, None) for name, setup in peers.items()})
@@ -208,7 +209,7 @@ def main(argv: list[str] | None = None) -> int:
             ratios.setdefault("mink collision / wbc collision", []).append(medians["mink collision"]
                                                                           / medians["collision"])
         print(f"repeat {repeat + 1}: " + ", ".join(f"{name} {value:.1f} µs" for name, value in medians.items())
-              + f"; pairs within 0.3 m per tick {close:.1f} of {rows} rows")
+              + f"; pairs with a row per tick {close:.1f} of {rows} rows (within 0.3 m and within reach)")
     print("summary (median over the repeats, min-max):")
     for name, values in ratios.items():
         label = name if "/" in name else f"{name} / today"

@@ -48,12 +48,12 @@ def _run(controller, q, ticks, oracle, excluded):
     return q, np.array(closest), statuses
 
 
-def _reach(target, avoidance, solver="daqp"):
+def _reach(target, avoidance, solver="daqp", limits=LIMITS):
     ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.0, gain=0.5, max_speed=0.5)
     pose = YOUBOT.frame_pose(NEUTRAL, "ee")
     pose[:3, 3] = target
     ee.set_target(pose)
-    constraints = [*LIMITS, avoidance] if avoidance is not None else list(LIMITS)
+    constraints = [*limits, avoidance] if avoidance is not None else list(limits)
     return wbc.Controller(YOUBOT, [ee, wbc.PostureTask(cost=1e-3, gain=0.05)], constraints, solver=solver)
 
 
@@ -123,9 +123,11 @@ def _check_corner_row(data, i, gap, row, q, sphere) -> bool:
 
 
 def test_every_pair_within_detection_gets_a_row_and_no_other():
+    """Without speed limits no pair is out of reach (tests/test_collision_reach.py: with them)."""
     sphere = wbc.Sphere(EE + (0.15, 0.0, 0.0), 0.05)
     avoidance = wbc.CollisionAvoidance([sphere], detection_distance=0.12)
-    controller = _reach(EE, avoidance)
+    controller = _reach(EE, avoidance, limits=(wbc.JointPositionLimits(),))
+    assert np.all(controller.context.speed_bound == np.inf)
     data = controller.data(avoidance)
     controller.step(NEUTRAL)
     expected = {key for key, d in Oracle(YOUBOT, [sphere]).distances(NEUTRAL).items()
@@ -137,7 +139,7 @@ def test_every_pair_within_detection_gets_a_row_and_no_other():
 def test_the_row_count_is_fixed():
     sphere = wbc.Sphere((5.0, 0.0, 0.0), 0.1)
     avoidance = wbc.CollisionAvoidance([sphere])
-    controller = _reach(EE + (0.2, 0.0, -0.2), avoidance)
+    controller = _reach(EE + (0.2, 0.0, -0.2), avoidance, limits=(wbc.JointPositionLimits(),))  # none out of reach
     data = controller.data(avoidance)
     geometry = RobotGeometry(YOUBOT)
     candidates = len(geometry.pairs) + geometry.size  # self pairs + every moving shape against the sphere

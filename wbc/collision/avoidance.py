@@ -109,6 +109,18 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     model of d at the tie). With :class:`~wbc.AccelerationLimits` in the stack every
     row also brakes in time (:class:`~wbc.collision.braking.RowBraking`).
 
+    **Reach.** A pair whose damper no command can bind gets no row: the bounds on each ``|v_k|``
+    that the controller's hard constraints imply at every tick (:class:`~wbc.JointVelocityLimits`,
+    its base rows too, :class:`~wbc.DofFreezing`: ``TickContext.speed_bound``) bound ``|d_dot|``
+    by ``sum_k speed_k (|v_O,k + w_k x c| + |w_k| r)`` over the coordinates that move only one of
+    the two shapes (those that move both move them together and leave d alone; ``c``, ``r``: the
+    moving shape's bounding sphere), and a pair whose lower bound of d gives
+    ``gain (d - min_distance) / dt`` above that sum is left out before its distance is measured
+    (:func:`~wbc.collision.kernels._out_of_reach`). Its row would hold for every command the
+    controller returns, so nothing changes but the work (and :attr:`CollisionAvoidanceData.pairs`,
+    which lists only the pairs within reach). A coordinate without such a bound never lets a pair
+    it moves be left out; with :class:`~wbc.AccelerationLimits` (rows that brake) nothing is.
+
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
     = ``capacity`` + :data:`CORNER_ROWS` (``capacity`` default: every candidate pair, so no pair
     within ``detection_distance`` is ever left out); each tick the pairs within
@@ -196,9 +208,20 @@ class CollisionAvoidanceData(ConstraintData):
         # the kinematics in the kernels' layout when the controller's are Pinocchio's (not native)
         self._placements = np.zeros((robot.model.njoints, 12))
         self._jacobians_t = np.zeros((robot.nv, 6))
+        self._context: TickContext | None = None  # the controller's (use_context)
+        self._unbounded = np.full(robot.nv, np.inf)
 
     def use_context(self, context: TickContext) -> None:
         self._braking.use_context(context)
+        self._context = context
+
+    @property
+    def _speed(self) -> np.ndarray:
+        """The bound on each ``|v_k|`` that leaves out the pairs out of reach: the controller's
+        (``TickContext.speed_bound``), none (``inf``) without one or when the rows brake
+        (:class:`~wbc.collision.braking.RowBraking` tightens them: a row left out might bind)."""
+        context = self._context
+        return context.speed_bound if context is not None and not self._braking.active else self._unbounded
 
     def write_static(self, rows: ConstraintRows) -> None:
         rows.G[:] = 0.0
@@ -206,7 +229,8 @@ class CollisionAvoidanceData(ConstraintData):
 
     @property
     def pairs(self) -> PairBuffers:
-        """This tick's pairs within the detection distance (entries ``0 .. pairs.count - 1``)."""
+        """This tick's pairs within the detection distance and within reach (entries
+        ``0 .. pairs.count - 1``; see the class's *Reach*)."""
         self._pairs.count = int(self._counts[0])  # (the tick program's op writes the count there)
         return self._pairs
 
@@ -228,7 +252,7 @@ class CollisionAvoidanceData(ConstraintData):
                     jacobians_t=kin.joint_jacobians.T, support=distances._support, world=distances._world,
                     index=pairs.index, distance=pairs.distance, points=pairs.points, rows=pairs.rows,
                     scratch=distances._scratch, G=rows.G, h=rows.h, settings=self.constraint._settings,
-                    tick=self._tick, corner_slot=self.corner_pair, counts=self._counts,
+                    tick=self._tick, corner_slot=self.corner_pair, speed=self._speed, counts=self._counts,
                     shapes=distances.table.shape[0], candidates=distances.pairs.shape[0],
                     joints=kin.placements.shape[0], nv=rows.G.shape[1], capacity=pairs.capacity,
                     pending=pairs.pending.size, inequalities=self.n_inequalities, corners=self.corner_pair.size)
@@ -268,7 +292,7 @@ class CollisionAvoidanceData(ConstraintData):
         G = rows.G if rows.G.flags.c_contiguous else self._G  # the kernels write C-contiguous rows
         arguments = (distances.table, distances.pairs, placements, jacobians_t, distances._support, distances._world,
                      pairs.index, pairs.distance, pairs.points, pairs.rows, distances._scratch, G, rows.h,
-                     self.constraint._settings, self._tick, self.corner_pair)
+                     self.constraint._settings, self._tick, self.corner_pair, self._speed)
         kernel = self.distances._kernels.avoidance_rows
         if fits_signature(kernel, arguments):
             kernel = unchecked_entry(kernel)
@@ -288,8 +312,8 @@ class CollisionAvoidanceData(ConstraintData):
 
     @property
     def min_distance(self) -> float:
-        """The smallest signed distance of the last tick [m] (inf when no pair was within the
-        detection distance)."""
+        """The smallest signed distance of the last tick's pairs [m] (inf when no pair was within
+        the detection distance and within reach: :attr:`pairs`)."""
         count = self.pairs.count
         return float(self.pairs.distance[:count].min()) if count else float("inf")
 
@@ -327,6 +351,6 @@ def avoidance_op() -> CompiledOp:
         ("index", ("capacity + pending",), "int64"), ("distance", ("capacity",)), ("points", (3, "capacity", 3)),
         ("rows", ("capacity", "nv")), ("scratch", (SCRATCH,)), ("G", ("inequalities", "nv")),
         ("h", ("inequalities",)), ("settings", (3,)), ("tick", (2,)), ("corner_slot", ("corners",), "int64"),
-        ("counts", (2,), "int64"), ("shapes", None), ("candidates", None), ("joints", None), ("nv", None),
-        ("capacity", None), ("pending", None), ("inequalities", None), ("corners", None)),
+        ("speed", ("nv",)), ("counts", (2,), "int64"), ("shapes", None), ("candidates", None), ("joints", None),
+        ("nv", None), ("capacity", None), ("pending", None), ("inequalities", None), ("corners", None)),
         checks=("capacity >= 1", "pending >= candidates", "pending >= 1", "inequalities == capacity + corners"))

@@ -626,15 +626,56 @@ def _spheres_apart(table, world, a, b, detection):
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
-def _pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
+def _out_of_reach(table, world, a, b, bound, support, jacobians_t, speed, margin):
+    """True when no v with ``|v_k| <= speed[k]`` changes the distance d of shapes a and b at
+    ``margin = gain (bound - d_min) / dt`` [m/s] or faster (``bound``: a lower bound of d): their
+    damper ``d_dot >= -gain (d - d_min) / dt`` -- and every corner row of the pair, whose
+    distances are d or more -- then holds for every such v.
+
+    Why it is a bound: ``d_dot = n . (v_b(w_b) - v_a(w_a))`` with ``w_b - w_a = d n``; a
+    coordinate k that moves both shapes moves them rigidly together (``v_O,k + w_k x p`` on
+    both), adding ``n . (w_k x (w_b - w_a)) = 0``; one that moves only shape x adds at most
+    ``|v_k| |v_O,k + w_k x w_x| <= speed_k (|v_O,k + w_k x c_x| + |w_k| r_x)``, the witness
+    ``w_x`` lying within x's bounding sphere (centre ``c_x``, radius ``r_x``). So
+    ``|d_dot| <= sum_k speed_k (...)``, and the pair is out of reach when that sum is below
+    ``margin`` (an infinite speed on such a coordinate: never)."""
+    if not margin > 0.0:  # (the pair within d_min, or penetrating: always a row)
+        return False
+    joint_a, joint_b = int(table[a, JOINT]), int(table[b, JOINT])
+    reach = 0.0
+    for k in range(speed.size):
+        on_a, on_b = support[joint_a, k] != 0.0, support[joint_b, k] != 0.0
+        if on_a == on_b:
+            continue
+        s = a if on_a else b
+        wx, wy, wz = jacobians_t[k, 3], jacobians_t[k, 4], jacobians_t[k, 5]
+        cx, cy, cz = world[s, 12], world[s, 13], world[s, 14]
+        vx = jacobians_t[k, 0] + wy * cz - wz * cy
+        vy = jacobians_t[k, 1] + wz * cx - wx * cz
+        vz = jacobians_t[k, 2] + wx * cy - wy * cx
+        lever = math.sqrt(vx * vx + vy * vy + vz * vz) + math.sqrt(wx * wx + wy * wy + wz * wz) * table[s, BOUND_RADIUS]
+        if lever > 0.0:
+            reach += speed[k] * lever
+            if not reach < margin:  # (also inf, NaN)
+                return False
+    return True
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, speed, rate, d_min,
                     slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
+    """(``speed``: the bound on each |v_k|, empty for none; ``rate`` = gain / dt.)"""
     world_poses(table, placements, world)
     count = 0
     n_pending = 0
     out = scratch[48:58]
     for k in range(pairs.shape[0]):
         a, b = pairs[k, PAIR_A], pairs[k, PAIR_B]
-        if _spheres_apart(table, world, a, b, detection) or not bound_distance(table, world, a, b) < detection:
+        if _spheres_apart(table, world, a, b, detection):
+            continue
+        bound = bound_distance(table, world, a, b)
+        if not bound < detection or (speed.size > 0 and _out_of_reach(table, world, a, b, bound, support, jacobians_t,
+                                                                     speed, rate * (bound - d_min))):
             continue
         if not pair_distance(table, world, a, b, out, scratch):
             pending[n_pending] = k
@@ -663,8 +704,8 @@ def pair_distances(table, pairs, placements, jacobians_t, support, world, detect
     but have no compiled distance; coal measures them and :func:`insert_pair` adds them.
     ``pending``: one entry per pair; ``scratch``: >= 64 floats.
     """
-    return _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, slot_pair, distance,
-                           witness_a, witness_b, normal, rows, pending, scratch)
+    return _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, scratch[:0], 0.0, 0.0,
+                           slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch)
 
 
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active
@@ -895,19 +936,22 @@ DT, SPEED = 0, 1
 
 @njit("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
-      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1])", cache=CACHE, nogil=True)
+      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
 def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch,
-                   G, h, settings, tick, corner_slot):
+                   G, h, settings, tick, corner_slot, speed):
     """A tick's rows in one call: :func:`pair_distances` and, when no pair waits for coal,
     :func:`damper_rows` and :func:`corner_rows` after them. Fewer arguments than those (each costs
     the call ~40 ns): ``index`` = (the entries' pairs (capacity), pending (one per pair)), ``points``
     = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain), ``tick`` = (dt,
-    corner speed). Returns (what :func:`pair_distances` returns, the number of corner rows)."""
+    corner speed). ``speed``: ``|v_k| <= speed[k]`` for every command (``inf``: unbounded); a
+    pair that no such v could bring to its damper's bound gets no entry (:func:`_out_of_reach`).
+    Returns (what :func:`pair_distances` returns, the number of corner rows)."""
     capacity, dt = distance.size, tick[DT]
     slot_pair, pending = index[:capacity], index[capacity:]
     witness_a, witness_b, normal = points[0], points[1], points[2]
-    packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], slot_pair,
-                             distance, witness_a, witness_b, normal, rows, pending, scratch)
+    packed = _pair_distances(table, pairs, placements, jacobians_t, support, world, settings[DETECTION], speed,
+                             settings[GAIN] / dt, settings[MIN_DISTANCE], slot_pair, distance, witness_a, witness_b,
+                             normal, rows, pending, scratch)
     if packed > capacity:
         return packed, 0
     _damper_rows(packed, distance, rows, G, h, settings, dt)
@@ -947,13 +991,14 @@ def bound_of(table, world, a, b):
 
 @njit(cache=CACHE, nogil=True)
 def avoidance_op(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch, G, h,
-                 settings, tick, corner_slot, counts, shapes, candidates, joints, nv, capacity, pending, inequalities,
-                 corners, dt):
+                 settings, tick, corner_slot, speed, counts, shapes, candidates, joints, nv, capacity, pending,
+                 inequalities, corners, dt):
     """:func:`avoidance_rows` as an op of the tick program (:class:`wbc.runtime.compiled_op.CompiledOp`,
     declared by :func:`wbc.collision.avoidance.avoidance_op`): ``dt`` into ``tick``, then (the entries,
     the corner rows) into ``counts``. Only for pairs that all have a compiled distance (the op is not
     used otherwise), so nothing is left for coal. The int operands size the arrays only."""
     tick[DT] = dt
     packed, corner_rows_written = avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
-                                                 distance, points, rows, scratch, G, h, settings, tick, corner_slot)
+                                                 distance, points, rows, scratch, G, h, settings, tick, corner_slot,
+                                                 speed)
     counts[0], counts[1] = packed, corner_rows_written

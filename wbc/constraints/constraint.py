@@ -61,6 +61,12 @@ class ConstraintData:
     def write_static(self, rows: ConstraintRows) -> None:
         """Write the parts that never change (called once after allocation)."""
 
+    def bound_speed(self, speed: NDArray[np.float64]) -> None:
+        """Lower ``speed[k]`` [unit/s] to a bound on ``|v_k|`` that every ``v`` this constraint
+        allows keeps, at every configuration and tick (e.g. a constant speed limit); called once,
+        when a controller is built, and only for hard constraints: every command the controller
+        returns keeps them (``TickContext.speed_bound``). Default: no such bound."""
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         """Write this tick's bounds / rows."""
         raise NotImplementedError(f"{type(self).__name__} computes no rows")

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
+from numpy.typing import NDArray
+
 from ..model.declared_base import joint_columns
 from ..model.kinematics import Kinematics
 from ..model.manipulability import check_joint_names
@@ -49,6 +52,9 @@ class DofFreezingData(ConstraintData):
     def write_static(self, rows: ConstraintRows) -> None:
         rows.lower[self.columns] = 0.0
         rows.upper[self.columns] = 0.0
+
+    def bound_speed(self, speed: NDArray[np.float64]) -> None:
+        speed[self.columns] = 0.0
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         return True  # static bounds: nothing to do per tick

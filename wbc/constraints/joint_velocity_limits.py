@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import NDArray
 
+from ..model.bases import TwistRows
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from ..runtime.program import TickProgram
@@ -41,6 +43,7 @@ class JointVelocityLimitsData(ConstraintData):
             x, y, _ = base.indices
             limit[[x, y]] = np.inf  # the coupled base rates: bounded by the base-frame rows
         self._limit = limit
+        self._base = (x, y) if base.is_mobile else None  #: the base's xdot, ydot columns
         self._speed_rows = base.speed_rows()
         self.n_inequalities = self._speed_rows.count
         self._heading_rows = HeadingRows.of_twist(self._speed_rows, base.indices) if self.n_inequalities else None
@@ -51,6 +54,19 @@ class JointVelocityLimitsData(ConstraintData):
         rows.h[...] = self._speed_rows.bound
         if self._heading_rows is not None:
             self._heading_rows.write_heading_column(rows.G)
+
+    def bound_speed(self, speed: NDArray[np.float64]) -> None:
+        """The limits, and for a base whose speed rows bound ``|v_x| <= a`` and ``|v_y| <= b`` in
+        its frame, ``|xdot|, |ydot| <= |(xdot, ydot)| = |(v_x, v_y)| <= sqrt(a^2 + b^2)``."""
+        np.minimum(speed, self._limit, out=speed)
+        if self._base is None:
+            return
+        rows = self._speed_rows
+        a = max(_bound_along(rows, (1.0, 0.0, 0.0)), _bound_along(rows, (-1.0, 0.0, 0.0)))
+        b = max(_bound_along(rows, (0.0, 1.0, 0.0)), _bound_along(rows, (0.0, -1.0, 0.0)))
+        planar = float(np.hypot(a, b))  # (inf when a side is unbounded)
+        for k in self._base:
+            speed[k] = min(speed[k], planar)
 
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         if self._heading_rows is not None:
@@ -63,3 +79,9 @@ class JointVelocityLimitsData(ConstraintData):
 
     def row_labels(self) -> list[str]:
         return list(self._speed_rows.labels)
+
+
+def _bound_along(rows: TwistRows, direction: tuple[float, float, float]) -> float:
+    """The tightest ``b`` of the rows ``direction . t <= b`` among ``rows`` (inf: none)."""
+    return min((float(b) for row, b in zip(rows.matrix, rows.bound, strict=True)
+                if np.array_equal(row, direction)), default=np.inf)

@@ -39,16 +39,22 @@ class TickContext:
     * ``measured`` -- the measured joint velocity ``v_measured`` given to this tick's ``step``
       [unit/s], size ``nv`` (None when not given);
     * ``braking`` -- the controller's acceleration bounds as a :class:`Braking` (None without
-      them), set when the items are bound: rows that must brake in time (collision dampers) read it.
+      them), set when the items are bound: rows that must brake in time (collision dampers) read it;
+    * ``speed_bound`` -- ``|v_k| <= speed_bound[k]`` [unit/s] for every command the controller
+      returns (``inf``: no such bound), what its hard constraints imply at every tick
+      (:meth:`~wbc.constraints.constraint.ConstraintData.bound_speed`: the speed limits, frozen
+      joints), set when the controller is built: rows that no command within it can violate
+      are left out (collision pairs too far to be reached within one tick).
     """
 
-    __slots__ = ("kinematics", "dt", "previous", "measured", "braking", "_measured")
+    __slots__ = ("kinematics", "dt", "previous", "measured", "braking", "speed_bound", "_measured")
 
     def __init__(self, kinematics: Kinematics, dt: float) -> None:
         self.kinematics, self.dt = kinematics, dt
         self.previous: NDArray[np.float64] | None = None
         self.measured: NDArray[np.float64] | None = None
         self.braking: Braking | None = None
+        self.speed_bound = np.full(kinematics.robot.nv, np.inf)  # (written in place: readers keep the array)
         self._measured = np.zeros(kinematics.robot.nv)  # where a measured velocity is copied to
 
     def measure(self, v_measured: ArrayLike) -> NDArray[np.float64]:

@@ -88,6 +88,12 @@ class ConstraintLayout:
             constraint.write_static(rows)
             i_ineq, i_eq = i_ineq + p, i_eq + e
         self.soft_rows = np.array(soft_rows, dtype=int)  #: indices among the inequality rows
+        #: ``|v_k| <= speed_bound[k]`` for every command: what the hard constraints imply
+        #: (:meth:`ConstraintData.bound_speed`; ``TickContext.speed_bound``)
+        self.speed_bound = np.full(nv, np.inf)
+        for constraint in constraints:
+            if constraint.hard:
+                constraint.bound_speed(self.speed_bound)
         #: labels of every bound slot: (upper of each coordinate, then lower)
         self.bound_labels = [[f"{c.name}: {name} {side}" for side in ("upper", "lower") for name in velocity_names]
                              for c in bounded] or [[""] * (2 * nv)]

@@ -1,0 +1,184 @@
+"""Collision pairs out of reach (wbc.collision.kernels._out_of_reach): the speed bound that the hard
+constraints imply (written out), a pair left out only when no command within the hard constraints
+can bind its damper (the worst case of its row written out as the LP's value, from coal's distances
+and their finite differences), and the rule's threshold to within 0.01 %."""
+
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import wbc
+from test_collision_distances import Oracle
+from wbc.collision import RobotGeometry
+from wbc.collision.layout import BOUND_CENTER, BOUND_RADIUS, JOINT, ROTATION, TRANSLATION
+
+YOUBOT = wbc.load_robot("youbot")
+NEUTRAL = YOUBOT.neutral()
+X, Y, HEADING = YOUBOT.base.indices
+MIN_DISTANCE = 0.02
+
+
+def _obstacles():
+    """Spheres and boxes around the platform and the arm, 0.45-0.8 m out (as the benchmark's)."""
+    rng = np.random.default_rng(3)
+    shapes = []
+    for k in range(8):
+        angle, reach, height = rng.uniform(-np.pi, np.pi), rng.uniform(0.45, 0.8), rng.uniform(0.1, 0.6)
+        centre = (reach * np.cos(angle), reach * np.sin(angle), height)
+        if k % 2 == 0:
+            shapes.append(wbc.Sphere(centre, rng.uniform(0.04, 0.1)))
+        else:
+            pose = np.eye(4)
+            pose[:3, 3] = centre
+            shapes.append(wbc.Box(pose, rng.uniform(0.05, 0.2, size=3)))
+    return shapes
+
+
+def _keys(labels):
+    """Link-pair keys of the oracle from wbc's labels ("arm_link_5↔box3" -> {arm_link_5, obstacle3})."""
+    return {frozenset(re.sub(r"^(sphere|box|capsule|plane)(\d+)$", r"obstacle\2", part) for part in label.split("↔"))
+            for label in labels}
+
+
+def test_the_speed_bound_is_what_the_hard_constraints_imply():
+    limit, linear = YOUBOT.velocity_limit, YOUBOT.base.max_linear_speed
+    assert np.isfinite(linear) and np.all(np.isfinite(limit))
+    expected = limit.copy()
+    # the base rows bound |v_x|, |v_y| <= linear in the base frame: |xdot| <= |(v_x, v_y)| <= sqrt(2) linear
+    expected[[X, Y]] = np.sqrt(2.0) * linear
+    posture = [wbc.PostureTask(cost=1e-3)]
+    limits = wbc.Controller(YOUBOT, posture, [wbc.JointPositionLimits(), wbc.JointVelocityLimits()])
+    np.testing.assert_allclose(limits.context.speed_bound, expected, rtol=1e-12)
+    frozen = wbc.Controller(YOUBOT, posture, [wbc.JointVelocityLimits(), wbc.DofFreezing(["arm_joint_3"])])
+    column = YOUBOT.model.joints[YOUBOT.model.getJointId("arm_joint_3")].idx_v
+    expected[column] = 0.0
+    np.testing.assert_allclose(frozen.context.speed_bound, expected, rtol=1e-12)
+    # soft constraints and acceleration bounds (they change every tick) imply no constant speed bound
+    unbounded = wbc.Controller(YOUBOT, posture, [wbc.JointPositionLimits(), wbc.AccelerationLimits(10.0)])
+    assert np.all(unbounded.context.speed_bound == np.inf)
+    puma = wbc.load_robot("puma560")
+    fixed = wbc.Controller(puma, [wbc.PostureTask(cost=1e-3)], [wbc.JointVelocityLimits()])
+    np.testing.assert_allclose(fixed.context.speed_bound, puma.velocity_limit, rtol=1e-12)
+
+
+def _worst_rate(gradient, q):
+    """max over the hard constraints (|v_k| <= limit_k; the base rows |v_x|, |v_y| <= linear in the
+    base frame, v_x = c xdot + s ydot, v_y = -s xdot + c ydot) of -gradient . v: the LP's value."""
+    limit, linear = YOUBOT.velocity_limit, YOUBOT.base.max_linear_speed
+    others = [k for k in range(YOUBOT.nv) if k not in (X, Y)]
+    c, s = np.cos(q[HEADING]), np.sin(q[HEADING])
+    g_x, g_y = gradient[X], gradient[Y]
+    return float(np.abs(gradient[others]) @ limit[others] + linear * (abs(c * g_x + s * g_y) + abs(-s * g_x + c * g_y)))
+
+
+def _gradients(oracle, q, step=1e-6):
+    """Central finite differences of every pair's coal distance along each velocity coordinate."""
+    columns = []
+    for k in range(YOUBOT.nv):
+        e = np.zeros(YOUBOT.nv)
+        e[k] = step
+        ahead, behind = oracle.distances(YOUBOT.integrate(q, e, 1.0)), oracle.distances(YOUBOT.integrate(q, -e, 1.0))
+        columns.append({key: (ahead[key] - behind[key]) / (2 * step) for key in ahead})
+    return {key: np.array([column[key] for column in columns]) for key in columns[0]}
+
+
+@pytest.mark.parametrize(("gain", "dt"), [(0.5, 0.01), (1.0, 0.005), (0.5, 0.02)])
+def test_a_pair_is_left_out_only_when_no_command_can_bind_its_row(gain, dt):
+    obstacles = _obstacles()
+    avoidance = wbc.CollisionAvoidance(obstacles, min_distance=MIN_DISTANCE, detection_distance=0.3, gain=gain)
+    controller = wbc.Controller(YOUBOT, [wbc.PostureTask(cost=1e-3)],
+                                [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), avoidance], dt=dt)
+    data = controller.data(avoidance)
+    oracle = Oracle(YOUBOT, obstacles)
+    excluded = {frozenset((e.link_a, e.link_b)) for e in RobotGeometry(YOUBOT).excluded}
+    rng = np.random.default_rng(11)
+    checked, obstacle_pairs, kept = 0, 0, 0
+    for _ in range(12):
+        q = YOUBOT.random_configuration(rng, base_range=0.3)
+        controller.step(q)
+        found = _keys(data.active_labels())
+        distances = oracle.distances(q)
+        near = {key for key, d in distances.items() if d < 0.3 and key not in excluded}
+        kept += len(found)
+        assert all(distances[key] < 0.3 + 1e-6 for key in found)  # no row for a far pair
+        left_out = near - found
+        if not left_out:
+            continue
+        gradients = _gradients(oracle, q)
+        for key in left_out:
+            d = distances[key]
+            # its damper d_dot >= -gain (d - d_min) / dt holds for every command the hard constraints allow
+            assert _worst_rate(gradients[key], q) <= gain * (d - MIN_DISTANCE) / dt + 1e-4, (key, d)
+            checked += 1
+            obstacle_pairs += any(name.startswith("obstacle") for name in key)
+    assert checked >= 20 and obstacle_pairs >= 5 and kept > 0  # the rule left pairs out, of both kinds, and kept some
+
+
+def _sphere_of(shape, table, placements):
+    """The world centre and radius of a shape's bounding sphere (``placements``: Pinocchio's oMi)."""
+    rotation, translation = table[shape, ROTATION].reshape(3, 3), table[shape, TRANSLATION]
+    centre = placements[int(table[shape, JOINT])].act(rotation @ table[shape, BOUND_CENTER] + translation)
+    return centre, table[shape, BOUND_RADIUS]
+
+
+def _reach_of(a, b, table, q, speed):
+    """``sum_k speed_k (|v_O,k + w_k x c| + |w_k| r)`` over the coordinates that move only one of
+    shapes a and b (its bounding sphere c, r), with Pinocchio's joint Jacobians (world frame, at
+    the world origin); and the pair's bounding-sphere distance ``|c_a - c_b| - r_a - r_b``."""
+    model, data = YOUBOT.model, YOUBOT.model.createData()
+    pin.computeJointJacobians(model, data, q)
+    jacobians = [pin.getJointJacobian(model, data, int(table[s, JOINT]), pin.ReferenceFrame.WORLD) for s in (a, b)]
+    spheres = [_sphere_of(s, table, data.oMi) for s in (a, b)]
+    reach = 0.0
+    for k in range(YOUBOT.nv):
+        moves = [bool(np.any(jacobian[:, k] != 0.0)) for jacobian in jacobians]
+        if moves[0] != moves[1]:
+            jacobian, (centre, radius) = (jacobians[0], spheres[0]) if moves[0] else (jacobians[1], spheres[1])
+            lever = np.linalg.norm(jacobian[:3, k] + np.cross(jacobian[3:, k], centre)) + np.linalg.norm(
+                jacobian[3:, k]) * radius
+            reach += speed[k] * lever
+    (c_a, r_a), (c_b, r_b) = spheres
+    return reach, float(np.linalg.norm(c_a - c_b) - r_a - r_b), spheres[0]
+
+
+@pytest.mark.parametrize(("link_a", "link_b"), [("arm_link_3", "sphere"), ("arm_link_5", "sphere"),
+                                                ("arm_link_2", "arm_link_5"), ("arm_link_1", "arm_link_4")])
+def test_the_pair_is_left_out_just_past_its_reach(link_a, link_b):
+    """The rule's threshold: the gain at which ``gain (bound - d_min) / dt`` equals the pair's reach
+    (written out above), crossed by 0.01 % either way. A self pair's reach is the moving side's;
+    (arm_link_5: its first shape)."""
+    q = NEUTRAL.copy()
+    q[HEADING] = 0.4
+    q[YOUBOT.model.joints[YOUBOT.model.getJointId("arm_joint_3")].idx_q] = -1.2  # the forearm folded back
+    geometry = RobotGeometry(YOUBOT)
+    links = list(geometry.links)
+    a = links.index(link_a)
+    speed = np.array(YOUBOT.velocity_limit)
+    speed[[X, Y]] = np.sqrt(2.0) * YOUBOT.base.max_linear_speed
+    obstacles = []
+    table = geometry.table
+    if link_b == "sphere":  # 0.12 m beyond the shape's bounding sphere, straight up
+        data = YOUBOT.model.createData()
+        pin.forwardKinematics(YOUBOT.model, data, q)
+        centre, radius = _sphere_of(a, table, data.oMi)
+        obstacles = [wbc.Sphere(centre + (0.0, 0.0, radius + 0.12 + 0.03), 0.03)]
+        table = wbc.collision.Distances(YOUBOT, obstacles, geometry=geometry).table
+        b = len(links)
+    else:
+        b = links.index(link_b)
+    reach, bound, _ = _reach_of(a, b, table, q, speed)
+    assert reach > 0.0 and bound > MIN_DISTANCE + 0.01
+    dt = 0.5 * (bound - MIN_DISTANCE) / reach  # then the threshold gain is 0.5
+    present = {}
+    for factor in (1.0 - 1e-4, 1.0 + 1e-4):
+        avoidance = wbc.CollisionAvoidance(obstacles, self_collision=link_b != "sphere", min_distance=MIN_DISTANCE,
+                                           detection_distance=2.0, gain=0.5 * factor)
+        controller = wbc.Controller(YOUBOT, [wbc.PostureTask(cost=1e-3)], [wbc.JointVelocityLimits(), avoidance],
+                                    dt=dt)
+        controller.step(q)
+        data = controller.data(avoidance)
+        pairs = data.distances.pairs[data.pairs.pair[:data.pairs.count]]
+        present[factor] = bool(np.any((pairs[:, 0] == a) & (pairs[:, 1] == b)))
+    assert present == {1.0 - 1e-4: True, 1.0 + 1e-4: False}
