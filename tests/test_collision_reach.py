@@ -12,6 +12,7 @@ import pytest
 import wbc
 from test_collision_distances import Oracle
 from wbc.collision import RobotGeometry
+from wbc.collision.avoidance import CollisionAvoidanceData
 from wbc.collision.layout import BOUND_CENTER, BOUND_RADIUS, JOINT, ROTATION, TRANSLATION
 
 YOUBOT = wbc.load_robot("youbot")
@@ -182,3 +183,29 @@ def test_the_pair_is_left_out_just_past_its_reach(link_a, link_b):
         pairs = data.distances.pairs[data.pairs.pair[:data.pairs.count]]
         present[factor] = bool(np.any((pairs[:, 0] == a) & (pairs[:, 1] == b)))
     assert present == {1.0 - 1e-4: True, 1.0 + 1e-4: False}
+
+
+def test_the_commands_are_those_with_every_pair(monkeypatch):
+    """Leaving the pairs out of reach changes the work, not the commands: a closed loop against
+    the same controller whose every pair within the detection distance gets its row."""
+    def controller():
+        ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.1, gain=0.5)
+        pose = YOUBOT.frame_pose(NEUTRAL, "ee")
+        pose[:3, 3] += (0.45, 0.25, -0.2)
+        ee.set_target(pose)
+        avoidance = wbc.CollisionAvoidance(_obstacles())
+        return wbc.Controller(YOUBOT, [ee, wbc.PostureTask(cost=1e-3, gain=0.05)],
+                              [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), avoidance]), avoidance
+
+    reach, avoidance = controller()
+    with monkeypatch.context() as patch:
+        patch.setattr(CollisionAvoidanceData, "_speed", property(lambda data: data._unbounded))
+        every, every_avoidance = controller()
+        q, fewer = NEUTRAL.copy(), 0
+        for _ in range(300):
+            v = reach.step(q)
+            np.testing.assert_allclose(every.step(q), v, rtol=0.0, atol=1e-9)
+            assert reach.last.status == every.last.status
+            fewer += every.data(every_avoidance).pairs.count - reach.data(avoidance).pairs.count
+            q = YOUBOT.integrate(q, v, 0.01)
+    assert fewer > 300  # pairs were left out on most ticks
