@@ -10,6 +10,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from benchmarks.collision import obstacles
 from test_collision_distances import Oracle
 from wbc.collision import RobotGeometry
 from wbc.collision.avoidance import CollisionAvoidanceData
@@ -22,19 +23,8 @@ MIN_DISTANCE = 0.02
 
 
 def _obstacles():
-    """Spheres and boxes around the platform and the arm, 0.45-0.8 m out (as the benchmark's)."""
-    rng = np.random.default_rng(3)
-    shapes = []
-    for k in range(8):
-        angle, reach, height = rng.uniform(-np.pi, np.pi), rng.uniform(0.45, 0.8), rng.uniform(0.1, 0.6)
-        centre = (reach * np.cos(angle), reach * np.sin(angle), height)
-        if k % 2 == 0:
-            shapes.append(wbc.Sphere(centre, rng.uniform(0.04, 0.1)))
-        else:
-            pose = np.eye(4)
-            pose[:3, 3] = centre
-            shapes.append(wbc.Box(pose, rng.uniform(0.05, 0.2, size=3)))
-    return shapes
+    """8 spheres and boxes around the platform and the arm (the benchmark's scene, another seed)."""
+    return obstacles(8, seed=3)
 
 
 def _keys(labels):
