@@ -39,11 +39,12 @@ class JointVelocityLimitsData(ConstraintData):
         super().__init__(limits)
         limit = robot.velocity_limit.copy()
         base = robot.base
+        self._base: tuple[int, int] | None = None  #: the base's xdot, ydot columns
         if base.is_mobile:
             x, y, _ = base.indices
             limit[[x, y]] = np.inf  # the coupled base rates: bounded by the base-frame rows
+            self._base = (x, y)
         self._limit = limit
-        self._base = (x, y) if base.is_mobile else None  #: the base's xdot, ydot columns
         self._speed_rows = base.speed_rows()
         self.n_inequalities = self._speed_rows.count
         self._heading_rows = HeadingRows.of_twist(self._speed_rows, base.indices) if self.n_inequalities else None

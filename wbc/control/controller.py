@@ -358,7 +358,7 @@ class Controller:
         layout = ConstraintLayout(self._constraint_data, qp, _velocity_names(robot))
         self._bound_policy = bounds = layout.bounds
         self._constraint_blocks = layout.blocks
-        self._context.speed_bound[:] = layout.speed_bound  # (the static hard bounds, written by the layout)
+        self._context.speed_bound[:] = layout.speed_bound  # (what the hard constraints' bound_speed declare)
         # the elastic fallback gets the main backend's budget (time; iterations if DAQP)
         self._fallback = Fallback(layout.soft_rows, self.solver.fallback_budget, self.strict)
         self._factor = np.zeros((nv, nv))  # its Cholesky factor (scratch)
