@@ -330,3 +330,30 @@ def test_settings_changed_between_ticks_reach_the_compiled_ops(youbot):
         frame.gain = 1.5
     with pytest.raises(wbc.InvalidInputError):
         barrier.min_value = -1.0
+
+
+@pytest.mark.parametrize("infinite", [0, 1])
+def test_the_nan_screens_agree_with_numpy(infinite, rng):
+    """The NaN screen (``has_nan``; ``has_non_finite`` for q) as a compiled function on contiguous and
+    strided arrays and as the HAS_NAN op: NaN (and, for ``infinite``, +-inf) at any position of
+    arrays of 0-300 entries -- the one-pass reductions miss none, and an infinite entry alone is
+    not a NaN."""
+    screen = kernels.has_non_finite if infinite else kernels.has_nan
+    expected_of = (lambda a: not np.all(np.isfinite(a))) if infinite else (lambda a: bool(np.isnan(a).any()))
+    found = 0
+    for _ in range(400):
+        size = int(rng.integers(0, 300))
+        data = rng.normal(size=size)
+        for value in (np.nan, np.inf, -np.inf):
+            if size and rng.random() < 0.3:
+                data[rng.integers(size)] = value
+        expected = expected_of(data)
+        found += expected
+        assert screen(data) is expected
+        assert screen(data[::2]) is expected_of(data[::2])
+        if size:
+            buffer = data.copy()
+            program = TickProgram()
+            program.add(kernels.HAS_NAN, data=buffer, size=size, infinite=infinite)
+            assert program.run(0.01) is expected
+    assert 50 < found < 350

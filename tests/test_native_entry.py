@@ -25,6 +25,7 @@ def _bound_data():
     kin = Kinematics(YOUBOT)
     kin.update(NEUTRAL)
     rows = ConstraintRows(np.zeros(nv), np.zeros(nv), np.zeros((n, nv)), np.zeros(n), np.zeros((0, nv)), np.zeros(0))
+    data.write_static(rows)  # (as wbc.qp.layout does when a controller is built)
     data.compute(kin, 0.01, rows)
     return data, kin, rows
 
@@ -36,7 +37,9 @@ def test_the_collision_kernel_arguments_fit_and_its_entry_gives_the_dispatchers_
     assert bound.func is not kernels.avoidance_rows  # the compiled entry, not the dispatcher
     assert data.pairs.count >= 2 and data.corners >= 0
     G, h = rows.G.copy(), rows.h.copy()
-    rows.G[:], rows.h[:] = 0.0, 0.0
+    written = data.pairs.count + data.corners  # (the rows after them are inert, and the kernel leaves them)
+    assert np.all(G[written:] == 0.0) and np.all(h[written:] == kernels.INERT)
+    rows.G[:written], rows.h[:written] = 0.0, 0.0
     assert kernels.avoidance_rows(*arguments) == (data.pairs.count, data.corners)
     np.testing.assert_array_equal(rows.G, G)
     np.testing.assert_array_equal(rows.h, h)

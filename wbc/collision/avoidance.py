@@ -196,7 +196,8 @@ class CollisionAvoidanceData(ConstraintData):
         self.n_inequalities = capacity + min(capacity, CORNER_ROWS)
         #: the pair entry of each corner row of the last tick (entries ``0 .. corners - 1``)
         self.corner_pair = np.zeros(min(capacity, CORNER_ROWS), dtype=np.int64)
-        #: (pairs.count, corners) of the last tick: written by the tick program's op or by :meth:`compute`
+        #: (pairs.count, corners) of the last tick: written by the kernels that write the rows (the tick
+        #: program's op, or :meth:`compute`), which rewrite the rows after a tick's only up to the last's
         self._counts = np.zeros(2, dtype=np.int64)
         self._braking = RowBraking(self.n_inequalities)  # with acceleration bounds in the stack
         self._pairs: PairBuffers = self.distances.buffers()
@@ -267,11 +268,9 @@ class CollisionAvoidanceData(ConstraintData):
         _, _, arguments, rows_of_tick = call
         if not kin.native:
             fill_kinematics(kin.data, self._placements, self._jacobians_t)
-        packed, counts[1] = rows_of_tick()
+        packed, _ = rows_of_tick()  # (it sets counts when it writes the rows)
         if packed > pairs.capacity:  # pairs without a compiled distance: measured by coal, then the rows
             self._finish_with_coal(packed, arguments, dt)
-        else:
-            counts[0] = packed
         G, h = arguments[11], arguments[12]
         self._braking.apply(kin.q, G, h, settings[GAIN], dt, int(counts[0] + counts[1]))
         if G is not rows.G:
@@ -292,7 +291,7 @@ class CollisionAvoidanceData(ConstraintData):
         G = rows.G if rows.G.flags.c_contiguous else self._G  # the kernels write C-contiguous rows
         arguments = (distances.table, distances.pairs, placements, jacobians_t, distances._support, distances._world,
                      pairs.index, pairs.distance, pairs.points, pairs.rows, distances._scratch, G, rows.h,
-                     self.constraint._settings, self._tick, self.corner_pair, self._speed)
+                     self.constraint._settings, self._tick, self.corner_pair, self._speed, self._counts)
         kernel = self.distances._kernels.avoidance_rows
         if fits_signature(kernel, arguments):
             kernel = unchecked_entry(kernel)
@@ -302,10 +301,11 @@ class CollisionAvoidanceData(ConstraintData):
         """After a kernel call that left pairs to coal: measure them, then every row."""
         distances, pairs, kernels = self.distances, self._pairs, self.distances._kernels
         settings = self.constraint._settings
-        jacobians_t, G, h = arguments[3], arguments[11], arguments[12]
-        pairs.count = self._counts[0] = distances.finish_with_coal(pairs, packed, jacobians_t)
-        kernels.damper_rows(pairs.count, pairs.distance, pairs.rows, G, h, settings, dt)
-        self._counts[1] = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
+        jacobians_t, G, h, counts = arguments[3], arguments[11], arguments[12], self._counts
+        pairs.count = distances.finish_with_coal(pairs, packed, jacobians_t)
+        kernels.damper_rows(pairs.count, counts[0] + counts[1], pairs.distance, pairs.rows, G, h, settings, dt)
+        counts[0] = pairs.count
+        counts[1] = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
                                            self.corner_pair, distances._scratch)

@@ -713,25 +713,26 @@ INERT = 1.0
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
-def _damper_rows(count, distance, rows, G, h, settings, dt):
+def _damper_rows(count, written, distance, rows, G, h, settings, dt):
     scale = settings[GAIN] / dt
-    for i in range(G.shape[0]):
-        if i < count:
-            for k in range(G.shape[1]):
-                G[i, k] = -rows[i, k]
-            h[i] = scale * (distance[i] - settings[MIN_DISTANCE])
-        else:
-            for k in range(G.shape[1]):
-                G[i, k] = 0.0
-            h[i] = INERT
+    for i in range(count):
+        for k in range(G.shape[1]):
+            G[i, k] = -rows[i, k]
+        h[i] = scale * (distance[i] - settings[MIN_DISTANCE])
+    for i in range(count, min(written, G.shape[0])):
+        for k in range(G.shape[1]):
+            G[i, k] = 0.0
+        h[i] = INERT
 
 
-@njit("void(int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+@njit("void(int64, int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
       cache=CACHE, nogil=True)
-def damper_rows(count, distance, rows, G, h, settings, dt):
+def damper_rows(count, written, distance, rows, G, h, settings, dt):
     """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
-    ``G``, ``h`` (``settings = (detection, d_min, gain)``); the other rows inert (``0 <= 1``)."""
-    _damper_rows(count, distance, rows, G, h, settings, dt)
+    ``G``, ``h`` (``settings = (detection, d_min, gain)``); the rows after them inert (``0 <= 1``):
+    written up to ``written`` -- the rows the last tick wrote (its pairs and corner rows): those
+    after it are inert already, and only these kernels write them."""
+    _damper_rows(count, written, distance, rows, G, h, settings, dt)
 
 
 #: an end of a capsule closer than this fraction of its segment's length to the pair's witness
@@ -936,15 +937,18 @@ DT, SPEED = 0, 1
 
 @njit("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
-      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
+      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1], int64[::1])", cache=CACHE,
+      nogil=True)
 def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch,
-                   G, h, settings, tick, corner_slot, speed):
+                   G, h, settings, tick, corner_slot, speed, counts):
     """A tick's rows in one call: :func:`pair_distances` and, when no pair waits for coal,
     :func:`damper_rows` and :func:`corner_rows` after them. Fewer arguments than those (each costs
     the call ~40 ns): ``index`` = (the entries' pairs (capacity), pending (one per pair)), ``points``
     = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain), ``tick`` = (dt,
     corner speed). ``speed``: ``|v_k| <= speed[k]`` for every command (``inf``: unbounded); a
     pair that no such v could bring to its damper's bound gets no entry (:func:`_out_of_reach`).
+    ``counts``: (entries, corner rows) of the rows last written, read (the rows after them are
+    inert: :func:`damper_rows` leaves them) and, when rows are written, set to this tick's.
     Returns (what :func:`pair_distances` returns, the number of corner rows)."""
     capacity, dt = distance.size, tick[DT]
     slot_pair, pending = index[:capacity], index[capacity:]
@@ -954,9 +958,10 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
                              normal, rows, pending, scratch)
     if packed > capacity:
         return packed, 0
-    _damper_rows(packed, distance, rows, G, h, settings, dt)
+    _damper_rows(packed, counts[0] + counts[1], distance, rows, G, h, settings, dt)
     corners = _corner_rows(table, pairs, world, support, jacobians_t, packed, slot_pair, distance, witness_a,
                            witness_b, normal, G, h, settings, dt, tick[SPEED], corner_slot, scratch)
+    counts[0], counts[1] = packed, corners
     return packed, corners
 
 
@@ -998,7 +1003,5 @@ def avoidance_op(table, pairs, placements, jacobians_t, support, world, index, d
     the corner rows) into ``counts``. Only for pairs that all have a compiled distance (the op is not
     used otherwise), so nothing is left for coal. The int operands size the arrays only."""
     tick[DT] = dt
-    packed, corner_rows_written = avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
-                                                 distance, points, rows, scratch, G, h, settings, tick, corner_slot,
-                                                 speed)
-    counts[0], counts[1] = packed, corner_rows_written
+    avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch, G, h,
+                   settings, tick, corner_slot, speed, counts)

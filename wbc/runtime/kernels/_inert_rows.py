@@ -11,14 +11,17 @@ feasibility scan forms ``M u`` for every row (``daqp_compute_Mu``) before the ro
 be zero and skipped (its ``DAQP_ZERO_ROW`` mark).
 
 DAQP reads the rows as one row-major block and the bounds and states as arrays indexed by
-row, so the rows *after the last one that can bind* are left out for free: :func:`leave_out`
-gives DAQP's problem a smaller ``m`` (nothing is copied, every index stays the QP's), and
+row, so the rows *after the last one that can bind* (:func:`extent`) are left out for free:
+:func:`leave_out` gives DAQP's problem a smaller ``m`` (nothing is copied, every index stays the QP's), and
 :func:`restore`, right after the solve, gives it back the QP's ``m`` (DAQP's workspace too:
 its next update re-reads it from the problem), sets the multipliers of the rows left out to 0
 and, warm-started, makes their states inactive (DAQP's zero-row mark undone; an immutable
 state -- an equality row -- is kept). Between solves the problem and DAQP's states are the
-whole QP's, so everything else (the first tries of :mod:`.native_qp`, the answer check
-against the whole QP, ``NativeWorkspace.working_set``) sees the QP as it is. Inert rows
+whole QP's, so everything else (``NativeWorkspace.working_set``, the Python answer check) sees
+the QP as it is. The native solve (:mod:`.native_qp`) finds the extent once, before its first
+try, and reads the QP up to it only -- the states of its try, the answer check (a row every x
+meets exactly adds nothing to the defect): the cost of the inert rows is then the one backward
+scan that finds them. Inert rows
 followed by a live row (a constraint with inert rows before another constraint's rows, or
 before equality rows) are given to DAQP as before.
 """
@@ -56,9 +59,10 @@ def _int32_at(typingctx, address):
 
 
 @njit(cache=CACHE, nogil=True)
-def leave_out(problem: np.ndarray, n: int, m: int) -> int:
-    """Give DAQP's ``problem`` (n variables, m = n + rows constraints) only the constraints up to
-    its last row that not every x satisfies; returns the m it now has (m: none left out)."""
+def extent(problem: np.ndarray, n: int, m: int) -> int:
+    """The constraints of DAQP's ``problem`` (n variables, m = n + rows constraints) up to its last
+    row that not every x satisfies: every row after it is inert (``a_i = 0``, ``lower_i <= 0 <=
+    upper_i``: no NaN either), so any x meets it exactly (a defect of 0, a multiplier of 0)."""
     words = _int64_at(problem.ctypes.data)
     rows = m - n
     if rows == 0 or words[DAQP_PROBLEM_A] == 0:
@@ -77,9 +81,14 @@ def leave_out(problem: np.ndarray, n: int, m: int) -> int:
         if nonzero:
             break
         last = row
-    if last < rows:
-        _int32_at(problem.ctypes.data)[DAQP_PROBLEM_M] = n + last
     return n + last
+
+
+@njit(cache=CACHE, nogil=True)
+def leave_out(problem: np.ndarray, given: int, m: int) -> None:
+    """Give DAQP's ``problem`` (m constraints) only its first ``given`` (:func:`extent`)."""
+    if given < m:
+        _int32_at(problem.ctypes.data)[DAQP_PROBLEM_M] = given
 
 
 @njit(cache=CACHE, nogil=True)

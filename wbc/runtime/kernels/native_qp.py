@@ -38,9 +38,9 @@ from . import (
     prepare_cache,
 )
 from ._clock import now_ns
-from ._inert_rows import _int32_at, leave_out, restore
+from ._inert_rows import _int32_at, extent, leave_out, restore
 from ._lazy import declared
-from .assembly import _minimiser, qp_defect
+from .assembly import _minimiser, _qp_defect, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -107,14 +107,25 @@ def _no_active_constraint(sense: np.ndarray) -> bool:
 
 
 @njit(inline="always")
-def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray) -> bool:
+def _inactive_after(sense: np.ndarray, given: int) -> None:
+    """The states of the inert rows after the first ``given`` (:func:`._inert_rows.extent`) made
+    inactive (an immutable one kept), as :func:`._inert_rows.restore` leaves those DAQP was not
+    given: an answer found without DAQP holds none of them active."""
+    for i in range(given, sense.shape[0]):  # (a store per state, no branch: the loop vectorises)
+        state = sense[i]
+        sense[i] = state if state & DAQP_SENSE_IMMUTABLE else state & ~DAQP_SENSE_ACTIVE
+
+
+@njit(inline="always")
+def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, lam: np.ndarray, given: int) -> bool:
     """``x = -H^-1 c`` (:func:`wbc.runtime.kernels.assembly._minimiser`) for the QP stored in ``data``
     (:func:`wbc.runtime.kernels.qp_defect`'s layout) when that satisfies every bound and row exactly
-    (defect 0): then it is the QP's minimiser (H positive definite: the unconstrained minimiser,
-    feasible, is the constrained one), no constraint is active and every multiplier is 0
-    (``lam``). False otherwise (x then holds scratch)."""
+    (defect 0; the first ``given`` checked, the rest inert: :func:`._inert_rows.extent`): then it is
+    the QP's minimiser (H positive definite: the unconstrained minimiser, feasible, is the
+    constrained one), no constraint is active and every multiplier is 0 (``lam``). False otherwise
+    (x then holds scratch)."""
     n = x.shape[0]
-    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or qp_defect(data, x) != 0.0:
+    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or _qp_defect(data, x, given) != 0.0:
         return False
     for i in range(lam.shape[0]):
         lam[i] = 0.0
@@ -343,15 +354,16 @@ def _answered(control: np.ndarray, defect: float, start: int, clock_gettime: int
 @njit(inline="always")
 def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray, data: np.ndarray,
           x: np.ndarray, lam: np.ndarray, update_ldp: int, solve: int, clock_gettime: int, clock_id: int,
-          steady_mask: int, sense_word: int, start: int) -> None:
+          steady_mask: int, sense_word: int, start: int, given: int) -> None:
     """DAQP's solve: ``daqp_update_ldp(control[MASK])`` re-forms R^-1 (hence M = A R^-1, v, d)
     from the fresh buffers, ``daqp_solve`` writes x and lam (``result`` points to both); the
     answer is then checked: its defect (:func:`wbc.runtime.kernels.qp_defect`, relative
     violation of the bounds and rows) is written, inf when x is not finite; and the time
-    since ``start``. The next tick's mask is ``steady_mask``. DAQP is not given the trailing
-    rows that every x satisfies (:mod:`._inert_rows`); the answer is checked against every row."""
+    since ``start``. The next tick's mask is ``steady_mask``. DAQP is given the first ``given``
+    constraints only, the trailing rows after them being inert (:func:`._inert_rows.extent`: met
+    exactly by every x, so the answer check over the first ``given`` is the check over all)."""
     flags = result.view(np.int32)
-    given = leave_out(problem, x.shape[0], lam.shape[0])
+    leave_out(problem, given, lam.shape[0])
     flag = _update_ldp(update_ldp, np.int32(control[DAQP_CONTROL_MASK]), workspace.ctypes.data,
                        problem.ctypes.data)
     control[DAQP_CONTROL_MASK] = steady_mask
@@ -362,7 +374,7 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
         flag = flags[DAQP_RESULT_EXITFLAG]
         iterations = flags[DAQP_RESULT_ITERATIONS]
         if flag >= 1:
-            defect = qp_defect(data, x)  # inf when x is not finite
+            defect = _qp_defect(data, x, given)  # inf when x is not finite
     restore(problem, workspace, lam, given, sense_word)
     control[DAQP_CONTROL_EXITFLAG] = flag
     control[DAQP_CONTROL_DEFECT] = defect
@@ -385,12 +397,15 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     DAQP is not called and its working set stays empty. Otherwise DAQP solves (:func:`_daqp`).
     """
     start = now_ns(clock_gettime, clock_id)
-    if (unconstrained_first and _no_active_constraint(_sense_at(problem, sense_word, lam.shape[0]))
-            and _unconstrained_answer(data, x, factor, lam)):
+    given = extent(problem, x.shape[0], lam.shape[0])
+    sense = _sense_at(problem, sense_word, lam.shape[0])
+    if unconstrained_first and _no_active_constraint(sense[:given]) and _unconstrained_answer(data, x, factor, lam,
+                                                                                                given):
+        _inactive_after(sense, given)
         _answered(control, 0.0, start, clock_gettime, clock_id)
     else:
         _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
-              steady_mask, sense_word, start)
+              steady_mask, sense_word, start, given)
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
@@ -408,16 +423,20 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     """
     start = now_ns(clock_gettime, clock_id)
     n = x.shape[0]
+    given = extent(problem, n, lam.shape[0])
     sense = _sense_at(problem, sense_word, lam.shape[0])
-    if _no_active_constraint(sense):
-        defect = 0.0 if _unconstrained_answer(data, x, scratch[:n], lam) else -1.0
+    if _no_active_constraint(sense[:given]):
+        defect = -1.0
+        if _unconstrained_answer(data, x, scratch[:n], lam, given):
+            _inactive_after(sense, given)
+            defect = 0.0
     else:
         defect = _working_set_answer(data, sense, x, scratch[:n], lam, scratch[n:])
     if defect >= 0.0:
         _answered(control, defect, start, clock_gettime, clock_id)
     else:
         _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
-              steady_mask, sense_word, start)
+              steady_mask, sense_word, start, given)
 
 
 # ------------------------------------------------------- tick-program ops
