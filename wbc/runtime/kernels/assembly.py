@@ -258,13 +258,14 @@ def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
     answer, with two arguments (each costs ~0.1 us to pass), on slices of ``data`` (a reshaped
     view of C would cost a runtime call in numba)."""
     n = x.shape[0]
-    return _qp_defect(data, x, n + (data.shape[0] - n * n - 3 * n) // (n + 2))
+    return leading_defect(data, x, n + (data.shape[0] - n * n - 3 * n) // (n + 2))
 
 
-@njit(inline="always")
-def _qp_defect(data: np.ndarray, x: np.ndarray, given: int) -> float:
+@declared("float64(float64[::1], float64[:], int64)", cache=CACHE, nogil=True)
+def leading_defect(data: np.ndarray, x: np.ndarray, given: int) -> float:
     """:func:`qp_defect` over the first ``given`` of the QP's m bounds and rows (the rest inert:
-    met exactly by every x, :func:`wbc.runtime.kernels._inert_rows.extent`)."""
+    met exactly by every x, :func:`wbc.runtime.kernels._inert_rows.extent`). Compiled once, for
+    one signature: the native solve calls it from two places."""
     n = x.shape[0]
     m = n + (data.shape[0] - n * n - 3 * n) // (n + 2)
     start = n * n + n  # C's first entry

@@ -40,8 +40,9 @@ from . import (
 from ._clock import now_ns
 from ._inert_rows import _int32_at, extent, leave_out, restore
 from ._lazy import declared
-from .assembly import _minimiser, _qp_defect, qp_defect
+from .assembly import _minimiser, leading_defect, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
+from .tick import _int64_at
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -88,7 +89,7 @@ def _solve(typingctx, function, result, workspace):
 def _sense_at(problem: np.ndarray, sense_word: int, m: int) -> np.ndarray:
     """DAQP's constraint states -- the array its problem points to (word ``sense_word`` of
     ``problem``), the next solve's warm start -- as an int32 array of ``m`` (empty when unset)."""
-    address = problem.view(np.int64)[sense_word]
+    address = _int64_at(problem.ctypes.data)[sense_word]  # (a pointer, not ndarray.view: less to compile)
     return carray(_int32_at(address), (m if address != 0 else 0,))
 
 
@@ -125,7 +126,7 @@ def _unconstrained_answer(data: np.ndarray, x: np.ndarray, factor: np.ndarray, l
     constrained one), no constraint is active and every multiplier is 0 (``lam``). False otherwise
     (x then holds scratch)."""
     n = x.shape[0]
-    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or _qp_defect(data, x, given) != 0.0:
+    if not _minimiser(data[:n * n + n].reshape((n + 1, n)), factor, x) or leading_defect(data, x, given) != 0.0:
         return False
     for i in range(lam.shape[0]):
         lam[i] = 0.0
@@ -362,7 +363,7 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
     since ``start``. The next tick's mask is ``steady_mask``. DAQP is given the first ``given``
     constraints only, the trailing rows after them being inert (:func:`._inert_rows.extent`: met
     exactly by every x, so the answer check over the first ``given`` is the check over all)."""
-    flags = result.view(np.int32)
+    flags = _int32_at(result.ctypes.data)  # DAQPResult's int32 words
     leave_out(problem, given, lam.shape[0])
     flag = _update_ldp(update_ldp, np.int32(control[DAQP_CONTROL_MASK]), workspace.ctypes.data,
                        problem.ctypes.data)
@@ -374,7 +375,7 @@ def _daqp(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, contro
         flag = flags[DAQP_RESULT_EXITFLAG]
         iterations = flags[DAQP_RESULT_ITERATIONS]
         if flag >= 1:
-            defect = _qp_defect(data, x, given)  # inf when x is not finite
+            defect = leading_defect(data, x, given)  # inf when x is not finite
     restore(problem, workspace, lam, given, sense_word)
     control[DAQP_CONTROL_EXITFLAG] = flag
     control[DAQP_CONTROL_DEFECT] = defect
