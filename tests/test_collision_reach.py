@@ -199,3 +199,44 @@ def test_the_commands_are_those_with_every_pair(monkeypatch):
             fewer += every.data(every_avoidance).pairs.count - reach.data(avoidance).pairs.count
             q = YOUBOT.integrate(q, v, 0.01)
     assert fewer > 300  # pairs were left out on most ticks
+
+
+def test_the_reach_bounds_the_relative_speed_of_any_two_points_of_the_spheres(rng):
+    """What the tie rows of a pair rely on (wbc.collision.kernels._corner_rows: twice the pair's
+    reach as their speed): for any point of each bounding sphere -- a capsule's ends among them --
+    the largest rate of their distance, ``n . (v_b(p_b) - v_a(p_a))`` with ``n`` from p_a to p_b,
+    over ``|v_k| <= speed_k`` (the LP's value, from Pinocchio's joint Jacobians) is at most the
+    pair's reach (written out above), for self pairs (a shared coordinate moves both points
+    rigidly: no change along n) and obstacle pairs."""
+    geometry = RobotGeometry(YOUBOT)
+    links = list(geometry.links)
+    obstacles = _obstacles()
+    table = wbc.collision.Distances(YOUBOT, obstacles, geometry=geometry).table
+    speed = np.array(YOUBOT.velocity_limit)
+    speed[[X, Y]] = np.sqrt(2.0) * YOUBOT.base.max_linear_speed
+    model, data = YOUBOT.model, YOUBOT.model.createData()
+    shapes = range(table.shape[0])
+    tight = 0
+    for _ in range(20):
+        q = YOUBOT.random_configuration(rng, base_range=0.3)
+        pin.computeJointJacobians(model, data, q)
+        for _ in range(10):
+            a, b = (int(s) for s in rng.choice(len(links), 2, replace=False)) if rng.random() < 0.5 else (
+                int(rng.integers(len(links))), int(rng.integers(len(links), len(shapes))))
+            reach, _, _ = _reach_of(a, b, table, q, speed)
+            jacobians = [pin.getJointJacobian(model, data, int(table[s, JOINT]), pin.ReferenceFrame.WORLD)
+                         for s in (a, b)]
+            for _ in range(5):
+                points = []
+                for s in (a, b):
+                    centre, radius = _sphere_of(s, table, data.oMi)
+                    direction = rng.normal(size=3)
+                    points.append(centre + radius * rng.random() ** (1 / 3) * direction / np.linalg.norm(direction))
+                n = (points[1] - points[0]) / np.linalg.norm(points[1] - points[0])
+                rate = np.zeros(YOUBOT.nv)
+                for sign, point, jacobian in ((-1.0, points[0], jacobians[0]), (1.0, points[1], jacobians[1])):
+                    rate += sign * (n @ (jacobian[:3] + np.cross(jacobian[3:].T, point).T))
+                worst = float(np.abs(rate) @ speed)
+                assert worst <= reach * (1 + 1e-12) + 1e-12, (links[a], b, worst, reach)
+                tight += worst > 0.5 * reach
+    assert tight > 50  # the bound is not vacuous: often within a factor 2

@@ -32,7 +32,9 @@ if TYPE_CHECKING:  # pragma: no cover
 #: [m/s] a capsule end gets no row (:func:`wbc.collision.kernels.corner_rows`) when its distance exceeds
 #: the pair's by more than ``CORNER_SPEED * dt`` (overtaking the witness within one tick would take a
 #: relative normal speed of the two points above this, far beyond a manipulator's) or when its damper
-#: allows approaching faster than this (the row would never bind)
+#: allows approaching faster than this (the row would never bind); where the controller bounds the
+#: joint speeds (``TickContext.speed_bound``) a pair uses twice its reach instead when that is less
+#: (the bound on its points' relative speed, :func:`wbc.collision.kernels._pair_reach`: both criteria sure)
 CORNER_SPEED = 5.0
 #: rows for corners (capsule ends that tie with a pair's witness) beyond the pairs' own, the closest
 #: pairs' first: measured 3.8 on average and at most 7 per tick on the youBot with self-collision and
@@ -308,7 +310,7 @@ class CollisionAvoidanceData(ConstraintData):
         counts[1] = kernels.corner_rows(distances.table, distances.pairs, distances._world, distances._support,
                                            jacobians_t, pairs.count, pairs.pair, pairs.distance, pairs.witness_a,
                                            pairs.witness_b, pairs.normal, G, h, settings, dt, CORNER_SPEED,
-                                           self.corner_pair, distances._scratch)
+                                           self._speed, self.corner_pair, distances._scratch)
 
     @property
     def min_distance(self) -> float:

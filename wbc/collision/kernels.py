@@ -641,6 +641,15 @@ def _out_of_reach(table, world, a, b, bound, support, jacobians_t, speed, margin
     ``margin`` (an infinite speed on such a coordinate: never)."""
     if not margin > 0.0:  # (the pair within d_min, or penetrating: always a row)
         return False
+    return _pair_reach(table, world, a, b, support, jacobians_t, speed, margin) < margin  # (False for inf, NaN)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _pair_reach(table, world, a, b, support, jacobians_t, speed, enough):
+    """``sum_k speed_k (|v_O,k + w_k x c_x| + |w_k| r_x)`` over the coordinates k that move only one
+    of shapes a and b (x that one): the bound on ``|d_dot|`` of :func:`_out_of_reach`, which holds
+    for the distance of any two points of the shapes' bounding spheres [m/s]; the sum stops once
+    it reaches ``enough`` (inf: the whole sum)."""
     joint_a, joint_b = int(table[a, JOINT]), int(table[b, JOINT])
     reach = 0.0
     for k in range(speed.size):
@@ -656,9 +665,9 @@ def _out_of_reach(table, world, a, b, bound, support, jacobians_t, speed, margin
         lever = math.sqrt(vx * vx + vy * vy + vz * vz) + math.sqrt(wx * wx + wy * wy + wz * wz) * table[s, BOUND_RADIUS]
         if lever > 0.0:
             reach += speed[k] * lever
-            if not reach < margin:  # (also inf, NaN)
-                return False
-    return True
+            if not reach < enough:  # (also inf, NaN)
+                return reach
+    return reach
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -838,7 +847,7 @@ def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b,
 
 @njit(cache=CACHE, nogil=True, inline="always")
 def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
-                 normal, G, h, settings, dt, speed, corner_slot, scratch):
+                 normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
     """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
     ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
     ``corner_slot``); returns how many. ``scratch``: >= 63 floats.
@@ -864,7 +873,12 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
     row it is the first-order model of d at the tie.
     ``speed`` [m/s]: a point with ``d_e - d > speed dt`` cannot overtake the witness within a tick,
     one with ``gain (d_e - d_min) / dt > speed`` has a row that never binds: neither gets a row;
-    the closest pairs get theirs first. Penetrating pairs (d <= 0) and ends against a shape
+    the closest pairs get theirs first. With bounds on the commands (``bound``: ``|v_k| <=
+    bound[k]``, empty for none) a pair's own speed is at most twice its reach S
+    (:func:`_pair_reach`, which bounds ``|d_dot|`` and every ``|d_e_dot|`` alike): then the gap
+    ``d_e - d`` closes by at most ``2 S dt`` in a tick and a row binds only if
+    ``gain (d_e - d_min) / dt <= S`` -- both criteria hold for sure, not only for speeds up to
+    ``speed``. Penetrating pairs (d <= 0) and ends against a shape
     measured by coal get none. Box vertices get no rows: four coplanar vertices' rows are linearly
     dependent, which the solvers handle badly when a face lies parallel to another (an
     axis-aligned platform and crate).
@@ -883,8 +897,14 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
             continue
         if scale * (d - d_min) > speed:  # every end is at d or farther: no row binds, here or for the farther pairs
             break
-        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         ends = (pairs[slot_pair[i], PAIR_A], pairs[slot_pair[i], PAIR_B])
+        pair_speed = speed
+        if bound.size > 0:
+            pair_speed = min(speed, 2.0 * _pair_reach(table, world, ends[0], ends[1], support, jacobians_t, bound,
+                                                      0.5 * speed))
+            if scale * (d - d_min) > pair_speed:  # (the pair's ends cannot bind either)
+                continue
+        nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         joint_a, joint_b = int(table[ends[0], JOINT]), int(table[ends[1], JOINT])
         for side in range(2):
             s = ends[side]
@@ -912,7 +932,7 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                 if n_rows == corner_slot.size:  # the budget is spent: no row is written past it
                     return n_rows
                 added = _tie_row(table, world, s, t, other, side, d, i, count + n_rows, joint_a, joint_b, support,
-                                 jacobians_t, G, h, scale, d_min, speed, dt, scratch)
+                                 jacobians_t, G, h, scale, d_min, pair_speed, dt, scratch)
                 if added < 0:
                     return n_rows
                 if added:
@@ -923,12 +943,13 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
 
 @njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[::1], float64[::1], float64, float64, int64[::1], float64[::1])", cache=CACHE, nogil=True)
+      "float64[::1], float64[::1], float64, float64, float64[::1], int64[::1], float64[::1])", cache=CACHE,
+      nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
-                normal, G, h, settings, dt, speed, corner_slot, scratch):
+                normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
     """:func:`_corner_rows` (the tie rows of capsule ends), compiled: after the coal path's rows."""
     return _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
-                        normal, G, h, settings, dt, speed, corner_slot, scratch)
+                        normal, G, h, settings, dt, speed, bound, corner_slot, scratch)
 
 
 #: slots of the tick vector of :func:`avoidance_rows`: the tick [s] and the corner speed [m/s]
@@ -946,7 +967,9 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
     the call ~40 ns): ``index`` = (the entries' pairs (capacity), pending (one per pair)), ``points``
     = (witness_a, witness_b, normal), ``settings`` = (detection, d_min, gain), ``tick`` = (dt,
     corner speed). ``speed``: ``|v_k| <= speed[k]`` for every command (``inf``: unbounded); a
-    pair that no such v could bring to its damper's bound gets no entry (:func:`_out_of_reach`).
+    pair that no such v could bring to its damper's bound gets no entry (:func:`_out_of_reach`), and
+    a pair's tie rows use twice its reach as their speed when that is below the corner speed
+    (:func:`_corner_rows`).
     ``counts``: (entries, corner rows) of the rows last written, read (the rows after them are
     inert: :func:`damper_rows` leaves them) and, when rows are written, set to this tick's.
     Returns (what :func:`pair_distances` returns, the number of corner rows)."""
@@ -960,7 +983,7 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
         return packed, 0
     _damper_rows(packed, counts[0] + counts[1], distance, rows, G, h, settings, dt)
     corners = _corner_rows(table, pairs, world, support, jacobians_t, packed, slot_pair, distance, witness_a,
-                           witness_b, normal, G, h, settings, dt, tick[SPEED], corner_slot, scratch)
+                           witness_b, normal, G, h, settings, dt, tick[SPEED], speed, corner_slot, scratch)
     counts[0], counts[1] = packed, corners
     return packed, corners
 
