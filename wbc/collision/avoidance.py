@@ -39,7 +39,8 @@ CORNER_SPEED = 5.0
 #: rows for corners (capsule ends that tie with a pair's witness) beyond the pairs' own, the closest
 #: pairs' first: measured 3.8 on average and at most 7 per tick on the youBot with self-collision and
 #: 10 obstacles (benchmarks/collision.py), 5.1 and 8 on youbot_obstacle (at the budget on 3 % of its
-#: ticks, its margin kept to 0.01 mm); every row costs DAQP time even inert
+#: ticks, its margin kept to 0.01 mm) -- with the speed of CORNER_SPEED; with the pairs' reach (joint
+#: speed bounds) 0.8 on average on the benchmark; every row costs DAQP time even inert
 CORNER_ROWS = 8
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)
