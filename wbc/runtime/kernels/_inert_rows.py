@@ -111,6 +111,16 @@ def restore(problem: np.ndarray, workspace: np.ndarray, lam: np.ndarray, given: 
     for i in range(given, m):
         state = sense[i]
         if state & DAQP_SENSE_ZERO_ROW:  # constants.h DAQP_ZERO_ROW_SENSE
-            state = ((state & DAQP_SENSE_LOWER) | ((state >> 12) & DAQP_SENSE_ACTIVE)
-                     | ((state >> 11) & (DAQP_SENSE_IMMUTABLE | DAQP_SENSE_SOFT)))
+            sense[i] = ((state & DAQP_SENSE_LOWER) | ((state >> 12) & DAQP_SENSE_ACTIVE)
+                        | ((state >> 11) & (DAQP_SENSE_IMMUTABLE | DAQP_SENSE_SOFT)))
+    inactive_after(sense, given)
+
+
+@njit(inline="always")
+def inactive_after(sense: np.ndarray, given: int) -> None:
+    """The states after the first ``given`` (the rows left out, :func:`extent`) made inactive, an
+    immutable one (an equality row) kept: what :func:`restore` leaves after DAQP's solve, and what
+    the native solve's first tries leave when they answer without DAQP."""
+    for i in range(given, sense.shape[0]):  # (a store per state, no branch: the loop vectorises)
+        state = sense[i]
         sense[i] = state if state & DAQP_SENSE_IMMUTABLE else state & ~DAQP_SENSE_ACTIVE

@@ -38,7 +38,7 @@ from . import (
     prepare_cache,
 )
 from ._clock import now_ns
-from ._inert_rows import _int32_at, extent, leave_out, restore
+from ._inert_rows import _int32_at, extent, inactive_after, leave_out, restore
 from ._lazy import declared
 from .assembly import _minimiser, leading_defect, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
@@ -105,16 +105,6 @@ def _no_active_constraint(sense: np.ndarray) -> bool:
         if state & ~DAQP_SENSE_LOWER and not state & DAQP_SENSE_ZERO_ROW:
             return False
     return True
-
-
-@njit(inline="always")
-def _inactive_after(sense: np.ndarray, given: int) -> None:
-    """The states of the inert rows after the first ``given`` (:func:`._inert_rows.extent`) made
-    inactive (an immutable one kept), as :func:`._inert_rows.restore` leaves those DAQP was not
-    given: an answer found without DAQP holds none of them active."""
-    for i in range(given, sense.shape[0]):  # (a store per state, no branch: the loop vectorises)
-        state = sense[i]
-        sense[i] = state if state & DAQP_SENSE_IMMUTABLE else state & ~DAQP_SENSE_ACTIVE
 
 
 @njit(inline="always")
@@ -402,7 +392,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     sense = _sense_at(problem, sense_word, lam.shape[0])
     if unconstrained_first and _no_active_constraint(sense[:given]) and _unconstrained_answer(data, x, factor, lam,
                                                                                                 given):
-        _inactive_after(sense, given)
+        inactive_after(sense, given)
         _answered(control, 0.0, start, clock_gettime, clock_id)
     else:
         _daqp(problem, workspace, result, control, data, x, lam, update_ldp, solve, clock_gettime, clock_id,
@@ -429,7 +419,7 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     if _no_active_constraint(sense[:given]):
         defect = -1.0
         if _unconstrained_answer(data, x, scratch[:n], lam, given):
-            _inactive_after(sense, given)
+            inactive_after(sense, given)
             defect = 0.0
     else:
         defect = _working_set_answer(data, sense, x, scratch[:n], lam, scratch[n:])
