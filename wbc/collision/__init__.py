@@ -9,6 +9,8 @@ gradient rows.
   a detection distance, its signed distance, witness points and row ``grad d(q)^T``.
 * :mod:`~wbc.collision.avoidance` -- :class:`CollisionAvoidance`: the constraint of the control
   QP, a velocity damper per pair.
+* :mod:`~wbc.collision.reach` -- how fast each joint velocity coordinate can move a pair's
+  shape at any configuration: the first test that leaves a pair out of reach.
 * :mod:`~wbc.collision.footprint` -- :class:`BaseFootprintAvoidance`: the mobile base's 2-D
   footprint kept clear of obstacle points (a laser scan) and polygons.
 

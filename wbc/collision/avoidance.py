@@ -119,10 +119,13 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     the two shapes (those that move both move them together and leave d alone; ``c``, ``r``: the
     moving shape's bounding sphere), and a pair whose lower bound of d gives
     ``gain (d - min_distance) / dt`` above that sum is left out before its distance is measured
-    (:func:`~wbc.collision.kernels._out_of_reach`). Its row would hold for every command the
-    controller returns, so nothing changes but the work (and :attr:`CollisionAvoidanceData.pairs`,
-    which lists only the pairs within reach). A coordinate without such a bound never lets a pair
-    it moves be left out; with :class:`~wbc.AccelerationLimits` (rows that brake) nothing is.
+    (:func:`~wbc.collision.kernels._out_of_reach`; first against a bound of that sum over every
+    configuration, formed once per pair from the chain's lengths,
+    :func:`~wbc.collision.reach.lever_bounds`: one comparison decides most pairs). Its row would
+    hold for every command the controller returns, so nothing changes but the work (and
+    :attr:`CollisionAvoidanceData.pairs`, which lists only the pairs within reach). A coordinate
+    without such a bound never lets a pair it moves be left out; with
+    :class:`~wbc.AccelerationLimits` (rows that brake) nothing is.
 
     **Rows.** The QP has a fixed number of rows, ``n_inequalities`` of its data
     = ``capacity`` + :data:`CORNER_ROWS` (``capacity`` default: every candidate pair, so no pair
@@ -214,6 +217,9 @@ class CollisionAvoidanceData(ConstraintData):
         self._jacobians_t = np.zeros((robot.nv, 6))
         self._context: TickContext | None = None  # the controller's (use_context)
         self._unbounded = np.full(robot.nv, np.inf)
+        #: the speed bound the pairs' reach at every configuration was formed for, then that reach
+        #: (:func:`~wbc.collision.kernels._refresh_reach`; NaN: not yet formed)
+        self._reach = np.full(robot.nv + self.distances.pairs.shape[0], np.nan)
 
     def use_context(self, context: TickContext) -> None:
         self._braking.use_context(context)
@@ -257,6 +263,7 @@ class CollisionAvoidanceData(ConstraintData):
                     index=pairs.index, distance=pairs.distance, points=pairs.points, rows=pairs.rows,
                     scratch=distances._scratch, G=rows.G, h=rows.h, settings=self.constraint._settings,
                     tick=self._tick, corner_slot=self.corner_pair, speed=self._speed, counts=self._counts,
+                    levers=distances.levers, reach=self._reach,
                     shapes=distances.table.shape[0], candidates=distances.pairs.shape[0],
                     joints=kin.placements.shape[0], nv=rows.G.shape[1], capacity=pairs.capacity,
                     pending=pairs.pending.size, inequalities=self.n_inequalities, corners=self.corner_pair.size)
@@ -294,7 +301,8 @@ class CollisionAvoidanceData(ConstraintData):
         G = rows.G if rows.G.flags.c_contiguous else self._G  # the kernels write C-contiguous rows
         arguments = (distances.table, distances.pairs, placements, jacobians_t, distances._support, distances._world,
                      pairs.index, pairs.distance, pairs.points, pairs.rows, distances._scratch, G, rows.h,
-                     self.constraint._settings, self._tick, self.corner_pair, self._speed, self._counts)
+                     self.constraint._settings, self._tick, self.corner_pair, self._speed, self._counts,
+                     distances.levers, self._reach)
         kernel = self.distances._kernels.avoidance_rows
         if fits_signature(kernel, arguments):
             kernel = unchecked_entry(kernel)
@@ -354,6 +362,7 @@ def avoidance_op() -> CompiledOp:
         ("index", ("capacity + pending",), "int64"), ("distance", ("capacity",)), ("points", (3, "capacity", 3)),
         ("rows", ("capacity", "nv")), ("scratch", (SCRATCH,)), ("G", ("inequalities", "nv")),
         ("h", ("inequalities",)), ("settings", (3,)), ("tick", (2,)), ("corner_slot", ("corners",), "int64"),
-        ("speed", ("nv",)), ("counts", (2,), "int64"), ("shapes", None), ("candidates", None), ("joints", None),
+        ("speed", ("nv",)), ("counts", (2,), "int64"), ("levers", ("candidates", "nv")),
+        ("reach", ("nv + candidates",)), ("shapes", None), ("candidates", None), ("joints", None),
         ("nv", None), ("capacity", None), ("pending", None), ("inequalities", None), ("corners", None)),
         checks=("capacity >= 1", "pending >= candidates", "pending >= 1", "inequalities == capacity + corners"))

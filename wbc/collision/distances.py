@@ -28,6 +28,7 @@ from ..runtime import kernels as runtime_kernels
 from . import layout
 from .geometry import RobotGeometry
 from .obstacles import Obstacle
+from .reach import lever_bounds
 
 #: coal's GJK tolerance on the coal path [m]
 COAL_GJK_TOLERANCE = 1e-9
@@ -122,6 +123,9 @@ class Distances:
         self.capacity = max(1, len(pairs)) if capacity is None else _as_capacity(capacity)
         self._coal_shapes: dict[int, tuple[tuple[float, ...], coal.CollisionGeometry]] = {}
         self._support = _support(robot.model)
+        #: per pair and velocity coordinate, a bound of how fast the coordinate moves the pair's shape
+        #: at any configuration (:func:`~wbc.collision.reach.lever_bounds`): the pairs' reach
+        self.levers = lever_bounds(robot.model, self.table, self.pairs, self._support)
         self._world = np.zeros((self.table.shape[0], self._kernels.POSE_COLUMNS))
         self._scratch = np.zeros(layout.SCRATCH)
         self._entry = np.zeros(10)  # one pair measured by coal: (d, w_a, w_b, normal)
