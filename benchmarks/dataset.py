@@ -55,23 +55,26 @@ _REFERENCE_SOLVERS = (
 def make_problem(H: np.ndarray, c: np.ndarray, C: np.ndarray, upper: np.ndarray, lower: np.ndarray,
                  n_ineq: int, n_eq: int) -> qpsolvers.Problem:
     """A ``qpsolvers.Problem`` from wbc's QP layout (``C = [G; A]``, ``upper = [ub; h; b]``,
-    ``lower = [lb; -inf; b]``): bounds apart, inequalities ``G x <= h``, equalities ``A x = b``.
+    ``lower = [lb; l; b]``): bounds apart, inequalities ``G x <= h`` -- and ``-G_i x <= -l_i`` for
+    each inequality row with a finite lower side ``l_i`` (the band rows of strict priorities under
+    DAQP, rows with two sides), after them -- and equalities ``A x = b``.
 
-    Raises ValueError when ``lower``/``upper`` are not of that layout (a finite lower bound on an
-    inequality row, an equality row whose two bounds differ): those would be dropped silently.
+    Raises ValueError when ``lower``/``upper`` are not of that layout (shapes, an equality row
+    whose two bounds differ): those would be dropped silently.
     """
     n, p, e = H.shape[0], n_ineq, n_eq
     if C.shape != (p + e, n) or upper.shape != (n + p + e,) or lower.shape != (n + p + e,):
         raise ValueError(f"QP of {n} variables, {p} + {e} rows: C {C.shape}, upper {upper.shape}, lower {lower.shape}")
-    if not np.all(np.isneginf(lower[n:n + p])):
-        raise ValueError("an inequality row has a finite lower bound (wbc's layout: lower = -inf on G x <= h)")
     if not np.array_equal(lower[n + p:], upper[n + p:]):
         raise ValueError("an equality row has lower != upper (wbc's layout: lower = upper = b on A x = b)")
     lb, ub = lower[:n], upper[:n]
     has_bounds = bool(np.any(np.isfinite(lb)) or np.any(np.isfinite(ub)))
+    sided = np.flatnonzero(np.isfinite(lower[n:n + p]))  # inequality rows with a lower side too
+    G = np.vstack([C[:p], -C[sided]]) if sided.size else C[:p]
+    h = np.concatenate([upper[n:n + p], -lower[n + sided]]) if sided.size else upper[n:n + p]
     return qpsolvers.Problem(
         H, c,
-        C[:p] if p else None, upper[n:n + p] if p else None,
+        G if p else None, h if p else None,
         C[p:p + e] if e else None, upper[n + p:n + p + e] if e else None,
         lb if has_bounds else None, ub if has_bounds else None,
     )

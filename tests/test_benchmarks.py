@@ -110,23 +110,24 @@ def test_conversion_to_qpbenchmark_keeps_wbc_qp(small_dataset):
             np.testing.assert_allclose(other.x, sc.x_ref[k], atol=1e-9)
 
 
-def test_conversion_rejects_what_it_would_drop(small_dataset):
+def test_conversion_rejects_what_it_would_drop_and_splits_rows_with_two_sides(small_dataset):
     out, _, _ = small_dataset
     _, scenarios = ds.load(out)
     sc = next(s for s in scenarios if s.n_ineq and s.n_eq)  # deluca_parking: both kinds of rows
     arrays = [sc.H[0], sc.c[0], sc.C[0], sc.upper[0].copy(), sc.lower[0].copy(), sc.n_ineq, sc.n_eq]
+    n, p = sc.n, sc.n_ineq
     two_sided = list(arrays)
     two_sided[4] = arrays[4].copy()
-    two_sided[4][sc.n] = -1.0  # a finite lower bound on an inequality row: G x <= h has no place for it
-    with pytest.raises(ValueError, match="inequality row"):
-        ds.make_problem(*two_sided)
+    two_sided[4][n + 1] = -1.0  # a lower side on inequality row 1 (a band row of strict priorities under DAQP)
+    split = ds.make_problem(*two_sided)
+    np.testing.assert_array_equal(split.G, np.vstack([sc.C[0][:p], -sc.C[0][1:2]]))  # -G_1 x <= 1, after G
+    np.testing.assert_array_equal(split.h, np.r_[sc.upper[0][n:n + p], 1.0])
     loose = list(arrays)
     loose[3] = arrays[3].copy()
     loose[3][-1] += 1.0  # an equality row whose upper and lower bounds differ
     with pytest.raises(ValueError, match="equality row"):
         ds.make_problem(*loose)
     problem = ds.make_problem(*arrays)
-    n, p = sc.n, sc.n_ineq
     np.testing.assert_array_equal(problem.h, sc.upper[0][n:n + p])
     np.testing.assert_array_equal(problem.b, sc.upper[0][n + p:])
     np.testing.assert_array_equal(problem.lb, sc.lower[0][:n])

@@ -568,3 +568,46 @@ def test_a_semidefinite_upper_level_the_backend_refuses_is_re_solved_with_the_fl
     assert reference.last.success
     assert controller.last.outcome in (wbc.Outcome.OPTIMAL, wbc.Outcome.ELASTIC), controller.last.status
     np.testing.assert_allclose(v, expected, rtol=0, atol=1e-6 * (1 + np.max(np.abs(expected))))
+
+
+@pytest.mark.parametrize("two_sided", [True, False])
+def test_band_rows_hold_each_task_value_within_its_relative_width(rng, two_sided):
+    """The band of a solved level, written out: for each row a of the level (a zero row among
+    them) at the answer x projected onto the bounds, y = â x_b with â = a / |a| and
+    eps = BAND max(1, |x_b|_inf); for DAQP one row ``y - eps <= â v <= y + eps`` (its sides m
+    entries apart), for the G v <= h backends two rows ``+-â v <= +-y + eps``. A zero row is
+    inert: ``0 v <= 0`` with its other side open (never an equality row)."""
+    nv, rows = 5, 6
+    stack_t = rng.normal(size=(nv + 1, rows))
+    stack_t[:, 3] = 0.0  # a zero row of the level
+    first, last, first_p, last_p = 1, 4, 5, 6  # the level's rows 1, 2, 3 and its preview row 5
+    lower, upper = -np.ones(nv), np.ones(nv)
+    x = np.array([0.3, -2.0, 0.5, 1.5, -0.1])  # outside the bounds at coordinates 1 and 3
+    x_b = np.clip(x, lower, upper)
+    qp = wbc.qp.problem.QP(nv, 10, 0)
+    start, m = 2, nv + 10  # the band's first row; the QP's constraints
+    rows_at = nv * nv + nv
+    sides = 1 if two_sided else 2
+    wbc.runtime.kernels.band_rows(stack_t, first, last, first_p, last_p, x, lower, upper, 1e-9, qp.data,
+                                  rows_at + start * nv, rows_at + (m - nv) * nv + nv + start, m if two_sided else 0)
+    eps = 1e-9 * max(1.0, np.max(np.abs(x_b)))
+    for slot, r in enumerate([1, 2, 3, 5]):
+        a = stack_t[:nv, r]
+        norm = np.linalg.norm(a)
+        unit = a / norm if norm > 0 else np.zeros(nv)
+        y = unit @ x_b
+        row = start + sides * slot
+        np.testing.assert_allclose(qp.C[row], unit, rtol=1e-15, atol=1e-15)
+        if norm == 0:
+            assert qp.upper[nv + row] == 0.0
+            assert (qp.lower[nv + row] if two_sided else qp.upper[nv + row + 1]) == (-np.inf if two_sided else 0.0)
+            continue
+        assert qp.upper[nv + row] == pytest.approx(y + eps, rel=0, abs=1e-15)
+        if two_sided:
+            assert qp.lower[nv + row] == pytest.approx(y - eps, rel=0, abs=1e-15)
+        else:
+            np.testing.assert_array_equal(qp.C[row + 1], -qp.C[row])
+            assert qp.upper[nv + row + 1] == pytest.approx(eps - y, rel=0, abs=1e-15)
+            assert qp.lower[nv + row + 1] == -np.inf
+    untouched = [r for r in range(10) if not start <= r < start + sides * 4]
+    assert np.all(qp.C[untouched] == 0.0) and np.all(qp.upper[nv + np.array(untouched)] == np.inf)

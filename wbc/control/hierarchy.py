@@ -19,7 +19,9 @@ level k nothing: a lower level never degrades a higher one, and a level that can
 targets within the constraints (infeasible alone) takes its least-squares optimum while the
 levels below still use whatever freedom remains.
 
-**The relaxation.** Each band row is two inequality rows ``+-a v <= +-y_a + eps_a`` with
+**The relaxation.** Each band row is an inequality row with two sides, ``y_a - eps_a <= a v <= y_a + eps_a``,
+for DAQP (one row, not two opposite ones: a lower level's QP has half the band rows to copy, check and
+solve), and two rows ``+-a v <= +-y_a + eps_a`` for the backends that take ``G v <= h`` only, with
 ``eps_a = BAND |a| max(1, |v_j|_inf)``, ``BAND = 1e-9``, written divided by ``|a|`` (unit rows: the
 solvers' tolerances and the answer check then hold a band of a task weighted 1e-12 as tightly as
 one weighted 1e12; unscaled, a posture weighted 1e-12 had rows of norm 1e-6, which the 1e-6
@@ -175,7 +177,9 @@ class Hierarchy:
                         for k in range(count)]
         first = buffers.qp
         #: first band row of each level in the QPs below it (same in all of them)
-        self.band_start = [first.n_ineq + 2 * sum(rows.dim(j) for j in range(k)) for k in range(count)]
+        #: rows per band row: 1 for DAQP (a row with two sides), 2 for backends that take ``G v <= h`` only
+        self.band_sides = 1 if isinstance(solver, DaqpBackend) else 2
+        self.band_start = [first.n_ineq + self.band_sides * sum(rows.dim(j) for j in range(k)) for k in range(count)]
         self.qps = [first] + [QP(nv, self.band_start[k], first.n_eq) for k in range(1, count)]
         self._reductions: list[InputReduction] | None = None
         self.solver_qps = self.qps  #: what the backend solves, level by level
@@ -366,11 +370,11 @@ class Hierarchy:
     def _write_band(self, k: int, v: np.ndarray, target: QP) -> None:
         """Level k's band rows, at its answer ``v``, into the QP ``target`` of a level below."""
         (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
-        n, start = target.n, self.band_start[k]
+        n, start, m = target.n, self.band_start[k], target.n + target.n_ineq + target.n_eq
         rows_start = n * n + n
         kernels.band_rows(self._buffers.task_stack.stack_t, first, last, first_p, last_p, v, self.qps[0].lb,
                           self.qps[0].ub, BAND, target.data, rows_start + start * n,
-                          rows_start + (target.n_ineq + target.n_eq) * n + n + start)
+                          rows_start + (m - n) * n + start + n, m if self.band_sides == 1 else 0)
 
     def _failure(self, k: int, solution: QPSolution) -> QPSolution:
         """Level k failed: its warm start is dropped; the failure names the level."""

@@ -6,6 +6,11 @@
 Inequality and equality rows share one matrix ``C = [G; A]`` and the bounds share
 ``upper = [ub; h; b]``, ``lower = [lb; -inf; b]`` -- the layout DAQP consumes
 directly -- so ``G, h, A, b, lb, ub`` are views and no backend has to copy.
+
+An inequality row may have a lower side too, ``l_i <= G_i v <= h_i`` (``lower[n + i]`` finite):
+only in a QP solved by DAQP, which takes rows with two sides -- the band rows of strict
+priorities (:mod:`wbc.control.hierarchy`). A reader of such a QP in the ``G v <= h`` form adds
+``-G_i v <= -l_i`` (``benchmarks/dataset.py``'s ``make_problem`` does).
 """
 
 from __future__ import annotations
