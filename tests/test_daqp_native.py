@@ -202,10 +202,11 @@ def test_the_last_working_set_answers_when_it_is_still_optimal(rng):
     assert answered >= 60  # (of at most 80: the set stays optimal after a 1e-6 change but near degenerate sets)
 
 
-def _kernel_answer(qp: QP, sense: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+def _kernel_answer(qp: QP, sense: np.ndarray, tolerance: float = 1e-9) -> tuple[float, np.ndarray, np.ndarray]:
     n = qp.n
     x, lam, scratch = np.zeros(n), np.zeros(sense.size), np.zeros((4 * n + 7, n))
-    defect = native_qp._working_set_answer(qp.data, sense.astype(np.int32), x, scratch[:n], lam, scratch[n:])
+    defect = native_qp._working_set_answer(qp.data, sense.astype(np.int32), x, scratch[:n], lam, scratch[n:],
+                                           tolerance)
     return defect, x, lam
 
 
@@ -237,6 +238,33 @@ def test_the_working_set_try_refuses_what_is_not_an_answer():
     assert _kernel_answer(qp, np.array([0, 0, 0, A, 0]))[0] == -1.0  # x0 = 1 violates x0 <= 0.5
     qp.H[2, 2] = 0.0
     assert _kernel_answer(qp, np.array([0, 0, 0, 0, A]))[0] == -1.0  # H only semidefinite
+
+
+def test_the_working_set_try_takes_a_violation_up_to_daqps_primal_tolerance():
+    """A minimiser of the working set that violates another row by 1e-7 (relative) is the answer
+    within DAQP's default primal tolerance (1e-6, that of the levels of strict priorities) and
+    not within 1e-9: the kernel's tolerance, and a workspace's try follows its own ``primal_tol``
+    (0 iterations with the default; DAQP solves with ``primal_tol`` 1e-9)."""
+    qp = QP(3, 2, 0)
+    qp.H[...] = np.diag([1.0, 2.0, 3.0])
+    qp.c[...] = [-4.0, 0.0, 0.0]  # the unconstrained minimiser x = (4, 0, 0)
+    qp.C[...] = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]
+    qp.ub[...], qp.lb[...] = 10.0, -10.0
+    qp.h[...] = [1.0, 2.0 - 4e-7]  # x0 <= 1, and 2 x0 <= 2 - 4e-7: violated by 4e-7 / max(1, 2, 2) = 2e-7 at x0 = 1
+    A = kernels.DAQP_SENSE_ACTIVE
+    sense = np.array([0, 0, 0, A, 0])
+    defect, x, _ = _kernel_answer(qp, sense, tolerance=1e-6)
+    assert defect == pytest.approx(2e-7, rel=1e-6)
+    np.testing.assert_allclose(x, [1.0, 0.0, 0.0], rtol=0, atol=1e-15)
+    assert _kernel_answer(qp, sense, tolerance=1e-9)[0] == -1.0
+    assert _kernel_answer(qp, sense, tolerance=1.9e-7)[0] == -1.0  # the bound is the defect itself
+    library = daqp_probe.native()
+    for settings, direct in (({}, True), ({"primal_tol": 1e-9}, False)):
+        workspace = NativeWorkspace(library, qp, settings, warm_start=True, working_set_first=True)
+        workspace.working_set = sense
+        exitflag, defect, _ = workspace.solve()
+        assert exitflag == 1 and (workspace.iterations == 0) == direct
+        assert defect <= (1e-6 if direct else 1e-9)
 
 
 def _vertex_qp(rng: np.random.Generator, n: int, lower_side: np.ndarray) -> tuple[QP, np.ndarray, np.ndarray,

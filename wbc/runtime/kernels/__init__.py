@@ -134,6 +134,8 @@ CHAIN_REVOLUTE, CHAIN_PRISMATIC = 0.0, 1.0
 
 #: float64 words of DAQP's C structures (checked against wbc.solvers.daqp.abi's ctypes layouts by its probe)
 DAQP_PROBLEM_WORDS, DAQP_WORKSPACE_WORDS, DAQP_RESULT_WORDS = 10, 41, 8
+#: float64 words of DAQPSettings and the word of its primal_tol (checked likewise)
+DAQP_SETTINGS_WORDS, DAQP_SETTINGS_PRIMAL_TOL = 17, 0
 #: int32 indices of DAQPResult's exitflag and iter (checked likewise)
 DAQP_RESULT_EXITFLAG, DAQP_RESULT_ITERATIONS = 8, 9
 #: int32 index of DAQPProblem's m, word of its A (bupper and blower the next two), int32 index of

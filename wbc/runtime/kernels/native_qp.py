@@ -33,6 +33,8 @@ from . import (
     DAQP_SENSE_IMMUTABLE,
     DAQP_SENSE_LOWER,
     DAQP_SENSE_ZERO_ROW,
+    DAQP_SETTINGS_PRIMAL_TOL,
+    DAQP_SETTINGS_WORDS,
     DAQP_SKIPPED,
     DAQP_WORKSPACE_WORDS,
     prepare_cache,
@@ -46,12 +48,6 @@ from .tick import _int64_at
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
-#: the largest relative violation (:func:`wbc.runtime.kernels.qp_defect`) of a working set's
-#: minimiser taken as the QP's answer (:func:`_working_set_answer`: the rows it holds are met up
-#: to rounding; the others may be violated by as much, as on near-dependent rows DAQP's own
-#: answer is); far below DAQP's primal tolerance and the controller's answer check (1e-6), so
-#: DAQP, warm-started from the same set, would stop at the same point
-WORKING_SET_DEFECT = 1e-9
 #: the smallest pivot of the LU factorisation of a working set's rows (:func:`_working_set_answer`;
 #: the rows scaled to largest entry 1): below it the rows are taken as dependent and DAQP solves
 WORKING_SET_LU_PIVOT = 1e-5
@@ -167,7 +163,7 @@ def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
 
 @njit(cache=CACHE, nogil=True)
 def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: np.ndarray, lam: np.ndarray,
-                        kkt: np.ndarray) -> float:
+                        kkt: np.ndarray, tolerance: float) -> float:
     """The minimiser of the QP in ``data`` (:func:`wbc.runtime.kernels.qp_defect`'s layout) with
     the constraints of DAQP's working set ``sense`` (the last answer's active constraints) held as
     equalities, when it meets every optimality condition of the QP: then it is the QP's answer
@@ -185,8 +181,11 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     ``L1 U (D^-1 lam_W) = -(P^T (H x + c))_1`` (the other n - k rows are ``Z^T (H x + c) = 0``,
     met by y2). A set of n constraints pins x (no reduced problem); none gives ``-H^-1 c``.
 
-    x is the QP's answer when it is primal feasible (defect at most :data:`WORKING_SET_DEFECT`)
-    and dual feasible (``lam >= 0`` on an upper side, ``<= 0`` on a lower side -- DAQP's sign
+    x is the QP's answer when it is primal feasible (defect at most ``tolerance``: the primal
+    tolerance of the DAQP workspace the try stands in for, 1e-6 in the levels of strict
+    priorities -- DAQP, warm-started from the same set, stopped there too: on a reach, the try's
+    x was DAQP's to 6e-13 in every tick where a defect between 1e-9 and 4e-7 had sent it to
+    DAQP) and dual feasible (``lam >= 0`` on an upper side, ``<= 0`` on a lower side -- DAQP's sign
     convention -- any sign on an equality row): the KKT conditions of a convex QP (H is not
     factorised, so not checked: a level's H is a sum of squares plus damping). -1 also when a
     state holds another bit (soft, binary, ...), the set holds more than n constraints or
@@ -328,7 +327,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
             return -1.0
         lam[i] = value
     defect = qp_defect(data, x)
-    if defect > WORKING_SET_DEFECT:
+    if not defect <= tolerance:
         return -1.0
     return defect
 
@@ -400,14 +399,16 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
 
 
 @declared("void(float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[::1], float64[:, ::1], "
-          "float64[::1], int64, int64, int64, int64, int64, int64)", cache=CACHE, nogil=True)
+          "float64[::1], int64, int64, int64, int64, int64, int64, float64)", cache=CACHE, nogil=True)
 def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
                            data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, update_ldp: int,
-                           solve: int, clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int) -> None:
+                           solve: int, clock_gettime: int, clock_id: int, steady_mask: int, sense_word: int,
+                           primal_tol: float) -> None:
     """:func:`daqp_solve` trying DAQP's working set first: the minimiser with the last answer's
     active constraints held as equalities (:func:`_working_set_answer`; ``scratch``: (4n + 7) x n,
     its LU factors in the first n rows) is the answer when it meets every optimality
-    condition of the QP (exit flag 1, 0 iterations, its multipliers in ``lam``); DAQP is then not
+    condition of the QP, within DAQP's ``primal_tol`` (exit flag 1, 0 iterations, its
+    multipliers in ``lam``); DAQP is then not
     called and its working set stays as it was. With no active constraint that is the
     unconstrained minimiser, taken when it meets every bound and row exactly. Otherwise DAQP
     solves (:func:`_daqp`), from that working set.
@@ -422,7 +423,7 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
             inactive_after(sense, given)
             defect = 0.0
     else:
-        defect = _working_set_answer(data, sense, x, scratch[:n], lam, scratch[n:])
+        defect = _working_set_answer(data, sense, x, scratch[:n], lam, scratch[n:], primal_tol)
     if defect >= 0.0:
         _answered(control, defect, start, clock_gettime, clock_id)
     else:
@@ -465,19 +466,19 @@ DAQP_SOLVE = Op("DAQP_SOLVE", _daqp_solve, (
 def _daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, control: np.ndarray,
                             data: np.ndarray, x: np.ndarray, scratch: np.ndarray, lam: np.ndarray, n: int, size: int,
                             m: int, update_ldp: int, solve: int, clock_gettime: int, clock_id: int, steady_mask: int,
-                            sense_word: int, flags: np.ndarray, dt: float) -> None:
+                            sense_word: int, settings: np.ndarray, flags: np.ndarray, dt: float) -> None:
     if flags[FLAG_FOUND_NAN] or flags[FLAG_STOPPED]:
         control[DAQP_CONTROL_EXITFLAG] = DAQP_SKIPPED
     else:
         daqp_solve_working_set(problem, workspace, result, control, data, x, scratch, lam, update_ldp, solve,
-                               clock_gettime, clock_id, steady_mask, sense_word)
+                               clock_gettime, clock_id, steady_mask, sense_word, settings[DAQP_SETTINGS_PRIMAL_TOL])
 
 
 #: DAQP_SOLVE trying the last working set first (daqp_solve_working_set): the lower levels of strict
 #: priorities, whose band rows are active tick after tick
 DAQP_SOLVE_WORKING_SET = Op("DAQP_SOLVE_WORKING_SET", _daqp_solve_working_set, (
     *_QP_OPERANDS, ("scratch", ("4 * n + 7", "n")), ("lam", ("m",)), *_DAQP_OPERANDS, ("sense_word", None),
-    FLAGS_OPERAND), checks=_DAQP_CHECKS)
+    ("settings", (DAQP_SETTINGS_WORDS,)), FLAGS_OPERAND), checks=_DAQP_CHECKS)
 
 
 @njit(inline="always")

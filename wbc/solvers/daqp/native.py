@@ -22,12 +22,12 @@ then costs a factorisation instead of DAQP's update and solve.
 
 A workspace made with ``working_set_first`` (the lower levels of strict priorities, whose band
 rows are active tick after tick) tries the last working set instead: the minimiser with those
-constraints held as equalities (Cholesky factors of H and of ``A_W H^-1 A_W^T``) is the QP's
-answer when it meets every optimality condition -- the other bounds and rows hold (relative
-defect at most 1e-9; DAQP's own tolerance is 1e-6) and each multiplier has the sign of its
-side -- and DAQP is then not called (0 iterations, its working set unchanged); with no active
-constraint it is the unconstrained minimiser as above, with n (x pinned) it is ``A_W^-1 b_W``
-by one LU factorisation of ``A_W``. Otherwise DAQP solves, from that
+constraints held as equalities (a null-space method on one LU factorisation of the active rows:
+:func:`wbc.runtime.kernels.native_qp._working_set_answer`) is the QP's answer when it meets
+every optimality condition -- the other bounds and rows hold (relative defect at most the
+workspace's ``primal_tol``, DAQP's own tolerance: 1e-6 in the levels) and each multiplier has
+the sign of its side -- and DAQP is then not called (0 iterations, its working set unchanged);
+with no active constraint it is the unconstrained minimiser as above. Otherwise DAQP solves, from that
 working set. A workspace starts from the initial states (equality rows active).
 
 **Memory.** The C structures live in float64 arrays this object owns (and a tick program
@@ -139,8 +139,8 @@ class NativeWorkspace:
     def operands(self) -> dict[str, Any]:
         """The operands of the compiled solve (the declaration of
         `wbc.runtime.kernels.native_qp.DAQP_SOLVE`, or ``DAQP_SOLVE_WORKING_SET`` with ``working_set_first``)."""
-        if self.working_set_first:
-            return {**self._shared_operands(), "scratch": self._scratch}
+        if self.working_set_first:  # (settings: the try takes DAQP's primal_tol)
+            return {**self._shared_operands(), "scratch": self._scratch, "settings": self.settings_words}
         return {**self._shared_operands(), "factor": self._scratch, "unconstrained_first": int(self.qp.n_eq == 0)}
 
     def _shared_operands(self) -> dict[str, Any]:

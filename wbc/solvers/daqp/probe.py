@@ -13,7 +13,7 @@ import numpy as np
 
 from ...qp.problem import QP
 from ...runtime import kernels
-from .abi import Library, Problem, Result, Workspace, _load, words
+from .abi import Library, Problem, Result, Settings, Workspace, _load, words
 from .native import NativeWorkspace
 
 
@@ -55,6 +55,8 @@ def probe(library: Library) -> str | None:
     layout = {"problem words": (words(Problem), kernels.DAQP_PROBLEM_WORDS),
               "workspace words": (words(Workspace), kernels.DAQP_WORKSPACE_WORDS),
               "result words": (words(Result), kernels.DAQP_RESULT_WORDS),
+              "settings words": (words(Settings), kernels.DAQP_SETTINGS_WORDS),
+              "settings primal_tol": (Settings.primal_tol.offset // 8, kernels.DAQP_SETTINGS_PRIMAL_TOL),
               "result exit flag": (Result.exitflag.offset // 4, kernels.DAQP_RESULT_EXITFLAG),
               "result iterations": (Result.iter.offset // 4, kernels.DAQP_RESULT_ITERATIONS),
               "problem m": (Problem.m.offset // 4, kernels.DAQP_PROBLEM_M),
