@@ -104,16 +104,23 @@ def restore(problem: np.ndarray, workspace: np.ndarray, lam: np.ndarray, given: 
     _int32_at(workspace.ctypes.data)[DAQP_WORKSPACE_M] = m
     for i in range(given, m):
         lam[i] = 0.0
-    address = _int64_at(problem.ctypes.data)[sense_word]
-    if address == 0 or address != _int64_at(workspace.ctypes.data)[DAQP_WORKSPACE_SENSE]:
+    sense = sense_at(problem, sense_word, m)
+    if sense.shape[0] == 0 or sense.ctypes.data != _int64_at(workspace.ctypes.data)[DAQP_WORKSPACE_SENSE]:
         return  # a cold start: the next solve starts from the initial states again
-    sense = carray(_int32_at(address), (m,))
     for i in range(given, m):
         state = sense[i]
         if state & DAQP_SENSE_ZERO_ROW:  # constants.h DAQP_ZERO_ROW_SENSE
             sense[i] = ((state & DAQP_SENSE_LOWER) | ((state >> 12) & DAQP_SENSE_ACTIVE)
                         | ((state >> 11) & (DAQP_SENSE_IMMUTABLE | DAQP_SENSE_SOFT)))
     inactive_after(sense, given)
+
+
+@njit(inline="always")
+def sense_at(problem: np.ndarray, sense_word: int, m: int) -> np.ndarray:
+    """DAQP's constraint states -- the array its problem points to (word ``sense_word`` of
+    ``problem``), the next solve's warm start -- as an int32 array of ``m`` (empty when unset)."""
+    address = _int64_at(problem.ctypes.data)[sense_word]  # (a pointer, not ndarray.view: less to compile)
+    return carray(_int32_at(address), (m if address != 0 else 0,))
 
 
 @njit(inline="always")

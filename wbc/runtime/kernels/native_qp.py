@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import carray, njit, types
+from numba import njit, types
 from numba.extending import intrinsic
 
 from . import (
@@ -40,11 +40,10 @@ from . import (
     prepare_cache,
 )
 from ._clock import now_ns
-from ._inert_rows import _int32_at, extent, inactive_after, leave_out, restore
+from ._inert_rows import _int32_at, extent, inactive_after, leave_out, restore, sense_at
 from ._lazy import declared
 from .assembly import _minimiser, leading_defect, qp_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
-from .tick import _int64_at
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -79,14 +78,6 @@ def _solve(typingctx, function, result, workspace):
         return context.get_dummy_value()
 
     return signature, codegen
-
-
-@njit(inline="always")
-def _sense_at(problem: np.ndarray, sense_word: int, m: int) -> np.ndarray:
-    """DAQP's constraint states -- the array its problem points to (word ``sense_word`` of
-    ``problem``), the next solve's warm start -- as an int32 array of ``m`` (empty when unset)."""
-    address = _int64_at(problem.ctypes.data)[sense_word]  # (a pointer, not ndarray.view: less to compile)
-    return carray(_int32_at(address), (m if address != 0 else 0,))
 
 
 @njit(inline="always")
@@ -388,7 +379,7 @@ def daqp_solve(problem: np.ndarray, workspace: np.ndarray, result: np.ndarray, c
     """
     start = now_ns(clock_gettime, clock_id)
     given = extent(problem, x.shape[0], lam.shape[0])
-    sense = _sense_at(problem, sense_word, lam.shape[0])
+    sense = sense_at(problem, sense_word, lam.shape[0])
     if unconstrained_first and _no_active_constraint(sense[:given]) and _unconstrained_answer(data, x, factor, lam,
                                                                                                 given):
         inactive_after(sense, given)
@@ -416,7 +407,7 @@ def daqp_solve_working_set(problem: np.ndarray, workspace: np.ndarray, result: n
     start = now_ns(clock_gettime, clock_id)
     n = x.shape[0]
     given = extent(problem, n, lam.shape[0])
-    sense = _sense_at(problem, sense_word, lam.shape[0])
+    sense = sense_at(problem, sense_word, lam.shape[0])
     if _no_active_constraint(sense[:given]):
         defect = -1.0
         if _unconstrained_answer(data, x, scratch[:n], lam, given):
