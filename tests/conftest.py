@@ -124,3 +124,33 @@ def random_youbot_configurations(rng: np.random.Generator, count: int) -> np.nda
     low = np.array([-5.0, -5.0, -np.pi, -169 * deg, -65 * deg, -151 * deg, -102.5 * deg, -167.5 * deg])
     high = np.array([5.0, 5.0, np.pi, 169 * deg, 90 * deg, 146 * deg, 102.5 * deg, 167.5 * deg])
     return rng.uniform(low, high, size=(count, 8))
+
+
+def bounding_sphere(table: np.ndarray, shape: int, placements) -> tuple[np.ndarray, float]:
+    """World centre and radius of a collision shape's bounding sphere (a row of the shape table of
+    wbc.collision; ``placements``: Pinocchio's ``data.oMi``)."""
+    from wbc.collision.layout import BOUND_CENTER, BOUND_RADIUS, JOINT, ROTATION, TRANSLATION
+
+    local = table[shape, TRANSLATION] + table[shape, ROTATION].reshape(3, 3) @ table[shape, BOUND_CENTER]
+    return placements[int(table[shape, JOINT])].act(local), float(table[shape, BOUND_RADIUS])
+
+
+def pair_levers(model, data, table: np.ndarray, a: int, b: int) -> tuple[np.ndarray, list]:
+    """The lever of each velocity coordinate k on the pair of shapes (a, b), written out:
+    ``|v_O,k + w_k x c| + |w_k| r`` of the bounding sphere (c, r) of the one shape k moves, from
+    Pinocchio's world joint Jacobians (``data`` after ``pin.computeJointJacobians``); NaN where k
+    moves both shapes or neither. Also the two spheres."""
+    import pinocchio as pin
+
+    from wbc.collision.layout import JOINT
+
+    jacobians = [pin.getJointJacobian(model, data, int(table[s, JOINT]), pin.ReferenceFrame.WORLD) for s in (a, b)]
+    spheres = [bounding_sphere(table, s, data.oMi) for s in (a, b)]
+    levers = np.full(model.nv, np.nan)
+    for k in range(model.nv):
+        moves = [bool(np.any(jacobian[:, k] != 0.0)) for jacobian in jacobians]
+        if moves[0] != moves[1]:
+            x = 0 if moves[0] else 1
+            (centre, radius), v, w = spheres[x], jacobians[x][:3, k], jacobians[x][3:, k]
+            levers[k] = np.linalg.norm(v + np.cross(w, centre)) + np.linalg.norm(w) * radius
+    return levers, spheres

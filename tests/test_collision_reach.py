@@ -11,10 +11,11 @@ import pytest
 
 import wbc
 from benchmarks.collision import obstacles
+from conftest import bounding_sphere, pair_levers
 from test_collision_distances import Oracle
 from wbc.collision import RobotGeometry
 from wbc.collision.avoidance import CollisionAvoidanceData
-from wbc.collision.layout import BOUND_CENTER, BOUND_RADIUS, JOINT, ROTATION, TRANSLATION
+from wbc.collision.layout import JOINT
 
 YOUBOT = wbc.load_robot("youbot")
 NEUTRAL = YOUBOT.neutral()
@@ -107,31 +108,16 @@ def test_a_pair_is_left_out_only_when_no_command_can_bind_its_row(gain, dt):
     assert checked >= 20 and obstacle_pairs >= 5 and kept > 0  # the rule left pairs out, of both kinds, and kept some
 
 
-def _sphere_of(shape, table, placements):
-    """The world centre and radius of a shape's bounding sphere (``placements``: Pinocchio's oMi)."""
-    rotation, translation = table[shape, ROTATION].reshape(3, 3), table[shape, TRANSLATION]
-    centre = placements[int(table[shape, JOINT])].act(rotation @ table[shape, BOUND_CENTER] + translation)
-    return centre, table[shape, BOUND_RADIUS]
-
-
 def _reach_of(a, b, table, q, speed):
     """``sum_k speed_k (|v_O,k + w_k x c| + |w_k| r)`` over the coordinates that move only one of
-    shapes a and b (its bounding sphere c, r), with Pinocchio's joint Jacobians (world frame, at
-    the world origin); and the pair's bounding-sphere distance ``|c_a - c_b| - r_a - r_b``."""
+    shapes a and b (its bounding sphere c, r; conftest.pair_levers, Pinocchio's world joint
+    Jacobians); and the pair's bounding-sphere distance ``|c_a - c_b| - r_a - r_b``."""
     model, data = YOUBOT.model, YOUBOT.model.createData()
     pin.computeJointJacobians(model, data, q)
-    jacobians = [pin.getJointJacobian(model, data, int(table[s, JOINT]), pin.ReferenceFrame.WORLD) for s in (a, b)]
-    spheres = [_sphere_of(s, table, data.oMi) for s in (a, b)]
-    reach = 0.0
-    for k in range(YOUBOT.nv):
-        moves = [bool(np.any(jacobian[:, k] != 0.0)) for jacobian in jacobians]
-        if moves[0] != moves[1]:
-            jacobian, (centre, radius) = (jacobians[0], spheres[0]) if moves[0] else (jacobians[1], spheres[1])
-            lever = np.linalg.norm(jacobian[:3, k] + np.cross(jacobian[3:, k], centre)) + np.linalg.norm(
-                jacobian[3:, k]) * radius
-            reach += speed[k] * lever
+    levers, spheres = pair_levers(model, data, table, a, b)
+    moved = ~np.isnan(levers)
     (c_a, r_a), (c_b, r_b) = spheres
-    return reach, float(np.linalg.norm(c_a - c_b) - r_a - r_b), spheres[0]
+    return float(speed[moved] @ levers[moved]), float(np.linalg.norm(c_a - c_b) - r_a - r_b), spheres[0]
 
 
 @pytest.mark.parametrize(("link_a", "link_b"), [("arm_link_3", "sphere"), ("arm_link_5", "sphere"),
@@ -153,7 +139,7 @@ def test_the_pair_is_left_out_just_past_its_reach(link_a, link_b):
     if link_b == "sphere":  # 0.12 m beyond the shape's bounding sphere, straight up
         data = YOUBOT.model.createData()
         pin.forwardKinematics(YOUBOT.model, data, q)
-        centre, radius = _sphere_of(a, table, data.oMi)
+        centre, radius = bounding_sphere(table, a, data.oMi)
         obstacles = [wbc.Sphere(centre + (0.0, 0.0, radius + 0.12 + 0.03), 0.03)]
         table = wbc.collision.Distances(YOUBOT, obstacles, geometry=geometry).table
         b = len(links)
@@ -229,7 +215,7 @@ def test_the_reach_bounds_the_relative_speed_of_any_two_points_of_the_spheres(rn
             for _ in range(5):
                 points = []
                 for s in (a, b):
-                    centre, radius = _sphere_of(s, table, data.oMi)
+                    centre, radius = bounding_sphere(table, s, data.oMi)
                     direction = rng.normal(size=3)
                     points.append(centre + radius * rng.random() ** (1 / 3) * direction / np.linalg.norm(direction))
                 n = (points[1] - points[0]) / np.linalg.norm(points[1] - points[0])

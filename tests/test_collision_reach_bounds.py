@@ -8,6 +8,7 @@ import pinocchio as pin
 import pytest
 
 import wbc
+from conftest import pair_levers
 from wbc.collision.distances import _support
 from wbc.collision.layout import BOUND_CENTER, BOUND_RADIUS, JOINT, KIND, ROTATION, ROW, SPHERE, TRANSLATION
 from wbc.collision.reach import lever_bounds
@@ -19,25 +20,10 @@ YOUBOT = wbc.load_robot("youbot")
 
 def _levers_at(model, table, pairs, q):
     """``|v_O,k + w_k x c| + |w_k| r`` for every pair and coordinate that moves exactly one of its
-    shapes (c, r: that shape's bounding sphere, world), NaN for the others; and which those are."""
+    shapes (c, r: that shape's bounding sphere, world), NaN for the others (conftest.pair_levers)."""
     data = model.createData()
     pin.computeJointJacobians(model, data, q)
-    levers = np.full((len(pairs), model.nv), np.nan)
-    for p, (a, b, _) in enumerate(pairs):
-        jacobians, centres = [], []
-        for s in (a, b):
-            joint = int(table[s, JOINT])
-            jacobians.append(pin.getJointJacobian(model, data, joint, pin.ReferenceFrame.WORLD))
-            local = table[s, TRANSLATION] + table[s, ROTATION].reshape(3, 3) @ table[s, BOUND_CENTER]
-            centres.append(data.oMi[joint].act(local))
-        for k in range(model.nv):
-            moves = [bool(np.any(jacobian[:, k] != 0.0)) for jacobian in jacobians]
-            if moves[0] != moves[1]:
-                x = 0 if moves[0] else 1
-                v, w = jacobians[x][:3, k], jacobians[x][3:, k]
-                levers[p, k] = (np.linalg.norm(v + np.cross(w, centres[x]))
-                                + np.linalg.norm(w) * table[(a, b)[x], BOUND_RADIUS])
-    return levers
+    return np.array([pair_levers(model, data, table, int(a), int(b))[0] for a, b, _ in pairs])
 
 
 def test_the_youbot_levers_bound_every_configuration_and_are_finite(rng):

@@ -51,27 +51,22 @@ def lever_bounds(model: pin.Model, table: NDArray[np.float64], pairs: NDArray[np
     that moves exactly one of its shapes (``support[joint, k] != 0``, :func:`wbc.collision.distances._support`),
     a bound of ``|v_O,k + w_k x c| + |w_k| r`` [m per unit of v_k] over every configuration (c, r:
     that shape's bounding sphere); 0 for the coordinates that move both shapes or neither; ``inf``
-    where the chain gives no such bound (see the module docstring)."""
-    levers = np.zeros((pairs.shape[0], model.nv))
+    where the chain gives no such bound (see the module docstring). The bound depends on the
+    shape and the coordinate only: it is formed once per shape of the pairs, then picked per pair."""
     owner = np.zeros(model.nv, dtype=np.int64)
     for joint in range(1, model.njoints):
         owner[model.idx_vs[joint]:model.idx_vs[joint] + model.nvs[joint]] = joint
     subspace = _subspace_norms(model)
-    for p in range(pairs.shape[0]):
-        a, b = int(pairs[p, PAIR_A]), int(pairs[p, PAIR_B])
-        joint_a, joint_b = int(table[a, JOINT]), int(table[b, JOINT])
-        for k in range(model.nv):
-            on_a, on_b = support[joint_a, k] != 0.0, support[joint_b, k] != 0.0
-            if on_a == on_b:
-                continue
-            shape, joint = (a, joint_a) if on_a else (b, joint_b)
+    a, b = pairs[:, PAIR_A].astype(np.int64), pairs[:, PAIR_B].astype(np.int64)
+    shape_levers = np.zeros((table.shape[0], model.nv))
+    for shape in np.unique(np.concatenate([a, b])):
+        joint = int(table[shape, JOINT])
+        for k in np.flatnonzero(support[joint]):
             linear, angular = subspace[k]
-            if angular == 0.0:
-                levers[p, k] = linear
-            else:
-                levers[p, k] = linear + angular * (_chain_length(model, int(owner[k]), joint, table, shape)
-                                                   + table[shape, BOUND_RADIUS])
-    return levers
+            shape_levers[shape, k] = linear if angular == 0.0 else linear + angular * (
+                _chain_length(model, int(owner[k]), joint, table, int(shape)) + table[shape, BOUND_RADIUS])
+    on_a, on_b = support[table[a, JOINT].astype(np.int64)] != 0.0, support[table[b, JOINT].astype(np.int64)] != 0.0
+    return np.where(on_a & ~on_b, shape_levers[a], np.where(on_b & ~on_a, shape_levers[b], 0.0))
 
 
 def _subspace_norms(model: pin.Model) -> list[tuple[float, float]]:
