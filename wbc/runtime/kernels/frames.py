@@ -185,7 +185,9 @@ def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> 
     return defect
 
 
-@njit(inline="always")
+# inlined by LLVM (forceinline), not by numba's IR inlining: compiled once, not copied into each caller's IR
+# (a first start compiles ~0.1-0.2 s sooner, benchmarks/README.md section 8; the ticks are alike)
+@njit(forceinline=True, no_cpython_wrapper=True)
 def _frame_task_rows_of(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, joint_translation: np.ndarray,
                         support: np.ndarray, settings: np.ndarray, frame: np.ndarray, dt: float, error: np.ndarray,
                         jacobian: np.ndarray, target: np.ndarray, weighted_feedforward: np.ndarray) -> None:
