@@ -142,3 +142,130 @@ def test_worker_count_without_proc_stat_reads_the_load_average(monkeypatch):
     assert _pool.worker_count() == 2  # the setting wins
     monkeypatch.setenv(WORKERS_VARIABLE, "many")
     assert _pool.worker_count() == 0
+
+
+@pytest.mark.parametrize(("others_busy", "expected"), [
+    (0.0, 1),  # nothing else ran: the early worker's core was idle, it stays
+    (0.9, 0),  # another process kept the second core busy: dismissed
+    (0.3, 1),  # rounded
+])
+def test_an_early_workers_own_time_counts_as_idle(monkeypatch, others_busy, expected):
+    """Over 1 s on 2 CPUs (200 jiffies): this process busy 100, the early worker 60, the others
+    ``others_busy`` x 100; idle cores = 2 - 1 - others (the worker's time is not a reason to dismiss it)."""
+    monkeypatch.delenv(WORKERS_VARIABLE, raising=False)
+    own, worker, others = 100.0, 60.0, others_busy * 100.0
+    monkeypatch.setattr(_pool, "_IMPORTED", (0.0, 0.0, 0.0))
+    monkeypatch.setattr(_pool, "_OWN_AT_IMPORT", 5.0)
+    monkeypatch.setattr(_pool, "cpu_times", lambda: (1.0, 200.0 - own - worker - others, 200.0))
+    monkeypatch.setattr(_pool, "process_jiffies", lambda pid: {1: own + 5.0, 2: worker}[pid])
+    monkeypatch.setattr(_pool.os, "getpid", lambda: 1)
+    monkeypatch.setattr(_pool.os, "cpu_count", lambda: 2)
+    monkeypatch.setattr(_pool.os, "sched_getaffinity", lambda pid: {0, 1})
+    assert _pool.worker_count((2,)) == expected
+
+
+def test_process_jiffies_reads_this_process():
+    """proc(5)'s utime + stime, in clock ticks: what os.times() says of this process, to a tick."""
+    import os
+
+    before = os.times()
+    jiffies = _pool.process_jiffies(os.getpid())
+    after = os.times()
+    ticks = os.sysconf("SC_CLK_TCK")
+    assert (before.user + before.system) * ticks - 2 <= jiffies <= (after.user + after.system) * ticks + 2
+    assert jiffies > 0
+    assert _pool.process_jiffies(-1) == 0.0  # no such process
+
+
+def test_while_waiting_for_a_workers_job_the_process_compiles_the_earliest_others(monkeypatch):
+    """The build needs a job a worker compiles (DAQP's solve, for its probe): meanwhile the process
+    compiles the jobs no worker started, oldest first, instead of idling; then it waits."""
+    from wbc.runtime import kernels
+
+    pool = CompilePool(0)
+    pool.submit(["kernel has_nan", "kernel has_non_finite", "op DAQP_SOLVE", "kernel qp_defect"])
+    assert pool.take("op DAQP_SOLVE")
+    pool._running.add("op DAQP_SOLVE")  # as if a worker had started it
+    compiled = []
+
+    def compile_job(job):
+        compiled.append(job)
+        if len(compiled) == 2:  # the worker finishes meanwhile
+            with pool._condition:
+                pool._running.discard("op DAQP_SOLVE")
+                pool._finished["op DAQP_SOLVE"] = True
+                pool._condition.notify_all()
+
+    monkeypatch.setattr(kernels, "_workers", pool)
+    monkeypatch.setattr(kernels, "_compile_job", compile_job)
+    kernels._claim("op DAQP_SOLVE")
+    assert compiled == ["kernel has_nan", "kernel has_non_finite"]  # oldest first, and no more once it was done
+    assert pool.take("kernel qp_defect")  # left for whoever needs it
+    pool.close()
+
+
+def test_a_forked_child_leaves_its_parents_workers_alone():
+    """A child forked after the pool started shares the workers' pipes: its close() (at its exit)
+    must not stop them."""
+    import os
+
+    pool = CompilePool(1)
+    try:
+        child = os.fork()
+        if child == 0:  # pragma: no cover - the child
+            pool.close()
+            os._exit(0)
+        os.waitpid(child, 0)
+        assert pool._processes[0].poll() is None  # still running
+    finally:
+        pool.close()
+    assert pool._processes[0].poll() is not None
+
+
+_EARLY = """
+    import json, sys
+    import wbc
+    from wbc.runtime import kernels
+    early = kernels._workers is not None
+    numba_imported = "numba" in sys.modules
+    robot = wbc.load_robot("youbot")
+    controller = wbc.Controller(robot, tasks=[wbc.PostureTask(cost=1.0)])
+    print(json.dumps(dict(early=early, numba=numba_imported, kept=kernels._workers is not None,
+                          finished=[] if kernels._workers is None else sorted(kernels._workers._finished))))
+"""
+
+
+@pytest.mark.parametrize("workers", ["1", "0"])
+def test_import_starts_a_worker_on_the_common_kernels_after_an_install(tmp_path, workers):
+    """On an empty cache ``import wbc`` starts a worker (without importing numba itself) that
+    compiles kernels every controller uses before any controller asks; none with WBC_COMPILE_WORKERS=0."""
+    from wbc.runtime.kernels import COMMON_JOBS
+
+    result = subprocess.run([sys.executable, "-c", textwrap.dedent(_EARLY)], capture_output=True, text=True,
+                            cwd=NEUTRAL, timeout=600,
+                            env={**child_environment(), "NUMBA_CACHE_DIR": str(tmp_path), WORKERS_VARIABLE: workers})
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert report["numba"] is False
+    assert report["early"] is (workers == "1") and report["kept"] is (workers == "1")
+    if workers == "1":
+        assert set(report["finished"]) & set(COMMON_JOBS)  # the worker compiled common jobs
+
+
+def test_first_start_finds_numbas_own_cache_directory(tmp_path, monkeypatch):
+    """Without numba, the first-start check looks where numba's own locator caches the interpreter
+    (the oracle: :func:`_cache.cache_dir`, numba's locator): cold while that holds no index, warm after."""
+    from wbc.runtime.kernels import _cache
+
+    folder = Path(_cache.__file__).parent
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    from numba.core import config
+
+    monkeypatch.setattr(config, "CACHE_DIR", str(tmp_path))
+    directory = _cache.cache_dir(folder / "tick.py")
+    assert directory is not None and tmp_path in directory.parents
+    assert _cache.first_start(folder, "tick")
+    tag = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    directory.mkdir(parents=True, exist_ok=True)
+    (directory / f"tick.run_program-130.{tag}.nbi").write_bytes(b"")
+    assert not _cache.first_start(folder, "tick")

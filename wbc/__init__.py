@@ -9,6 +9,10 @@ Conventions: see :mod:`wbc.model.robot` (frames, Jacobians, twists) and :mod:`wb
 (base pose and base-frame twists).
 """
 
+from .runtime import kernels as _kernels
+
+_kernels.start_compiling()  # a first start after an install: compile workers begin with the common kernels
+
 from .collision import BaseFootprintAvoidance, Box, Capsule, CollisionAvoidance, Plane, Sphere
 from .constraints import (
     AccelerationLimits,

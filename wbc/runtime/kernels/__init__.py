@@ -59,6 +59,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import importlib
+import os
 import pkgutil
 import sys
 from pathlib import Path
@@ -193,6 +194,7 @@ cache_directory: Path | None = None
 _cold = False  #: the interpreter had no cache entry at the first :func:`prepare_cache` (a first start)
 _workers: CompilePool | None = None  #: the compile workers of a first start (:func:`_compile_pool`)
 _workers_started = False
+_early = False  #: the workers were started at import, not yet kept (:func:`start_compiling`)
 _batch_depth = 0  #: open :func:`batch` blocks
 _queued: dict[str, Callable[[], object]] = {}  #: jobs queued for the workers: how to compile each here
 
@@ -364,9 +366,29 @@ def _queue(jobs: dict[str, Callable[[], object]]) -> None:
 
 def _claim(job: str) -> None:
     """Before compiling ``job`` here: take it from the compile workers' queue, or wait while a worker
-    compiles it (numba then reads it from the cache)."""
-    if _workers is not None and not _workers.take(job):
-        _workers.wait(job)
+    compiles it (numba then reads it from the cache) -- compiling meanwhile here the earliest jobs
+    no worker has started (the build needs ``job`` now, e.g. DAQP's solve for its layout probe:
+    the process would otherwise idle for seconds)."""
+    if _workers is None or _workers.take(job):
+        return
+    while _workers.running(job):
+        other = _workers.take_oldest()
+        if other is None:
+            break
+        _compile_job(other)
+    _workers.wait(job)
+
+
+def _compile_job(job: str) -> None:
+    """Compile the job ``job`` (``"op NAME"``: an op's callback; ``"kernel name"``: a compiled
+    function) in this process (also a worker's, :mod:`._worker`); raises for a job of neither kind."""
+    kind, name = job.split()
+    if kind == "op":
+        callback(globals()[name])
+    elif kind == "kernel":
+        prepare_one(name)
+    else:
+        raise ValueError(f"not a compile job: {job!r}")
 
 
 def _claim_declared(dispatcher: Any) -> None:
@@ -378,23 +400,82 @@ def _claim_declared(dispatcher: Any) -> None:
 
 def _compile_pool() -> CompilePool | None:
     """The compile workers (:mod:`._pool`), started on the first call of a first start (a cold
-    cache that numba can write); None otherwise, or with ``WBC_COMPILE_WORKERS=0``."""
-    global _workers, _workers_started
+    cache that numba can write); None otherwise, or with ``WBC_COMPILE_WORKERS=0``. Workers started
+    at ``import wbc`` (:func:`start_compiling`) are kept on the first call after it only where the
+    cores they use were idle otherwise (:func:`._pool.worker_count` of the other processes)."""
+    global _workers, _workers_started, _early
     if not _workers_started:
         _workers_started = True
         prepare_cache()  # (whether the cache is cold; the workers start before load() imports the kernel modules)
-        count = _pool.worker_count() if _cold else 0
-        if count:
-            try:
-                _workers = _pool.CompilePool(count)
-            except OSError:
-                _workers = None
-            else:
-                from . import _lazy
+        _start_workers(_pool.worker_count() if _cold else 0)
+    elif _early:
+        _early = False
+        if _workers is not None and not _pool.worker_count(_workers.pids):
+            _workers.close()  # the machine is busy: they would only compete with this process
+            _workers = None
+    if _workers is not None:
+        from . import _lazy
 
-                _lazy.before_compile = _claim_declared
-        load()
+        _lazy.before_compile = _claim_declared
+    load()
     return _workers
+
+
+def _forget_workers() -> None:
+    """In a child forked from this process: the compile workers are the parent's (their threads
+    did not follow): the child compiles on its own."""
+    global _workers
+    _workers = None
+    from . import _lazy
+
+    _lazy.before_compile = _lazy._nothing_before
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_forget_workers)
+
+
+def _start_workers(count: int) -> None:
+    """Start ``count`` compile workers (none: nothing)."""
+    global _workers
+    if count:
+        try:
+            _workers = _pool.CompilePool(count)
+        except OSError:
+            _workers = None
+
+
+#: jobs that every controller compiles with the default solver (DAQP) on a robot of revolute and prismatic
+#: joints: the interpreter, the NaN screens, the cost's normal equations and scaling, the merged bounds, the
+#: answer checks, the chain's kinematics, DAQP's solve and acceptance -- the workers of a first start
+#: take them at ``import wbc`` (:func:`start_compiling`), the last first (DAQP's solve, the longest)
+COMMON_JOBS = ("kernel run_program", "op HAS_NAN", "op FORWARD_KINEMATICS", "op NORMAL_EQUATIONS",
+               "op MERGE_BOUNDS", "op NORMALISE_COST", "kernel qp_defect", "kernel constraint_defect",
+               "op DAQP_ACCEPT", "op DAQP_SOLVE")
+
+
+def start_compiling() -> None:
+    """On a first start after an install (no cache entry of the interpreter, decided without
+    importing numba: :func:`._cache.first_start`): start a compile worker now -- ``import wbc``
+    calls this first -- and hand it :data:`COMMON_JOBS`, which it compiles while this process
+    imports the rest of wbc and builds its first controller (a worker takes ~0.5 s to start, as
+    long as the import). The import is too short to tell whether a core is idle: the worker is
+    kept at the first build only where it was (:func:`_compile_pool`); ``WBC_COMPILE_WORKERS``
+    sets the number (then kept). A common job this process needs is read from the cache, or
+    taken back while no worker has started it (:func:`_settle`); one it never needs only
+    filled the cache. Elsewhere, and after the first call, nothing."""
+    global _workers_started, _early
+    from . import _cache
+
+    if _workers_started or not _cache.first_start(Path(__file__).parent, "tick"):
+        return
+    _workers_started = True
+    setting = os.environ.get(_pool.WORKERS_VARIABLE, "").strip()
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    _start_workers(_pool.worker_count() if setting else min(1, cores - 1))
+    _early = not setting
+    if _workers is not None:
+        _workers.submit(list(COMMON_JOBS))
 
 
 def warm_up() -> None:

@@ -80,6 +80,28 @@ def default_cache_dir(source: Path) -> Path | None:
     return None
 
 
+def first_start(folder: Path, module: str) -> bool:
+    """Whether the kernel module ``module`` of the package ``folder`` has no cache index for this
+    Python in the directory numba would cache it in -- the first start after an install --
+    decided without importing numba (``import wbc`` must not: it is for compiled code only) on
+    Linux, where numba's file-backed locators are: ``$NUMBA_CACHE_DIR/<folder>_<sha1 of its path>``,
+    else the ``__pycache__`` next to the file when it can be written, else
+    ``$XDG_CACHE_HOME/numba/<folder>_<sha1>`` (default ``~/.cache``). False elsewhere, and where no
+    such directory can be written (numba compiles in memory there). Nothing is created."""
+    if not sys.platform.startswith("linux"):
+        return False
+    folder = folder.resolve()
+    subpath = "_".join([folder.name, hashlib.sha1(str(folder).encode()).hexdigest()])
+    root = os.environ.get("NUMBA_CACHE_DIR")
+    user = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "numba"
+    candidates = ([Path(root) / subpath] if root else []) + [folder / "__pycache__", user / subpath]
+    for candidate in candidates:
+        existing = next((path for path in (candidate, *candidate.parents) if path.exists()), None)
+        if existing is not None and existing.is_dir() and os.access(existing, os.W_OK):
+            return is_cold(candidate, (module,))
+    return False
+
+
 def _entries(directory: Path, modules: Sequence[str], suffixes: tuple[str, ...]) -> list[Path]:
     """numba's index (.nbi) and data (.nbc) files of the functions of ``modules`` in
     ``directory`` (numba names them ``<module>.<function>-<line>.py<version>[.<n>].nb?``)."""

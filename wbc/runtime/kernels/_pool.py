@@ -10,8 +10,9 @@ the cache instead of compiling it. The process never waits for work it could do 
 no worker has started yet is taken back (:meth:`CompilePool.take`) and compiled in process;
 only a job a worker is compiling is waited for (:meth:`CompilePool.wait`). Workers take the
 most recently submitted job, the process the earliest, so the two meet in the middle of a
-controller's list. A job a worker could not compile (it failed, or the worker died) is
-compiled in process, as without the pool.
+controller's list; while the process waits for a job a worker compiles, it compiles the earliest
+job no worker has started (:meth:`CompilePool.take_oldest`) instead of idling. A job a worker
+could not compile (it failed, or the worker died) is compiled in process, as without the pool.
 
 Each worker runs :func:`._worker.run_worker` of this process's wbc (no pool of its own) with
 ``wbc`` itself *not* executed (:data:`BOOTSTRAP`): :mod:`wbc.runtime` imports nothing else of wbc,
@@ -40,8 +41,6 @@ WORKERS_VARIABLE = "WBC_COMPILE_WORKERS"
 MAX_WORKERS = 3
 #: what a worker says once it can take jobs
 READY = "ready"
-#: [s] how long :meth:`CompilePool.close` lets a worker finish the job at hand before stopping it
-CLOSE_TIMEOUT = 2.0
 
 
 #: [s] the shortest window over which :func:`worker_count` measures the idle cores
@@ -69,11 +68,24 @@ def cpu_times() -> tuple[float, float, float] | None:
     return time.monotonic(), values[3] + values[4], sum(values)
 
 
+def process_jiffies(pid: int) -> float:
+    """CPU time (user + system) of the process ``pid`` so far, in the clock ticks of ``/proc/stat``
+    (Linux ``/proc/<pid>/stat``); 0 where it cannot be read."""
+    try:
+        with open(f"/proc/{pid}/stat", encoding="ascii") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+        return float(fields[11]) + float(fields[12])  # utime, stime (fields 14 and 15 of proc(5))
+    except (OSError, IndexError, ValueError):
+        return 0.0
+
+
 #: the CPU times when this module was imported (with :mod:`wbc.runtime.kernels`, early in ``import wbc``)
 _IMPORTED = cpu_times()
+#: this process's own CPU time then (clock ticks, :func:`process_jiffies`)
+_OWN_AT_IMPORT = process_jiffies(os.getpid())
 
 
-def worker_count() -> int:
+def worker_count(helpers: tuple[int, ...] = ()) -> int:
     """Workers to start: ``WBC_COMPILE_WORKERS`` when set, else one per core left idle by everything
     else while this process ran (rounded; at most :data:`MAX_WORKERS` and the cores available
     less one). The idle cores are measured from ``/proc/stat`` since this module was imported
@@ -81,7 +93,9 @@ def worker_count() -> int:
     objects on one core), elsewhere estimated from the 1-minute load average (which still counts a
     ``pip install`` that ended seconds ago: measured, it started no worker after one). A worker
     on a busy core only competes with the process it should relieve: on a 2-core machine kept
-    busy by other work a first run took longer with one (benchmarks/README.md, section 8)."""
+    busy by other work a first run took longer with one (benchmarks/README.md, section 8).
+    With ``helpers`` (workers started early, whose work this process would otherwise do) the idle
+    cores are the CPUs less this process's less the CPU time of every other process but theirs."""
     setting = os.environ.get(WORKERS_VARIABLE, "").strip()
     if setting:
         try:
@@ -89,7 +103,7 @@ def worker_count() -> int:
         except ValueError:
             return 0
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    idle = _idle_cores()
+    idle = _idle_cores(helpers)
     if idle is None:
         try:
             idle = cores - 1 - os.getloadavg()[0]  # (this process's own load counted as a busy core)
@@ -98,9 +112,9 @@ def worker_count() -> int:
     return max(0, min(math.floor(idle + 0.5), cores - 1, MAX_WORKERS))
 
 
-def _idle_cores() -> float | None:
+def _idle_cores(helpers: tuple[int, ...] = ()) -> float | None:
     """Cores idle since this module was imported, this process's own busy core not counted as idle
-    (:func:`cpu_times`); None without ``/proc/stat``."""
+    (:func:`cpu_times`; with ``helpers``, see :func:`worker_count`); None without ``/proc/stat``."""
     now = cpu_times()
     if _IMPORTED is None or now is None:
         return None
@@ -112,7 +126,13 @@ def _idle_cores() -> float | None:
         return (later[1] - now[1]) / (later[2] - now[2]) * (os.cpu_count() or 1) - 1.0  # (this process slept)
     if now[2] <= _IMPORTED[2]:
         return None
-    return (now[1] - _IMPORTED[1]) / (now[2] - _IMPORTED[2]) * (os.cpu_count() or 1)  # (all CPUs of the machine)
+    cpus = os.cpu_count() or 1
+    if helpers:  # idle = the CPUs less this process's core less what the others kept busy (not the helpers)
+        busy = (now[2] - _IMPORTED[2]) - (now[1] - _IMPORTED[1])
+        own = process_jiffies(os.getpid()) - _OWN_AT_IMPORT
+        others = busy - own - sum(process_jiffies(pid) for pid in helpers)
+        return cpus - 1 - max(others, 0.0) / ((now[2] - _IMPORTED[2]) / cpus)
+    return (now[1] - _IMPORTED[1]) / (now[2] - _IMPORTED[2]) * cpus  # (all CPUs of the machine)
 
 
 class CompilePool:
@@ -124,6 +144,7 @@ class CompilePool:
         self._running: set[str] = set()
         self._finished: dict[str, bool] = {}  #: by a worker: whether it compiled
         self._closed = False
+        self._owner = os.getpid()  #: a forked child shares the workers' pipes, not the workers (close: its owner's)
         folder = Path(__file__).resolve().parents[2]  # this wbc
         bootstrap = BOOTSTRAP.format(init=str(folder / "__init__.py"), folder=str(folder))
         environment = {**os.environ, WORKERS_VARIABLE: "0"}
@@ -150,6 +171,21 @@ class CompilePool:
                 return True
             return False
 
+    @property
+    def pids(self) -> tuple[int, ...]:
+        """The process ids of the workers."""
+        return tuple(process.pid for process in self._processes)
+
+    def take_oldest(self) -> str | None:
+        """The earliest job no worker has started, now the caller's to compile; None when there is none."""
+        with self._condition:
+            return self._pending.pop(0) if self._pending else None
+
+    def running(self, job: str) -> bool:
+        """Whether a worker is compiling ``job`` now."""
+        with self._condition:
+            return job in self._running
+
     def wait(self, job: str) -> bool:
         """Wait while a worker compiles ``job``; whether a worker compiled it (else the caller compiles it)."""
         with self._condition:
@@ -158,22 +194,22 @@ class CompilePool:
             return self._finished.get(job, False)
 
     def close(self) -> None:
-        """Stop the workers (they finish the job at hand); pending jobs are dropped."""
+        """Stop the workers now; pending jobs are dropped and a job at hand is abandoned: nobody
+        waits for it (the pool closes when its process exits, or dismisses workers it started
+        early), and numba writes each cache entry atomically, so nothing half-written stays."""
+        if os.getpid() != self._owner:  # (a forked child's copy: the workers are its parent's)
+            return
         with self._condition:
             self._closed = True
             self._pending.clear()
             self._condition.notify_all()
         for process in self._processes:
-            try:
-                process.stdin.close()  # type: ignore[union-attr]
-            except OSError:
-                pass
-        for process in self._processes:  # idle once the controller is built: they exit at once
-            try:
-                process.wait(timeout=CLOSE_TIMEOUT)
-            except subprocess.TimeoutExpired:
-                process.kill()  # numba writes each cache entry atomically: nothing half-written stays
-                process.wait()
+            for stop in (process.stdin.close, process.kill):  # type: ignore[union-attr]
+                try:
+                    stop()
+                except OSError:
+                    pass
+            process.wait()
 
     def _serve(self, process: subprocess.Popen[str]) -> None:
         """Hand jobs to one worker, newest first, once it has started (until then the process

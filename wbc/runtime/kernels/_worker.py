@@ -16,13 +16,7 @@ def run_worker() -> None:
     for line in sys.stdin:
         job = line.strip()
         try:
-            kind, name = job.split()
-            if kind == "op":
-                kernels.callback(getattr(kernels, name))
-            elif kind == "kernel":
-                kernels.prepare(name)
-            else:
-                raise ValueError(job)
+            kernels._compile_job(job)
             answer = f"ok {job}"
         except Exception:  # noqa: BLE001 - the job is compiled in the controller's process instead
             answer = f"failed {job}"
