@@ -585,11 +585,10 @@ def test_band_rows_hold_each_task_value_within_its_relative_width(rng, two_sided
     x = np.array([0.3, -2.0, 0.5, 1.5, -0.1])  # outside the bounds at coordinates 1 and 3
     x_b = np.clip(x, lower, upper)
     qp = wbc.qp.problem.QP(nv, 10, 0)
-    start, m = 2, nv + 10  # the band's first row; the QP's constraints
-    rows_at = nv * nv + nv
+    start = 2  # the band's first row of C
     sides = 1 if two_sided else 2
-    wbc.runtime.kernels.band_rows(stack_t, first, last, first_p, last_p, x, lower, upper, 1e-9, qp.data,
-                                  rows_at + start * nv, rows_at + (m - nv) * nv + nv + start, m if two_sided else 0)
+    wbc.runtime.kernels.band_rows(stack_t, first, last, first_p, last_p, x, lower, upper, 1e-9, qp.data, start, 10,
+                                  int(two_sided))
     eps = 1e-9 * max(1.0, np.max(np.abs(x_b)))
     for slot, r in enumerate([1, 2, 3, 5]):
         a = stack_t[:nv, r]

@@ -370,11 +370,9 @@ class Hierarchy:
     def _write_band(self, k: int, v: np.ndarray, target: QP) -> None:
         """Level k's band rows, at its answer ``v``, into the QP ``target`` of a level below."""
         (first, last), (first_p, last_p) = self.rows.tasks[k], self.rows.preview[k]
-        n, start, m = target.n, self.band_start[k], target.n + target.n_ineq + target.n_eq
-        rows_start = n * n + n
         kernels.band_rows(self._buffers.task_stack.stack_t, first, last, first_p, last_p, v, self.qps[0].lb,
-                          self.qps[0].ub, BAND, target.data, rows_start + start * n,
-                          rows_start + (m - n) * n + start + n, m if self.band_sides == 1 else 0)
+                          self.qps[0].ub, BAND, target.data, self.band_start[k], target.n_ineq + target.n_eq,
+                          int(self.band_sides == 1))
 
     def _failure(self, k: int, solution: QPSolution) -> QPSolution:
         """Level k failed: its warm start is dropped; the failure names the level."""

@@ -32,7 +32,9 @@ cached on disk (``cache=CACHE``): after an install the first start of a controll
 own kernels once (a few seconds, announced by one line on stderr; ``wbc warmup`` compiles all of
 them up front, ~20 s); later starts read the machine code. On that first start, where a core is
 idle, worker processes compile part of them into the cache in parallel while the controller is
-built (:func:`batch`, :mod:`._pool`; ``WBC_COMPILE_WORKERS`` sets their number). Where numba finds no writable cache
+built (:func:`batch`, :mod:`._pool`; ``WBC_COMPILE_WORKERS`` sets their number): one starts at
+``import wbc`` already, on the kernels every controller uses (:func:`start_compiling`), and is
+kept at the first build where its core was otherwise idle. Where numba finds no writable cache
 directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR`` unset, the package's
 ``__pycache__`` and the user cache not writable), ``CACHE`` is False: the kernels compile in
 memory at every start, said once on stderr with the fix

@@ -96,8 +96,8 @@ def _band_row(stack_t: np.ndarray, r: int, x: np.ndarray, lower: np.ndarray, upp
 @declared("void(float64[:, :], int64, int64, int64, int64, float64[:], float64[:], float64[:], float64, float64[::1], "
           "int64, int64, int64)", cache=CACHE, nogil=True)
 def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, last_preview: int, x: np.ndarray,
-              lower: np.ndarray, upper: np.ndarray, relative: float, data: np.ndarray, row: int, h: int,
-              gap: int) -> None:
+              lower: np.ndarray, upper: np.ndarray, relative: float, data: np.ndarray, row: int, target_rows: int,
+              two_sided: int) -> None:
     """The band that holds a solved level's task values for the levels below it.
 
     For each stack row ``a`` of the level (rows ``first:last`` and ``first_preview:last_preview``
@@ -106,20 +106,24 @@ def band_rows(stack_t: np.ndarray, first: int, last: int, first_preview: int, la
         y - eps <= a v <= y + eps,   y = a x_b,   eps = relative |a| max(1, |x_b|_inf)
 
     at the level's answer ``x`` projected onto the bounds ``[lower, upper]`` (``x_b``: exact on
-    the bounds whatever the solver's tolerance). With ``gap > 0`` (a backend that takes rows
-    with two sides: DAQP) one row each, its upper side from entry ``h`` on and its lower side
-    ``gap`` entries after it (the QP's m constraints); with ``gap`` 0 (backends that take
-    ``G v <= h`` only) two rows each, ``a v <= y + eps`` and ``-a v <= -y + eps``, their lower
-    sides left open. The rows are written into the QP buffer ``data`` from its entry ``row`` on
-    (C, row-major).
+    the bounds whatever the solver's tolerance). The rows go into the QP buffer ``data``
+    (:class:`wbc.qp.problem.QP`'s layout: H, c, the ``target_rows`` rows C, then the upper and the
+    lower sides of its m = nv + target_rows constraints), from its row ``row`` of C on. With
+    ``two_sided`` (a backend that takes rows with two sides: DAQP) one row each, both sides
+    written; otherwise (backends that take ``G v <= h`` only) two rows each, ``a v <= y + eps``
+    and ``-a v <= -y + eps``, their lower sides left open.
     """
     size = 1.0
     for j in range(x.shape[0]):
         size = max(size, abs(min(max(x[j], lower[j]), upper[j])))
-    nv, count, sides = x.shape[0], last - first, 1 if gap else 2
+    nv, count, sides = x.shape[0], last - first, 1 if two_sided else 2
+    rows_start = nv * nv + nv  # C's first entry
+    upper_start = rows_start + target_rows * nv  # the upper sides (bounds, then rows)
+    gap = nv + target_rows if two_sided else 0  # from a row's upper side to its lower side
     for slot in range(count + last_preview - first_preview):  # (one call site: _band_row is inlined once)
         r = first + slot if slot < count else first_preview + slot - count
-        _band_row(stack_t, r, x, lower, upper, size, relative, data, row + sides * slot * nv, h + sides * slot, gap)
+        _band_row(stack_t, r, x, lower, upper, size, relative, data, rows_start + (row + sides * slot) * nv,
+                  upper_start + nv + row + sides * slot, gap)
 
 
 @declared("void(float64[:, :], float64[:], float64, float64[:])", cache=CACHE, nogil=True)
@@ -267,9 +271,8 @@ def _band(stack: np.ndarray, first: int, last: int, first_preview: int, last_pre
             or not control[DAQP_CONTROL_DEFECT] <= settings[0]):
         flags[FLAG_STOPPED] = 1
     else:
-        start = nv * nv + nv
-        band_rows(stack, first, last, first_preview, last_preview, x, lower, upper, settings[1], target,
-                  start + row * nv, start + target_rows * nv + nv + row, nv + target_rows)
+        band_rows(stack, first, last, first_preview, last_preview, x, lower, upper, settings[1], target, row,
+                  target_rows, 1)
 
 
 #: the band rows of a solved level into the next level's QP (settings = (answer tolerance, relative
