@@ -269,3 +269,42 @@ def test_first_start_finds_numbas_own_cache_directory(tmp_path, monkeypatch):
     directory.mkdir(parents=True, exist_ok=True)
     (directory / f"tick.run_program-130.{tag}.nbi").write_bytes(b"")
     assert not _cache.first_start(folder, "tick")
+
+
+def test_a_job_that_fails_while_waiting_does_not_fail_the_build(monkeypatch):
+    """A job compiled only to fill the wait (not the build's own) may fail: the wait goes on."""
+    from wbc.runtime import kernels
+
+    pool = CompilePool(0)
+    pool.submit(["op NO_SUCH_OP", "kernel has_nan", "op DAQP_SOLVE"])
+    assert pool.take("op DAQP_SOLVE")
+    pool._running.add("op DAQP_SOLVE")
+    compiled = []
+
+    def compile_job(job):
+        compiled.append(job)
+        if job == "op NO_SUCH_OP":
+            raise KeyError(job)
+        with pool._condition:
+            pool._running.discard("op DAQP_SOLVE")
+            pool._finished["op DAQP_SOLVE"] = True
+            pool._condition.notify_all()
+
+    monkeypatch.setattr(kernels, "_workers", pool)
+    monkeypatch.setattr(kernels, "_compile_job", compile_job)
+    kernels._claim("op DAQP_SOLVE")
+    assert compiled == ["op NO_SUCH_OP", "kernel has_nan"]
+    pool.close()
+
+
+def test_a_forked_child_of_import_wbc_does_not_import_numba():
+    result = subprocess.run([sys.executable, "-c", textwrap.dedent("""
+        import os, sys
+        import wbc
+        child = os.fork()
+        if child == 0:
+            os._exit(3 if "numba" in sys.modules else 0)
+        print(os.waitpid(child, 0)[1] >> 8)
+    """)], capture_output=True, text=True, cwd=NEUTRAL, timeout=300, env=child_environment())
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "0"

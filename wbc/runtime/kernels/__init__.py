@@ -377,7 +377,10 @@ def _claim(job: str) -> None:
         other = _workers.take_oldest()
         if other is None:
             break
-        _compile_job(other)
+        try:
+            _compile_job(other)
+        except Exception:  # noqa: BLE001 - not this build's job: compiled again, and raising, where it is needed
+            pass
     _workers.wait(job)
 
 
@@ -426,11 +429,11 @@ def _compile_pool() -> CompilePool | None:
 def _forget_workers() -> None:
     """In a child forked from this process: the compile workers are the parent's (their threads
     did not follow): the child compiles on its own."""
-    global _workers
-    _workers = None
-    from . import _lazy
-
-    _lazy.before_compile = _lazy._nothing_before
+    global _workers, _early
+    _workers, _early = None, False
+    lazy = sys.modules.get(f"{__name__}._lazy")  # (not imported here: a fork need not import numba)
+    if lazy is not None:
+        lazy.before_compile = lazy._nothing_before
 
 
 if hasattr(os, "register_at_fork"):
