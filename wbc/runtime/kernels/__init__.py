@@ -431,7 +431,7 @@ def _forget_workers() -> None:
     did not follow): the child compiles on its own."""
     global _workers, _early
     _workers, _early = None, False
-    lazy = sys.modules.get(f"{__name__}._lazy")  # (not imported here: a fork need not import numba)
+    lazy: Any = sys.modules.get(f"{__name__}._lazy")  # (not imported here: a fork need not import numba)
     if lazy is not None:
         lazy.before_compile = lazy._nothing_before
 
