@@ -308,3 +308,25 @@ def test_a_forked_child_of_import_wbc_does_not_import_numba():
     """)], capture_output=True, text=True, cwd=NEUTRAL, timeout=300, env=child_environment())
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "0"
+
+
+def _twice(x):
+    return 2.0 * x
+
+
+def test_a_kernel_compiled_while_its_own_compile_waited_is_not_compiled_again(monkeypatch):
+    """While the process waits for a worker before compiling a kernel, it compiles other jobs; one
+    of them may compile that very kernel (as a callee): the waiting compile must then stop, not
+    ask numba again (it refuses: the kernel is frozen to its signature once compiled)."""
+    from wbc.runtime.kernels import _lazy
+
+    kernel = _lazy.declared("float64(float64)")(_twice)
+
+    def wait_and_compile_it_meanwhile(dispatcher):
+        monkeypatch.setattr(_lazy, "before_compile", _lazy._nothing_before)
+        _lazy.compile_declared(dispatcher)  # a job compiled while waiting, with this kernel as its callee
+
+    monkeypatch.setattr(_lazy, "before_compile", wait_and_compile_it_meanwhile)
+    _lazy.compile_declared(kernel)
+    assert kernel(1.5) == 3.0
+    assert len(kernel.overloads) == 1

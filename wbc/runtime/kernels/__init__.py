@@ -268,6 +268,8 @@ def callback(op: Op) -> int:
     compiled = _callbacks.get(op.spec.name)
     if compiled is None:
         _claim(f"op {op.spec.name}")
+        compiled = _callbacks.get(op.spec.name)  # (compiled meanwhile: a job compiled while waiting)
+    if compiled is None:
         from numba import cfunc
 
         from ._lazy import compile_callees

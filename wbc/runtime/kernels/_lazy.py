@@ -48,6 +48,8 @@ def compile_declared(dispatcher: Any, seen: set[int] | None = None) -> None:
     signature = getattr(dispatcher, SIGNATURE, None)
     if signature is not None:
         before_compile(dispatcher)
+        if getattr(dispatcher, SIGNATURE, None) is None:  # compiled meanwhile (a job compiled while waiting)
+            return
         dispatcher.compile(signature)
         dispatcher.disable_compile()
         setattr(dispatcher, SIGNATURE, None)
