@@ -177,6 +177,14 @@ def test_process_jiffies_reads_this_process():
     assert _pool.process_jiffies(-1) == 0.0  # no such process
 
 
+def _worker_finished(pool, job):
+    """As if the worker compiling ``job`` answered ok."""
+    with pool._condition:
+        pool._running.discard(job)
+        pool._finished[job] = True
+        pool._condition.notify_all()
+
+
 def test_while_waiting_for_a_workers_job_the_process_compiles_the_earliest_others(monkeypatch):
     """The build needs a job a worker compiles (DAQP's solve, for its probe): meanwhile the process
     compiles the jobs no worker started, oldest first, instead of idling; then it waits."""
@@ -191,10 +199,7 @@ def test_while_waiting_for_a_workers_job_the_process_compiles_the_earliest_other
     def compile_job(job):
         compiled.append(job)
         if len(compiled) == 2:  # the worker finishes meanwhile
-            with pool._condition:
-                pool._running.discard("op DAQP_SOLVE")
-                pool._finished["op DAQP_SOLVE"] = True
-                pool._condition.notify_all()
+            _worker_finished(pool, "op DAQP_SOLVE")
 
     monkeypatch.setattr(kernels, "_workers", pool)
     monkeypatch.setattr(kernels, "_compile_job", compile_job)
@@ -285,10 +290,7 @@ def test_a_job_that_fails_while_waiting_does_not_fail_the_build(monkeypatch):
         compiled.append(job)
         if job == "op NO_SUCH_OP":
             raise KeyError(job)
-        with pool._condition:
-            pool._running.discard("op DAQP_SOLVE")
-            pool._finished["op DAQP_SOLVE"] = True
-            pool._condition.notify_all()
+        _worker_finished(pool, "op DAQP_SOLVE")
 
     monkeypatch.setattr(kernels, "_workers", pool)
     monkeypatch.setattr(kernels, "_compile_job", compile_job)
