@@ -478,8 +478,7 @@ def start_compiling() -> None:
         return
     _workers_started = True
     setting = os.environ.get(_pool.WORKERS_VARIABLE, "").strip()
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    _start_workers(_pool.worker_count() if setting else min(1, cores - 1))
+    _start_workers(_pool.worker_count() if setting else min(1, _pool.usable_cores() - 1))
     _early = not setting
     if _workers is not None:
         _workers.submit(list(COMMON_JOBS))

@@ -85,6 +85,11 @@ _IMPORTED = cpu_times()
 _OWN_AT_IMPORT = process_jiffies(os.getpid())
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its affinity where the platform has one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def worker_count(helpers: tuple[int, ...] = ()) -> int:
     """Workers to start: ``WBC_COMPILE_WORKERS`` when set, else one per core left idle by everything
     else while this process ran (rounded; at most :data:`MAX_WORKERS` and the cores available
@@ -102,7 +107,7 @@ def worker_count(helpers: tuple[int, ...] = ()) -> int:
             return max(0, int(setting))
         except ValueError:
             return 0
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = usable_cores()
     idle = _idle_cores(helpers)
     if idle is None:
         try:
