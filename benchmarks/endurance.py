@@ -6,13 +6,23 @@ The reference keeps going round (a circle scenario repeats itself), the loop is
 kinematic (q <- integrate(q, v, dt)). Reports the latency p50/p99/p99.9/max of
 ``Controller.step`` over all ticks and per window, the resident set size at each window
 boundary, and the number of non-optimal ticks. Numbers in benchmarks/README.md.
+
+**The machine's own tail.** After every tick, a fixed pure-Python workload is timed the same way
+(:func:`fixed_workload`: the same instructions every time, no allocation; its length fitted in
+three rounds of 1000 warm-up ticks so that its median matches the tick's). Whatever lengthens
+*its* slow calls -- interrupts, the hypervisor, the other processes -- lengthens the ticks alike,
+so its p99 / p50 is a floor the machine sets under the tick's (a floor, not all of it: after an
+interruption a tick may also find its data evicted from the caches, which a loop of additions
+does not read); the report prints both side by side (``--no-control``: the tick alone).
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import gc
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -29,40 +39,84 @@ def resident_kib() -> int:
     return pages * 4
 
 
-def endurance(path: Path, ticks: int, windows: int = 10) -> None:
+def fixed_workload(steps: int) -> Callable[[], None]:
+    """A call that runs the same pure-Python loop of ``steps`` additions every time (no allocation)."""
+    def loop(counts: range) -> None:
+        total = 0
+        for k in counts:
+            total += k
+
+    return functools.partial(loop, range(steps))
+
+
+def _percentiles(seconds: np.ndarray) -> tuple[float, float, float, float]:
+    """(p50, p99, p99.9, max) [µs]."""
+    us = seconds * 1e6
+    return float(np.median(us)), float(np.percentile(us, 99)), float(np.percentile(us, 99.9)), float(us.max())
+
+
+def endurance(path: Path, ticks: int, windows: int = 10, control: bool = True) -> None:
     scenario = load_scenario(path)
     controller = scenario.make_controller()
     robot, dt, task, reference = scenario.robot, scenario.dt, scenario.reference_task, scenario.reference
-    latency = np.empty(ticks)
-    latency.fill(0.0)  # touch every page now, so RSS growth measures the controller, not this array
-    q = scenario.q0.copy()
+    latency, fixed = np.empty(ticks), np.empty(ticks)
+    latency.fill(0.0)  # touch every page now, so RSS growth measures the controller, not these arrays
+    fixed.fill(0.0)
+    workload = fixed_workload(100) if control else None
+    for _ in range(3 if control else 0):  # the workload's length fitted to the median tick, in the loop
+        q = scenario.q0.copy()
+        for k in range(1000):
+            task.set_target(*reference(k * dt))
+            start = time.perf_counter()
+            v = controller.step(q)
+            latency[k] = time.perf_counter() - start
+            start = time.perf_counter()
+            workload()
+            fixed[k] = time.perf_counter() - start
+            q = robot.integrate(q, v, dt)
+        steps = len(workload.args[0]) * float(np.median(latency[:1000]) / np.median(fixed[:1000]))
+        workload = fixed_workload(max(1, round(steps)))
     failures = 0
     window = ticks // windows
     print(f"{scenario.name}: {ticks} ticks, {windows} windows; RSS {resident_kib()} KiB at start")
-    print(f"{'window':>8s} {'p50 µs':>8s} {'p99 µs':>8s} {'p99.9 µs':>9s} {'max µs':>9s} {'RSS KiB':>9s}")
+    print(f"{'window':>8s} {'p50 µs':>8s} {'p99 µs':>8s} {'p99.9 µs':>9s} {'max µs':>9s} {'RSS KiB':>9s}"
+          + (f" {'fixed p50':>10s} {'fixed p99':>10s}" if control else ""))
+    q = scenario.q0.copy()
     gc.collect()
     for k in range(ticks):
         task.set_target(*reference(k * dt))
         start = time.perf_counter()
         v = controller.step(q)
         latency[k] = time.perf_counter() - start
+        if workload is not None:
+            start = time.perf_counter()
+            workload()
+            fixed[k] = time.perf_counter() - start
         failures += not controller.last.success
         q = robot.integrate(q, v, dt)
         if (k + 1) % window == 0:
-            part = latency[k + 1 - window:k + 1] * 1e6
-            print(f"{(k + 1) // window:8d} {np.median(part):8.1f} {np.percentile(part, 99):8.1f} "
-                  f"{np.percentile(part, 99.9):9.1f} {part.max():9.1f} {resident_kib():9d}")
-    us = latency * 1e6
-    print(f"all ticks: p50 {np.median(us):.1f} µs, p99 {np.percentile(us, 99):.1f} µs, "
-          f"p99.9 {np.percentile(us, 99.9):.1f} µs, max {us.max():.1f} µs; non-optimal ticks: {failures}")
+            p50, p99, p999, most = _percentiles(latency[k + 1 - window:k + 1])
+            line = f"{(k + 1) // window:8d} {p50:8.1f} {p99:8.1f} {p999:9.1f} {most:9.1f} {resident_kib():9d}"
+            if control:
+                fixed_p50, fixed_p99, _, _ = _percentiles(fixed[k + 1 - window:k + 1])
+                line += f" {fixed_p50:10.1f} {fixed_p99:10.1f}"
+            print(line)
+    p50, p99, p999, most = _percentiles(latency)
+    print(f"all ticks: p50 {p50:.1f} µs, p99 {p99:.1f} µs, p99.9 {p999:.1f} µs, max {most:.1f} µs, "
+          f"p99 / p50 {p99 / p50:.2f}; non-optimal ticks: {failures}")
+    if control:
+        p50, p99, p999, most = _percentiles(fixed)
+        print(f"the fixed workload (the machine's tail): p50 {p50:.1f} µs, p99 {p99:.1f} µs, p99.9 {p999:.1f} µs, "
+              f"max {most:.1f} µs, p99 / p50 {p99 / p50:.2f}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--ticks", type=int, default=1_000_000)
     parser.add_argument("--scenario", default=str(ROOT / "tasks" / "youbot_circle.toml"))
+    parser.add_argument("--no-control", action="store_true", help="do not time the fixed workload between ticks")
     args = parser.parse_args()
-    endurance(Path(args.scenario), args.ticks)
+    endurance(Path(args.scenario), args.ticks, control=not args.no_control)
 
 
 if __name__ == "__main__":

@@ -393,3 +393,31 @@ def test_the_users_loop_is_the_same_work_in_wbc_and_placo():
     assert placo_q.shape == wbc_q.shape == (300, 8) and len(result["user_loop_times"]) == 300 and np.all(times > 0)
     assert np.abs(wbc_q[-1] - configurations[0]).max() > 0.05  # the circle moved the robot
     assert np.abs(placo_q - wbc_q).max() < 1e-9
+
+
+def test_the_split_of_the_users_loop_times_the_peers_loop_and_nests_its_times():
+    """benchmarks.user_loop runs wbc's loop of the peer comparison (same configurations), and the
+    program's own times nest: the solve inside the native call inside the timed ``step``."""
+    from benchmarks import peers, user_loop
+    from benchmarks.peer_setups import WbcSetup, spec_from_scenario
+    from wbc.app.scenario import load_scenario
+
+    run = user_loop.split_loop(ticks=40, warmup=5)
+    assert all(len(run[part]) == 40 for part in user_loop.PARTS)
+    step, native, solve = (np.asarray(run[part]) for part in ("step", "native call", "solve"))
+    assert np.all(solve > 0.0) and np.all(solve < native) and np.all(native < step)
+    assert 0.0 < run["clock_pair_ns"] < 1e4
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    _, configurations = peers.wbc_user_loop(WbcSetup(spec_from_scenario(scenario)), scenario.q0, 45)
+    assert np.abs(configurations[-1] - scenario.q0).max() > 1e-3  # the circle moved the robot
+    np.testing.assert_allclose(run["q"], configurations[-1], rtol=0.0, atol=1e-12)
+
+
+def test_endurance_times_a_fixed_workload_fitted_to_the_tick(capsys):
+    from benchmarks import endurance
+
+    endurance.endurance(TASKS / "youbot_circle.toml", ticks=2000, windows=2)
+    out = capsys.readouterr().out
+    assert "non-optimal ticks: 0" in out and "the fixed workload (the machine's tail): p50" in out
+    assert len([line for line in out.splitlines() if line.split()[:1] in (["1"], ["2"])]) == 2
+    assert endurance.fixed_workload(7).args == (range(7),)
