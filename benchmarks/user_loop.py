@@ -1,12 +1,15 @@
 """Where wbc's user loop goes: ``set_target``, ``step``, ``robot.integrate``, the native call, the solve.
 
-    python -m benchmarks.user_loop [--processes 3] [--ticks 2000] [--warmup 200]
+    python -m benchmarks.user_loop [--processes 3] [--ticks 5000] [--warmup 200]
 
 The loop of the peer comparison's headline (:func:`benchmarks.peers.wbc_user_loop`: the youBot
 peer stack of ``tasks/youbot_circle.toml``, the tool's start pose moved on a 0.2 m circle
 computed in the loop, the command integrated), with each of the three calls timed on its own
 (``perf_counter_ns`` around it, the median cost of an empty pair of clock reads in the same
-process subtracted). After each tick, untimed, ``controller.last`` gives the two inner times:
+process subtracted). After every :data:`SAMPLE_EVERY`-th tick, untimed, ``controller.last`` gives
+the two inner times of that tick (reading it builds the diagnostics record, which would slow the
+next tick's calls by ~0.05 µs: the ticks right after a read are left out of the three calls'
+times):
 
 * the **native call** (``last.tick_time`` on the one-call path: the tick program from ``q``'s copy
   to the checked answer -- forward kinematics, every row, the normal equations, the solve, the
@@ -34,6 +37,8 @@ from benchmarks.common import ROOT, TASKS, machine_note, markdown_table
 
 #: the columns of a child's report, in the order of the table
 PARTS = ("set_target", "step", "integrate", "native call", "solve")
+#: ``controller.last`` is read after every SAMPLE_EVERY-th tick (the native call's and the solve's times)
+SAMPLE_EVERY = 10
 
 
 def clock_pair_ns(samples: int = 20000) -> float:
@@ -47,9 +52,11 @@ def clock_pair_ns(samples: int = 20000) -> float:
 
 
 def split_loop(ticks: int, warmup: int) -> dict:
-    """The user loop in this process, each call timed: per part, the ``ticks`` times [s]
-    (clock overhead subtracted) after ``warmup`` untimed ticks; ``clock_pair_ns``; ``q``, the
-    configuration after the last tick (the loop is :func:`benchmarks.peers.wbc_user_loop`'s)."""
+    """The user loop in this process after ``warmup`` untimed ticks: per part, its times [s] --
+    the three calls' (clock overhead subtracted) of the ticks that do not follow a read of
+    ``controller.last``, the native call's and the solve's of the ticks after which it was read
+    (every :data:`SAMPLE_EVERY`-th); ``clock_pair_ns``; ``q``, the configuration after the last
+    tick (the loop is :func:`benchmarks.peers.wbc_user_loop`'s)."""
     from benchmarks import placo_peer
     from benchmarks.peer_setups import WbcSetup, spec_from_scenario
     from wbc.app.scenario import load_scenario
@@ -73,11 +80,15 @@ def split_loop(ticks: int, warmup: int) -> dict:
         c = clock()
         q = robot.integrate(q, v, dt)
         d = clock()
-        last = controller.last
-        times[k] = (b - a, c - b, d - c, last.tick_time * 1e9, last.solve_time * 1e9)
+        times[k, :3] = (b - a, c - b, d - c)
+        if k % SAMPLE_EVERY == 0:
+            last = controller.last
+            times[k, 3:] = (last.tick_time * 1e9, last.solve_time * 1e9)
     overhead = clock_pair_ns()
     times[:, :3] -= overhead  # the clock reads around each call (the native times are the program's own)
-    return ({part: (times[warmup:, i] * 1e-9).tolist() for i, part in enumerate(PARTS)}
+    timed = np.arange(warmup, warmup + ticks)
+    calls, sampled = timed[timed % SAMPLE_EVERY != 1], timed[timed % SAMPLE_EVERY == 0]
+    return ({part: (times[calls if i < 3 else sampled, i] * 1e-9).tolist() for i, part in enumerate(PARTS)}
             | {"clock_pair_ns": overhead, "q": q.tolist()})
 
 
@@ -90,7 +101,8 @@ def run_process(ticks: int, warmup: int) -> dict:
 
 def summary(runs: list[dict]) -> tuple[list[list[str]], list[float]]:
     """Table rows (one per process: median µs of each part, p99 of the step) and the
-    ``step / native call`` ratio of each process (ratio of the medians)."""
+    ``step / native call`` ratio of each process (ratio of the medians: the step's of the ticks
+    that do not follow a read of ``last``, the native call's of those after which it was read)."""
     rows, ratios = [], []
     for number, run in enumerate(runs, 1):
         medians = {part: float(np.median(run[part])) * 1e6 for part in PARTS}
@@ -106,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m benchmarks.user_loop", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--processes", type=int, default=3, help="fresh processes, one run each")
-    parser.add_argument("--ticks", type=int, default=2000)
+    parser.add_argument("--ticks", type=int, default=5000)
     parser.add_argument("--warmup", type=int, default=200)
     parser.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

@@ -395,13 +395,16 @@ def test_the_users_loop_is_the_same_work_in_wbc_and_placo():
     assert np.abs(placo_q - wbc_q).max() < 1e-9
 
 
-def test_the_split_of_the_users_loop_times_the_peers_loop_and_nests_its_times():
+def test_the_split_of_the_users_loop_times_the_peers_loop_and_nests_its_times(monkeypatch):
     """benchmarks.user_loop runs wbc's loop of the peer comparison (same configurations), and the
     program's own times nest: the solve inside the native call inside the timed ``step``."""
     from benchmarks import peers, user_loop
     from benchmarks.peer_setups import WbcSetup, spec_from_scenario
     from wbc.app.scenario import load_scenario
 
+    run = user_loop.split_loop(ticks=40, warmup=5)  # ticks 5..44: last read after 10, 20, 30, 40
+    assert [len(run[part]) for part in user_loop.PARTS] == [36, 36, 36, 4, 4]  # not the 4 ticks after a read
+    monkeypatch.setattr(user_loop, "SAMPLE_EVERY", 1)  # last read after every tick: the times of the same ticks
     run = user_loop.split_loop(ticks=40, warmup=5)
     assert all(len(run[part]) == 40 for part in user_loop.PARTS)
     step, native, solve = (np.asarray(run[part]) for part in ("step", "native call", "solve"))

@@ -112,7 +112,7 @@ _ENTRIES_CHILD = textwrap.dedent("""
         task.set_target(np.asarray(robot.frame_pose(q, task.frame)))
         q = robot.integrate(q, controller.step(q), scenario.dt)
     bound = {"set_target": frame_task_module._set_pose, "integrate": robot_module._integrate_vector_space,
-             "step": controller._native_step.func}
+             "step": controller._native_step}
     print(sorted(name for name, function in bound.items() if isinstance(function, Dispatcher)))
 """)
 

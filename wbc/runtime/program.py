@@ -207,7 +207,7 @@ class TickProgram:
         self._resolve()
         return functools.partial(kernels.run_program, self._packed, _NO_INPUT)
 
-    def stepper(self) -> Callable[[np.ndarray, float], int]:
+    def stepper(self) -> functools.partial[int]:
         """A callable ``run(q, dt)`` that copies the configuration ``q`` into the program's input
         (:meth:`set_input`) and runs the rows added so far, in one native call, returning what
         :meth:`runner`'s does -- the control loop's tick from the caller's ``q`` to the checked answer.
@@ -216,7 +216,10 @@ class TickProgram:
         (:func:`wbc.runtime.native_entry.unchecked_entry`): ``q`` must be a 1-D float64 ndarray
         (any strides; read-only too), which the caller checks; a ``q`` of another size than the
         input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written.
-        With a clock (:meth:`set_clock`) each run is timed. It runs the rows packed when it was made."""
+        With a clock (:meth:`set_clock`) each run is timed. It runs the rows packed when it was made.
+        It is a :class:`functools.partial` of the compiled entry on the packed operands
+        (``args[0]``): a caller on the hot path may call ``func(args[0], q, dt)`` itself, ~60 ns
+        less than the partial's call."""
         if self._input[0] < 0:
             raise TypeError("stepper(): the program has no input (set_input)")
         self._resolve()
