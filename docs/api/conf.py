@@ -57,7 +57,7 @@ nitpicky = True
 #: targets outside wbc (no network at build time, so no intersphinx): shown as text, never resolved
 nitpick_ignore_regex = [
     (r"py:.*", r"(numpy|np|pinocchio|pin|coal|pydantic|pydantic_core|qpsolvers|numba|ctypes|_ctypes|collections|abc"
-               r"|numbers|threading|pathlib|concurrent|multiprocessing|matplotlib|mujoco|viser|argparse|enum|types"
+               r"|numbers|threading|pathlib|concurrent|multiprocessing|matplotlib|mujoco|viser|argparse|enum|types|functools"
                r"|json|io|os|annotated_types|cyclonedds)(\..*)?"),
     (r"py:.*", r"(NDArray|ArrayLike|Path|Enum|Generator|Iterator|Iterable|Sequence|Mapping|Callable|Buffer|Figure"
                r"|Number|NoneType|FieldInfo|MinLen|MaxLen|Gt|Ge"
