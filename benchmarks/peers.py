@@ -212,8 +212,7 @@ def wbc_user_loop(setup: WbcSetup, q0: np.ndarray, ticks: int) -> tuple[np.ndarr
     controller, task, robot, clock = setup.controller, setup.task, setup.controller.robot, time.perf_counter
     dt = controller.dt
     pose = robot.frame_pose(q0, task.frame)
-    cx, cy, radius = pose[0, 3], pose[1, 3] + placo_peer.CIRCLE_RADIUS, placo_peer.CIRCLE_RADIUS
-    angle_step, sin, cos = 2.0 * math.pi / placo_peer.CIRCLE_PERIOD * dt, math.sin, math.cos
+    (cx, cy, radius, angle_step), sin, cos = placo_peer.circle(pose, dt), math.sin, math.cos
     times, configurations = np.zeros(ticks), np.zeros((ticks, q0.size))
     q = q0.copy()
     for k in range(ticks):

@@ -166,6 +166,14 @@ def closed_loop(stack: PlacoStack, q0: np.ndarray, targets: np.ndarray) -> np.nd
 CIRCLE_RADIUS, CIRCLE_PERIOD = 0.2, 8.0
 
 
+def circle(start: np.ndarray, dt: float) -> tuple[float, float, float, float]:
+    """The user's loop's circle from the frame's start pose ``start`` (4 x 4): centre x, y and
+    radius [m], angle per tick [rad]; tick k's target is ``start`` moved to
+    ``(cx + r sin(k a), cy - r cos(k a))`` -- written out in each loop, inside its timed part, so
+    that every library's loop does the same arithmetic and no extra call."""
+    return float(start[0, 3]), float(start[1, 3]) + CIRCLE_RADIUS, CIRCLE_RADIUS, 2.0 * math.pi / CIRCLE_PERIOD * dt
+
+
 def user_loop(stack: PlacoStack, q0: np.ndarray, ticks: int,
               clock: Callable[[], float] = time.perf_counter) -> tuple[np.ndarray, np.ndarray]:
     """placo's loop as its user writes it, from ``q0``: the circle target computed in the loop
@@ -177,8 +185,7 @@ def user_loop(stack: PlacoStack, q0: np.ndarray, ticks: int,
     robot.state.q = stack.q
     robot.update_kinematics()
     pose = np.array(robot.get_T_world_frame(stack.frame))
-    cx, cy, radius = pose[0, 3], pose[1, 3] + CIRCLE_RADIUS, CIRCLE_RADIUS
-    angle_step, sin, cos = 2.0 * math.pi / CIRCLE_PERIOD * stack.dt, math.sin, math.cos
+    (cx, cy, radius, angle_step), sin, cos = circle(pose, stack.dt), math.sin, math.cos
     times, configurations = np.zeros(ticks), np.zeros((ticks, q0.size))
     for k in range(ticks):
         start = clock()

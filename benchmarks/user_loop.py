@@ -66,8 +66,7 @@ def split_loop(ticks: int, warmup: int) -> dict:
     controller, task, robot, clock = setup.controller, setup.task, setup.controller.robot, time.perf_counter_ns
     dt = controller.dt
     pose = robot.frame_pose(scenario.q0, task.frame)
-    cx, cy, radius = pose[0, 3], pose[1, 3] + placo_peer.CIRCLE_RADIUS, placo_peer.CIRCLE_RADIUS
-    angle_step = 2.0 * math.pi / placo_peer.CIRCLE_PERIOD * dt
+    cx, cy, radius, angle_step = placo_peer.circle(pose, dt)
     times = np.zeros((warmup + ticks, len(PARTS)))
     q = scenario.q0.copy()
     for k in range(warmup + ticks):
