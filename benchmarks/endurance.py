@@ -62,28 +62,11 @@ def endurance(path: Path, ticks: int, windows: int = 10, control: bool = True) -
     latency, fixed = np.empty(ticks), np.empty(ticks)
     latency.fill(0.0)  # touch every page now, so RSS growth measures the controller, not these arrays
     fixed.fill(0.0)
-    workload = fixed_workload(100) if control else None
-    for _ in range(3 if control else 0):  # the workload's length fitted to the median tick, in the loop
-        q = scenario.q0.copy()
-        for k in range(1000):
-            task.set_target(*reference(k * dt))
-            start = time.perf_counter()
-            v = controller.step(q)
-            latency[k] = time.perf_counter() - start
-            start = time.perf_counter()
-            workload()
-            fixed[k] = time.perf_counter() - start
-            q = robot.integrate(q, v, dt)
-        steps = len(workload.args[0]) * float(np.median(latency[:1000]) / np.median(fixed[:1000]))
-        workload = fixed_workload(max(1, round(steps)))
-    failures = 0
-    window = ticks // windows
-    print(f"{scenario.name}: {ticks} ticks, {windows} windows; RSS {resident_kib()} KiB at start")
-    print(f"{'window':>8s} {'p50 µs':>8s} {'p99 µs':>8s} {'p99.9 µs':>9s} {'max µs':>9s} {'RSS KiB':>9s}"
-          + (f" {'fixed p50':>10s} {'fixed p99':>10s}" if control else ""))
-    q = scenario.q0.copy()
-    gc.collect()
-    for k in range(ticks):
+    steps = 100
+    workload = fixed_workload(steps) if control else None
+
+    def tick(k: int, q: np.ndarray) -> np.ndarray:
+        """Tick ``k`` from ``q``: its command; the step's time into ``latency[k]``, then the workload's."""
         task.set_target(*reference(k * dt))
         start = time.perf_counter()
         v = controller.step(q)
@@ -92,19 +75,36 @@ def endurance(path: Path, ticks: int, windows: int = 10, control: bool = True) -
             start = time.perf_counter()
             workload()
             fixed[k] = time.perf_counter() - start
+        return v
+
+    for _ in range(3 if control else 0):  # the workload's length fitted to the median tick, in the loop
+        q = scenario.q0.copy()
+        for k in range(1000):
+            q = robot.integrate(q, tick(k, q), dt)
+        steps = max(1, round(steps * float(np.median(latency[:1000]) / np.median(fixed[:1000]))))
+        workload = fixed_workload(steps)
+    failures = 0
+    window = ticks // windows
+    print(f"{scenario.name}: {ticks} ticks, {windows} windows; RSS {resident_kib()} KiB at start")
+    print(f"{'window':>8s} {'p50 µs':>8s} {'p99 µs':>8s} {'p99.9 µs':>9s} {'max µs':>9s} {'RSS KiB':>9s}"
+          + (f" {'fixed p50':>10s} {'fixed p99':>10s}" if workload is not None else ""))
+    q = scenario.q0.copy()
+    gc.collect()
+    for k in range(ticks):
+        v = tick(k, q)
         failures += not controller.last.success
         q = robot.integrate(q, v, dt)
         if (k + 1) % window == 0:
             p50, p99, p999, most = _percentiles(latency[k + 1 - window:k + 1])
             line = f"{(k + 1) // window:8d} {p50:8.1f} {p99:8.1f} {p999:9.1f} {most:9.1f} {resident_kib():9d}"
-            if control:
+            if workload is not None:
                 fixed_p50, fixed_p99, _, _ = _percentiles(fixed[k + 1 - window:k + 1])
                 line += f" {fixed_p50:10.1f} {fixed_p99:10.1f}"
             print(line)
     p50, p99, p999, most = _percentiles(latency)
     print(f"all ticks: p50 {p50:.1f} µs, p99 {p99:.1f} µs, p99.9 {p999:.1f} µs, max {most:.1f} µs, "
           f"p99 / p50 {p99 / p50:.2f}; non-optimal ticks: {failures}")
-    if control:
+    if workload is not None:
         p50, p99, p999, most = _percentiles(fixed)
         print(f"the fixed workload (the machine's tail): p50 {p50:.1f} µs, p99 {p99:.1f} µs, p99.9 {p999:.1f} µs, "
               f"max {most:.1f} µs, p99 / p50 {p99 / p50:.2f}")
