@@ -20,6 +20,7 @@ from wbc.runtime.kernels import ops
 from wbc.runtime.program import TickProgram
 
 DT = 0.01
+NO_OUT = np.zeros(0)  # a stepper's out that takes no answer
 
 
 def _declared() -> dict[str, ops.Op]:
@@ -254,14 +255,14 @@ def test_a_stepper_copies_q_into_the_input_before_the_rows_run():
     program, into, seen = _input_program(4)
     step = program.stepper()
     q = np.array([1.0, 2.0, 3.0, 4.0])
-    assert step(q, 0.5) == 0
+    assert step(q, NO_OUT, 0.5) == 0
     np.testing.assert_array_equal(into, q)
     np.testing.assert_array_equal(seen, q + 0.5)  # the rows saw this q
     wide = np.arange(8.0)
     wide.flags.writeable = False
-    assert step(wide[::2], 0.0) == 0  # any strides, read-only: only read
+    assert step(wide[::2], NO_OUT, 0.0) == 0  # any strides, read-only: only read
     np.testing.assert_array_equal(seen, [0.0, 2.0, 4.0, 6.0])
-    assert step(np.array([0.0, np.inf, 0.0, 0.0]), 0.0) == ops.RUN_FOUND_NAN  # the screen saw it
+    assert step(np.array([0.0, np.inf, 0.0, 0.0]), NO_OUT, 0.0) == ops.RUN_FOUND_NAN  # the screen saw it
     into[:] = 7.0
     assert program.run(0.0) is False  # run(dt) copies nothing
     np.testing.assert_array_equal(seen, np.full(4, 7.0))
@@ -271,13 +272,45 @@ def test_a_stepper_refuses_a_q_of_another_size_before_running():
     program, into, seen = _input_program(3)
     step = program.stepper()
     for q in (np.zeros(2), np.zeros(4), np.full(2, np.nan)):
-        assert step(q, DT) == ops.RUN_BAD_INPUT
+        assert step(q, NO_OUT, DT) == ops.RUN_BAD_INPUT
         np.testing.assert_array_equal(into, np.zeros(3))
         np.testing.assert_array_equal(seen, np.zeros(3))
     with pytest.raises(TypeError, match="the program has no input"):
         TickProgram().stepper()
     with pytest.raises(TypeError, match="1-D array"):
         TickProgram().set_input(np.zeros((2, 2)))
+
+
+def test_a_stepper_copies_the_output_into_out_only_for_an_accepted_answer():
+    """set_output: a run that returns RUN_ACCEPTED copies the output (here the rows' input + dt)
+    into the caller's ``out``, its own memory; a run that is not accepted, or found a NaN,
+    leaves ``out`` alone; an ``out`` of another size than the output's, or any ``out`` without
+    an output, is refused before anything runs."""
+    control = np.zeros(kernels.DAQP_CONTROL_SIZE)
+    control[kernels.DAQP_CONTROL_EXITFLAG] = 1.0  # solved, defect 0: accepted
+    program, into, seen = _input_program(3)
+    program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
+    program.set_output(seen)
+    step, q, out = program.stepper(), np.array([1.0, -2.0, 0.25]), np.full(3, -7.0)
+    assert step(q, out, DT) == ops.RUN_ACCEPTED
+    np.testing.assert_array_equal(out, q + DT)
+    seen[:] = 0.0
+    np.testing.assert_array_equal(out, q + DT)  # a copy, not a view of the output
+    for exitflag, given, outcome in ((-1.0, q, 0), (1.0, np.array([0.0, np.nan, 0.0]), ops.RUN_FOUND_NAN)):
+        control[kernels.DAQP_CONTROL_EXITFLAG], out[:] = exitflag, -7.0
+        assert step(given, out, DT) == outcome
+        np.testing.assert_array_equal(out, np.full(3, -7.0))  # not accepted: out untouched
+    control[kernels.DAQP_CONTROL_EXITFLAG], into[:], seen[:] = 1.0, 0.0, 0.0
+    for wrong in (np.full(2, -7.0), np.full(4, -7.0)):
+        assert step(q, wrong, DT) == ops.RUN_BAD_INPUT
+        np.testing.assert_array_equal(wrong, np.full(wrong.size, -7.0))
+        np.testing.assert_array_equal(into, np.zeros(3))  # nothing run: q not copied in
+        np.testing.assert_array_equal(seen, np.zeros(3))
+    assert step(q, NO_OUT, DT) == ops.RUN_ACCEPTED  # an empty out takes nothing
+    without, _, _ = _input_program(3)
+    assert without.stepper()(q, np.zeros(3), DT) == ops.RUN_BAD_INPUT  # no output to copy
+    with pytest.raises(TypeError, match="1-D array"):
+        TickProgram().set_output(np.zeros((2, 2)))
 
 
 def _libc_clock() -> tuple[int, int]:
@@ -299,28 +332,28 @@ def test_a_clock_times_the_runs_given_a_q_and_keeps_the_latest_accepted_one():
     control[kernels.DAQP_CONTROL_EXITFLAG] = 1.0  # solved, defect 0: accepted
     untimed, _, _ = _input_program(3)
     untimed.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
-    assert untimed.stepper()(np.ones(3), DT) == ops.RUN_ACCEPTED
+    assert untimed.stepper()(np.ones(3), NO_OUT, DT) == ops.RUN_ACCEPTED
     assert untimed.run_time() == untimed.accepted_run_time() == 0.0
     program, into, _ = _input_program(3)
     program.add(kernels.DAQP_ACCEPT, control=control, tolerance=np.array([1e-6]))
     program.set_clock(*_libc_clock())
     step, header = program.stepper(), program._packed
     start = time.perf_counter()
-    assert step(np.ones(3), DT) == ops.RUN_ACCEPTED
+    assert step(np.ones(3), NO_OUT, DT) == ops.RUN_ACCEPTED
     elapsed = time.perf_counter() - start
     assert 0.0 < program.run_time() == program.accepted_run_time() <= elapsed
     header[ops.PROGRAM_RUN_NS], header[ops.PROGRAM_ACCEPTED_NS] = -1, -5  # marks: which words a run writes
     control[kernels.DAQP_CONTROL_EXITFLAG] = -1.0  # not accepted
     start = time.perf_counter()
-    assert step(np.ones(3), DT) == 0
+    assert step(np.ones(3), NO_OUT, DT) == 0
     elapsed = time.perf_counter() - start
     assert 0.0 < program.run_time() <= elapsed and program.accepted_run_time() == -5e-9
     header[ops.PROGRAM_RUN_NS] = -1
-    assert step(np.full(3, np.nan), DT) == ops.RUN_FOUND_NAN  # ran (the screen found it): timed
+    assert step(np.full(3, np.nan), NO_OUT, DT) == ops.RUN_FOUND_NAN  # ran (the screen found it): timed
     assert program.run_time() > 0.0 and program.accepted_run_time() == -5e-9
     control[kernels.DAQP_CONTROL_EXITFLAG], into[:] = 1.0, 0.0  # (the input held the NaN)
     header[ops.PROGRAM_RUN_NS] = -1
-    assert program.runner()(DT) == ops.RUN_ACCEPTED and step(np.ones(4), DT) == ops.RUN_BAD_INPUT
+    assert program.runner()(DT) == ops.RUN_ACCEPTED and step(np.ones(4), NO_OUT, DT) == ops.RUN_BAD_INPUT
     assert program.run_time() == -1e-9 and program.accepted_run_time() == -5e-9  # neither was a timed run
     with pytest.raises(TypeError, match="clock_gettime"):
         program.set_clock(0, 1)

@@ -35,6 +35,8 @@ from .kernels.ops import (
     PROGRAM_HEADER,
     PROGRAM_INPUT,
     PROGRAM_INPUT_SIZE,
+    PROGRAM_OUTPUT,
+    PROGRAM_OUTPUT_SIZE,
     PROGRAM_RUN_NS,
     RUN_FOUND_NAN,
     Op,
@@ -58,6 +60,7 @@ class TickProgram:
         self._owners: list[Any] = []
         self._address_list: list[int] = []
         self._input = (-1, 0)  # operand index and size of the input (set_input; -1: none)
+        self._output = (-1, 0)  # operand index and size of the output (set_output; -1: none)
         self._clock = (0, 0)  # the clock timing the runs given a configuration (set_clock; 0: none)
         kernels.prepare("run_program")  # the interpreter compiles now, not at the first run (a compile worker may)
 
@@ -83,6 +86,15 @@ class TickProgram:
         if not (isinstance(array, np.ndarray) and array.ndim == 1):
             raise TypeError("a program's input is a 1-D array")
         self._input = (self.array(array), array.size)
+        self._pack()
+
+    def set_output(self, array: np.ndarray) -> None:
+        """Make ``array`` (C-contiguous float64, 1-D: the answer the program's solve writes) the
+        program's *output*: a run given an ``out`` (:meth:`stepper`) that returns
+        :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` copies it there at its end."""
+        if not (isinstance(array, np.ndarray) and array.ndim == 1):
+            raise TypeError("a program's output is a 1-D array")
+        self._output = (self.array(array), array.size)
         self._pack()
 
     def set_clock(self, clock_gettime: int, clock_id: int) -> None:
@@ -177,9 +189,10 @@ class TickProgram:
         rows = [row + [0] * (width - len(row)) for row in self._rows]
         header = [len(rows), width, *[0] * (PROGRAM_HEADER - 2)]
         header[PROGRAM_INPUT], header[PROGRAM_INPUT_SIZE] = self._input
+        header[PROGRAM_OUTPUT], header[PROGRAM_OUTPUT_SIZE] = self._output
         header[PROGRAM_CLOCK], header[PROGRAM_CLOCK_ID] = self._clock
         #: what the native call receives, one array: [rows, width, the flags, the input and its size, the
-        #: clock and the run times, the rows..., the addresses...]
+        #: clock and the run times, the output and its size, the rows..., the addresses...]
         self._packed = np.array([*header, *(value for row in rows for value in row), *self._address_list],
                                 dtype=np.int64)
         self._program = self._packed[PROGRAM_HEADER:PROGRAM_HEADER + len(rows) * width].reshape(-1, width)
@@ -198,27 +211,31 @@ class TickProgram:
         """Run every row for control period ``dt`` [s]; True when a NaN screen row found a NaN."""
         if self._queued:
             self._resolve()
-        return kernels.run_program(self._packed, _NO_INPUT, dt) == RUN_FOUND_NAN
+        return kernels.run_program(self._packed, _NO_INPUT, _NO_OUTPUT, dt) == RUN_FOUND_NAN
 
     def runner(self) -> Callable[[float], int]:
         """A callable ``run(dt)`` without a Python frame of its own (for the hot path of
         :meth:`wbc.Controller.step`): it runs the rows added so far and returns
         :data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0."""
         self._resolve()
-        return functools.partial(kernels.run_program, self._packed, _NO_INPUT)
+        return functools.partial(kernels.run_program, self._packed, _NO_INPUT, _NO_OUTPUT)
 
     def stepper(self) -> functools.partial[int]:
-        """A callable ``run(q, dt)`` that copies the configuration ``q`` into the program's input
-        (:meth:`set_input`) and runs the rows added so far, in one native call, returning what
-        :meth:`runner`'s does -- the control loop's tick from the caller's ``q`` to the checked answer.
+        """A callable ``run(q, out, dt)`` that copies the configuration ``q`` into the program's input
+        (:meth:`set_input`), runs the rows added so far and, when the solve's answer is accepted,
+        copies the program's output (:meth:`set_output`) into ``out``, in one native call, returning
+        what :meth:`runner`'s does -- the control loop's tick from the caller's ``q`` to the checked
+        answer in the caller's ``out``.
 
         It calls the compiled code without numba's type check of the arguments
         (:func:`wbc.runtime.native_entry.unchecked_entry`): ``q`` must be a 1-D float64 ndarray
-        (any strides; read-only too), which the caller checks; a ``q`` of another size than the
-        input's returns :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written.
+        (any strides; read-only too) and ``out`` a writable C-contiguous 1-D float64 ndarray, of
+        the output's size or empty (nothing copied), which the caller checks; a ``q`` of another
+        size than the input's, or an ``out`` of another size than the output's, returns
+        :data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`, nothing run or written.
         With a clock (:meth:`set_clock`) each run is timed. It runs the rows packed when it was made.
         It is a :class:`functools.partial` of the compiled entry on the packed operands
-        (``args[0]``): a caller on the hot path may call ``func(args[0], q, dt)`` itself, ~60 ns
+        (``args[0]``): a caller on the hot path may call ``func(args[0], q, out, dt)`` itself, ~60 ns
         less than the partial's call."""
         if self._input[0] < 0:
             raise TypeError("stepper(): the program has no input (set_input)")
@@ -229,6 +246,8 @@ class TickProgram:
 #: the ``q`` of a run that copies no configuration
 _NO_INPUT = np.zeros(0)
 _NO_INPUT.flags.writeable = False
+#: the ``out`` of a run that copies no answer (empty: never written)
+_NO_OUTPUT = np.zeros(0)
 
 
 @functools.cache

@@ -32,6 +32,11 @@ controller's answer check). All are 0 when a run starts; the run returns them
 **Input.** A program may have an *input* (:meth:`wbc.runtime.program.TickProgram.set_input`:
 the configuration ``q`` its ops read): a run given a non-empty ``q`` first copies it there, so
 the control loop's tick is one native call from the caller's ``q`` to the checked answer.
+**Output.** A program may have an *output* (:meth:`wbc.runtime.program.TickProgram.set_output`:
+the array holding the answer its solve accepted): a run given a non-empty ``out`` copies the
+output there when it returns RUN_ACCEPTED (and leaves ``out`` alone otherwise), so the caller's
+answer is a fresh array filled in native code -- allocated before the call, when the allocator's
+code is still in cache: after a tick's native run, creating a small array costs ~2x as long.
 **Clock.** A program may time those runs (:meth:`wbc.runtime.program.TickProgram.set_clock`): from
 the run's start, before ``q`` is copied in, to its end (header words ``PROGRAM_*_NS``).
 """
@@ -62,11 +67,14 @@ PROGRAM_INPUT, PROGRAM_INPUT_SIZE = 2 + FLAG_COUNT, 3 + FLAG_COUNT
 #: run to its end, and the same of the latest timed run that returned RUN_ACCEPTED (both 0 before one)
 PROGRAM_CLOCK, PROGRAM_CLOCK_ID, PROGRAM_RUN_NS, PROGRAM_ACCEPTED_NS = (4 + FLAG_COUNT, 5 + FLAG_COUNT,
                                                                         6 + FLAG_COUNT, 7 + FLAG_COUNT)
-#: words before the rows in the program's packed array: rows, width, the flags, the input and its size, the clock
-PROGRAM_HEADER = 8 + FLAG_COUNT
+#: the operand index of the program's output (-1: none) and its size
+PROGRAM_OUTPUT, PROGRAM_OUTPUT_SIZE = 8 + FLAG_COUNT, 9 + FLAG_COUNT
+#: words before the rows in the program's packed array: rows, width, the flags, the input and its size, the
+#: clock and the run times, the output and its size
+PROGRAM_HEADER = 10 + FLAG_COUNT
 #: what a run returns: a NaN screen found a NaN (the solves after it skipped); else the solve's answer
 #: was accepted (flag :data:`FLAG_ACCEPTED`); else 0 -- or, before any row runs, that its ``q`` does not
-#: fit the program's input (another size, or no input: nothing written)
+#: fit the program's input, or a non-empty ``out`` its output (another size, or none: nothing written)
 RUN_FOUND_NAN, RUN_ACCEPTED, RUN_BAD_INPUT = 1, 2, 3
 #: the row of a third-party op (a CompiledOp): [OP_EXTERNAL, callback address, operands...]; of one of
 #: wbc's ops: [OP_BUILTIN, callback address, operands...] (its callback also receives the flags)

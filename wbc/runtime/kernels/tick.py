@@ -3,15 +3,17 @@
 The program's operands are registered once (:class:`wbc.runtime.program.TickProgram`) as
 C-contiguous arrays and handed over by address: entering a numba function costs ~0.1 us per
 array argument, a dozen arrays would cost more than the arithmetic. One native call,
-``run_program(packed, q, dt)``, copies ``q`` into the program's input (unless ``q`` is empty) and
-runs every row; ``packed`` = [rows, width, the flags (:data:`~wbc.runtime.kernels.ops.FLAG_COUNT`),
-the input's operand index and size, the clock and the run times (:data:`~.ops.PROGRAM_CLOCK`), the rows
-(rows x width, row-major), the operand addresses].
+``run_program(packed, q, out, dt)``, copies ``q`` into the program's input (unless ``q`` is empty),
+runs every row and copies an accepted answer into ``out`` (unless ``out`` is empty); ``packed`` =
+[rows, width, the flags (:data:`~wbc.runtime.kernels.ops.FLAG_COUNT`), the input's operand index and
+size, the clock and the run times (:data:`~.ops.PROGRAM_CLOCK`), the output's operand index and size,
+the rows (rows x width, row-major), the operand addresses].
 Each row is [kind, callback address, operands...] (array operands by index into the addresses):
 ``run_program`` calls the row's callback, wbc's own op (:data:`~.ops.OP_BUILTIN`, which also
 receives the flags) or a third party's (:data:`~.ops.OP_EXTERNAL`). It returns
 :data:`~wbc.runtime.kernels.ops.RUN_FOUND_NAN`, :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` or 0
-(:data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`: ``q`` does not fit the input, nothing run).
+(:data:`~wbc.runtime.kernels.ops.RUN_BAD_INPUT`: ``q`` does not fit the input or ``out`` the output,
+nothing run).
 
 An op's callback is a numba ``cfunc`` generated from its declaration (:func:`callbacks_source`:
 read the op's int operands from its row, view each array operand at its address with its
@@ -51,6 +53,8 @@ from .ops import (
     PROGRAM_HEADER,
     PROGRAM_INPUT,
     PROGRAM_INPUT_SIZE,
+    PROGRAM_OUTPUT,
+    PROGRAM_OUTPUT_SIZE,
     PROGRAM_RUN_NS,
     RUN_ACCEPTED,
     RUN_BAD_INPUT,
@@ -126,13 +130,14 @@ _Q = types.Array(types.float64, 1, "A", readonly=True)
 
 # the GIL stays held: releasing and taking it back costs ~0.05 us a tick, and a tick is a few us
 # declared, not compiled at import: a first start compiles it with the controller's kernels (a compile worker may)
-@declared(types.int64(types.int64[::1], _Q, types.float64), cache=CACHE)
-def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
+@declared(types.int64(types.int64[::1], _Q, types.float64[::1], types.float64), cache=CACHE)
+def run_program(packed: np.ndarray, q: np.ndarray, out: np.ndarray, dt: float) -> int:
     """Copy ``q`` into the program's input (unless it is empty), then run the rows of the program
     ``packed`` in order; RUN_FOUND_NAN when a NaN screen found a NaN, else RUN_ACCEPTED when the
-    solve's answer was accepted, else 0 (RUN_BAD_INPUT: ``q`` does not fit the input, nothing run).
-    A run given a ``q`` by a program with a clock is timed from here to its return (header words
-    ``PROGRAM_RUN_NS``, and ``PROGRAM_ACCEPTED_NS`` when it returns RUN_ACCEPTED)."""
+    solve's answer was accepted -- then copied into ``out`` from the program's output, unless ``out``
+    is empty --, else 0 (RUN_BAD_INPUT: ``q`` does not fit the input or ``out`` the output, nothing
+    run). A run given a ``q`` by a program with a clock is timed from here to its return (header
+    words ``PROGRAM_RUN_NS``, and ``PROGRAM_ACCEPTED_NS`` when it returns RUN_ACCEPTED)."""
     clock = packed[PROGRAM_CLOCK] if q.size else 0
     start = now_ns(clock, packed[PROGRAM_CLOCK_ID]) if clock != 0 else 0
     rows, width = packed[0], packed[1]
@@ -141,9 +146,10 @@ def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
         flags[i] = 0
     program = packed[PROGRAM_HEADER:PROGRAM_HEADER + rows * width].reshape((rows, width))
     operand_addresses = packed[PROGRAM_HEADER + rows * width:]
+    if ((q.size and (packed[PROGRAM_INPUT] < 0 or q.size != packed[PROGRAM_INPUT_SIZE]))
+            or (out.size and (packed[PROGRAM_OUTPUT] < 0 or out.size != packed[PROGRAM_OUTPUT_SIZE]))):
+        return RUN_BAD_INPUT
     if q.size:
-        if packed[PROGRAM_INPUT] < 0 or q.size != packed[PROGRAM_INPUT_SIZE]:
-            return RUN_BAD_INPUT
         target = carray(_float64_at(operand_addresses[packed[PROGRAM_INPUT]]), (q.size,))
         for i in range(q.size):
             target[i] = q[i]
@@ -157,6 +163,10 @@ def run_program(packed: np.ndarray, q: np.ndarray, dt: float) -> int:
         else:  # OP_EXTERNAL
             _call_external(op[1], addresses, row, dt)
     outcome = RUN_FOUND_NAN if flags[FLAG_FOUND_NAN] else RUN_ACCEPTED if flags[FLAG_ACCEPTED] else 0
+    if outcome == RUN_ACCEPTED and out.size:
+        answer = carray(_float64_at(operand_addresses[packed[PROGRAM_OUTPUT]]), (out.size,))
+        for i in range(out.size):
+            out[i] = answer[i]
     if clock != 0:
         elapsed = now_ns(clock, packed[PROGRAM_CLOCK_ID]) - start
         packed[PROGRAM_RUN_NS] = elapsed
