@@ -257,6 +257,40 @@ def test_import_starts_a_worker_on_the_common_kernels_after_an_install(tmp_path,
         assert set(report["finished"]) & set(COMMON_JOBS)  # the worker compiled common jobs
 
 
+_JOBS_USED = """
+    import json, sys
+    import wbc
+    from wbc.runtime import kernels
+    used = set()
+    lookup, fetch = kernels.__getattr__, kernels.callback  # every compiled function and op callback passes here
+    kernels.__getattr__ = lambda name: used.add(f"kernel {name}") or lookup(name)
+    kernels.callback = lambda op: used.add(f"op {op.spec.name}") or fetch(op)
+    robot = wbc.load_robot(sys.argv[1])
+    tasks = [wbc.PostureTask(cost=1.0)]
+    if sys.argv[2] == "frame":
+        tasks.insert(0, wbc.FrameTask("ee"))
+    constraints = [wbc.NonholonomicBase()] if robot.base.is_nonholonomic else []
+    wbc.Controller(robot, tasks=tasks, constraints=constraints)
+    print(json.dumps(sorted(used)))
+"""
+
+
+@pytest.mark.parametrize(("robot", "tasks"), [("youbot", "frame"), ("puma560", "posture"), ("deluca_mm", "posture")])
+def test_every_common_job_is_one_a_plain_controller_uses(robot, tasks):
+    """kernels.COMMON_JOBS is written by hand: each of its jobs must be one that a DAQP controller
+    uses whatever its tasks and robot (a worker compiling one nobody needs only costs a first
+    start CPU) -- the jobs a build in a fresh process asks for, recorded where every compiled
+    function (the module's ``__getattr__``) and op callback (``callback``) is fetched."""
+    from wbc.runtime.kernels import COMMON_JOBS
+
+    result = subprocess.run([sys.executable, "-c", textwrap.dedent(_JOBS_USED), robot, tasks], capture_output=True,
+                            text=True, cwd=NEUTRAL, timeout=600, env=child_environment())
+    assert result.returncode == 0, result.stderr
+    used = set(json.loads(result.stdout.strip().splitlines()[-1]))
+    assert {"kernel run_program", "op DAQP_SOLVE"} <= used  # (the recording sees the build's jobs)
+    assert set(COMMON_JOBS) <= used, f"{robot}: not used: {sorted(set(COMMON_JOBS) - used)}"
+
+
 def test_first_start_finds_numbas_own_cache_directory(tmp_path, monkeypatch):
     """Without numba, the first-start check looks where numba's own locator caches the interpreter
     (the oracle: :func:`_cache.cache_dir`, numba's locator): cold while that holds no index, warm after."""

@@ -455,7 +455,8 @@ def _start_workers(count: int) -> None:
 #: jobs that every controller compiles with the default solver (DAQP) on a robot of revolute and prismatic
 #: joints: the interpreter, the NaN screens, the cost's normal equations and scaling, the merged bounds, the
 #: answer checks, the chain's kinematics, DAQP's solve and acceptance -- the workers of a first start
-#: take them at ``import wbc`` (:func:`start_compiling`), the last first (DAQP's solve, the longest)
+#: take them at ``import wbc`` (:func:`start_compiling`), the last first (DAQP's solve, the longest); kept by
+#: hand, each checked to be one that plain controllers use (tests/test_compile_workers.py)
 COMMON_JOBS = ("kernel run_program", "op HAS_NAN", "op FORWARD_KINEMATICS", "op NORMAL_EQUATIONS",
                "op MERGE_BOUNDS", "op NORMALISE_COST", "kernel qp_defect", "kernel constraint_defect",
                "op DAQP_ACCEPT", "op DAQP_SOLVE")
