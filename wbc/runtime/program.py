@@ -83,19 +83,21 @@ class TickProgram:
     def set_input(self, array: np.ndarray) -> None:
         """Make ``array`` (C-contiguous float64, 1-D) the program's *input*: a run given a
         configuration ``q`` (:meth:`stepper`) first copies it there."""
-        if not (isinstance(array, np.ndarray) and array.ndim == 1):
-            raise TypeError("a program's input is a 1-D array")
-        self._input = (self.array(array), array.size)
+        self._input = self._vector(array, "input")
         self._pack()
 
     def set_output(self, array: np.ndarray) -> None:
         """Make ``array`` (C-contiguous float64, 1-D: the answer the program's solve writes) the
         program's *output*: a run given an ``out`` (:meth:`stepper`) that returns
         :data:`~wbc.runtime.kernels.ops.RUN_ACCEPTED` copies it there at its end."""
-        if not (isinstance(array, np.ndarray) and array.ndim == 1):
-            raise TypeError("a program's output is a 1-D array")
-        self._output = (self.array(array), array.size)
+        self._output = self._vector(array, "output")
         self._pack()
+
+    def _vector(self, array: np.ndarray, role: str) -> tuple[int, int]:
+        """(operand index, size) of ``array``, registered as the program's ``role`` (a 1-D array)."""
+        if not (isinstance(array, np.ndarray) and array.ndim == 1):
+            raise TypeError(f"a program's {role} is a 1-D array")
+        return self.array(array), array.size
 
     def set_clock(self, clock_gettime: int, clock_id: int) -> None:
         """Time every run given a configuration (:meth:`stepper`'s) with ``clock_gettime(clock_id)``
