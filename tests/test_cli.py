@@ -7,6 +7,11 @@ import sys
 import textwrap
 from pathlib import Path
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 import pytest
 
 import wbc
@@ -115,9 +120,13 @@ def test_solvers_command(capsys):
 CIRCLE = str(TASKS / "youbot_circle.toml")
 
 
+#: what the ``wbc`` executable runs (pyproject's [project.scripts]; ``python -m wbc`` too)
+CONSOLE = "from wbc.app.cli import console; console()"
+
+
 def wbc_process(*args: str, cwd=NEUTRAL, **kwargs) -> subprocess.CompletedProcess:
     """``wbc ARGS`` as a separate process (its stdout/stderr/exit status as a user sees them)."""
-    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = CONSOLE
     return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, capture_output=True, text=True,
                           timeout=300, **kwargs)
 
@@ -291,13 +300,60 @@ def test_a_failed_write_after_the_run_is_one_line(tmp_path, capsys, monkeypatch)
 
 @pytest.mark.parametrize("args", [["run", CIRCLE, "--duration", "0.2", "--no-progress", "--json"], ["solvers"]])
 def test_broken_pipe_exits_quietly(args):
-    code = "import sys; from wbc.app.cli import main; sys.exit(main(sys.argv[1:]))"
-    process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE,
+    process = subprocess.Popen([sys.executable, "-c", CONSOLE, *args], stdout=subprocess.PIPE,
                                stderr=subprocess.PIPE, text=True, cwd=NEUTRAL)
     process.stdout.close()  # the reader is gone before wbc writes (like `| head -0`)
     stderr = process.stderr.read()
     assert process.wait(timeout=300) in (0, 1)
     assert "Traceback" not in stderr and "Exception ignored" not in stderr, stderr
+
+
+# ---------------------------------------------------------------- the executable's exit
+def test_the_executable_is_console_and_python_m_wbc_runs_it():
+    scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
+    assert scripts == {"wbc": "wbc.app.cli:console"}
+    result = subprocess.run([sys.executable, "-m", "wbc", "run", CIRCLE, "--duration", "0.2", "--no-progress",
+                             "--json"], cwd=NEUTRAL, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)[0]["ticks"] == 20  # all of it, through a pipe (block-buffered stdout)
+
+
+def test_the_executable_runs_the_exit_handlers_then_flushes_and_keeps_the_status(tmp_path):
+    code = ("import atexit, sys\n"
+            "atexit.register(lambda: sys.stdout.write('handler ran\\n'))\n" + CONSOLE)
+    done = subprocess.run([sys.executable, "-c", code, "solvers"], cwd=NEUTRAL, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0 and "daqp" in done.stdout and done.stdout.endswith("handler ran\n"), done
+    failed = subprocess.run([sys.executable, "-c", code, "run", str(tmp_path / "missing.toml")], cwd=NEUTRAL,
+                            capture_output=True, text=True, timeout=300)
+    assert failed.returncode == 2 and failed.stdout == "handler ran\n" and "wbc: error:" in failed.stderr
+
+
+def test_the_executable_waits_for_threads_that_are_not_daemons(tmp_path):
+    marker = tmp_path / "thread.txt"
+    code = ("import threading, time\n"
+            f"threading.Thread(target=lambda: (time.sleep(0.5), open({str(marker)!r}, 'w').write('done'))).start()\n"
+            + CONSOLE)
+    result = subprocess.run([sys.executable, "-c", code, "solvers"], cwd=NEUTRAL, capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0 and marker.read_text() == "done"
+
+
+def test_the_executable_stops_its_compile_workers(tmp_path):
+    """A first start (empty cache, one compile worker forced): the worker is gone when wbc has exited."""
+    code = ("import atexit, os, sys\n"
+            "def report():\n"
+            "    from wbc.runtime import kernels\n"
+            "    print('workers', *(kernels._workers.pids if kernels._workers else ()))\n"
+            "atexit.register(report)\n" + CONSOLE)
+    environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "WBC_COMPILE_WORKERS": "1"}
+    result = subprocess.run([sys.executable, "-c", code, "run", CIRCLE, "--duration", "0.1", "--no-progress"],
+                            cwd=NEUTRAL, capture_output=True, text=True, timeout=600, env=environment)
+    assert result.returncode == 0, result.stderr
+    pids = [int(word) for word in result.stdout.splitlines()[-1].split()[1:]]
+    assert len(pids) == 1
+    with pytest.raises(ProcessLookupError):  # (killed and reaped by the pool's exit handler)
+        os.kill(pids[0], 0)
 
 
 # ---------------------------------------------------------------- wbc bench

@@ -1,7 +1,5 @@
-"""``python -m wbc ...``: the ``wbc`` command (:func:`wbc.app.cli.main`)."""
+"""``python -m wbc ...``: the ``wbc`` command (:func:`wbc.app.cli.console`)."""
 
-import sys
+from .app.cli import console
 
-from .app.cli import main
-
-sys.exit(main())
+console()
