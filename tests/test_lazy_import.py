@@ -1,7 +1,9 @@
 """numba is imported only when compiled code is first needed; its on-disk cache is never stale.
 
 ``import wbc`` (and ``wbc.analysis.singularity``, ``wbc.trajectory``, ``wbc solvers``, ``wbc --help``)
-must not import numba; building a controller loads the kernels. numba keys a cached function
+must not import numba, nor qpsolvers and scipy (~0.2 s: imported when a qpsolvers backend is built or
+listed, scipy's LAPACK when the Python path of manipulability first needs it); building a controller
+loads the kernels, and a DAQP controller never imports qpsolvers. numba keys a cached function
 on its own source file only, so :mod:`wbc.runtime.kernels._cache` deletes the package's entries when
 any kernel source changes: checked here on a small package with a cross-file call, whose
 stale cache numba alone would load.
@@ -36,7 +38,7 @@ def test_import_does_not_import_numba():
         import wbc, wbc.analysis.singularity, wbc.trajectory
         from wbc.runtime import kernels
         assert kernels.FRAME_GAIN == 24 and kernels.FRAME_SETTINGS == 27  # the layouts need no numba
-        print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite")))
+        print(sorted(name for name in sys.modules if name.split(".")[0] in ("numba", "llvmlite", "qpsolvers", "scipy")))
     """)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
@@ -63,11 +65,16 @@ def test_building_a_controller_loads_the_kernels(warm):
         import wbc
         robot = wbc.load_robot("youbot")
         assert "numba" not in sys.modules
-        controller = wbc.Controller(robot, tasks=[wbc.FrameTask("ee", 1.0, 0.5), wbc.PostureTask(cost=1e-3)])
-        print("numba" in sys.modules)
+        ee = wbc.FrameTask("ee", 1.0, 0.5)
+        controller = wbc.Controller(robot, tasks=[ee, wbc.PostureTask(cost=1e-3)])
+        ee.set_target([[1.0, 0, 0, 0.3], [0, 1, 0, 0], [0, 0, 1, 0.4], [0, 0, 0, 1]])
+        controller.step(robot.neutral())
+        print("numba" in sys.modules, "qpsolvers" in sys.modules)
+        wbc.available_solvers()
+        print("qpsolvers" in sys.modules)
     """)
     assert result.returncode == 0, result.stderr
-    assert result.stdout.strip() == "True"
+    assert result.stdout.split() == ["True", "False", "True"]
     assert result.stderr == ""  # warm cache: no compile message
 
 

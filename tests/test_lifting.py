@@ -3,6 +3,7 @@ normal equations, written out here from the task stack and solved by two other s
 
 import numpy as np
 import pytest
+import qpsolvers
 
 import wbc
 from benchmarks.peer_setups import WorldVelocityLimits
@@ -45,7 +46,7 @@ def dense_minimiser(controller: wbc.Controller, solver: str) -> np.ndarray:
     # ProxQP at 1e-12: at its default 1e-10 on this unnormalised H its answer was 2e-6 off DAQP's (and
     # the controller's, which agree to 1e-13) once the error-scaled damping is in the damping rows
     settings = {**solvers.DEFAULT_SETTINGS.get(solver, {}), **({"eps_abs": 1e-12} if solver == "proxqp" else {})}
-    return wbc.solvers.qpsolvers.solve_qp(WJ.T @ WJ, -WJ.T @ Wr, G, qp.h if G is not None else None, A,
+    return qpsolvers.solve_qp(WJ.T @ WJ, -WJ.T @ Wr, G, qp.h if G is not None else None, A,
                                           qp.b if A is not None else None, qp.lb, qp.ub, solver=solver, **settings)
 
 

@@ -32,13 +32,13 @@ Note: ``wbc.manipulability`` is the function (exported from :mod:`wbc`); import 
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.linalg.lapack import dgesvd, dposv
 
 from ..core.errors import InvalidInputError
 from ..runtime import kernels
@@ -143,7 +143,7 @@ class Manipulability:
         size = len(gram)
         # Cholesky gram = L L^T and the solve of the closed form below, in one LAPACK call;
         # det(gram) = prod(diag L)^2
-        factor, solution, info = dposv(gram, jacobian if wide else jacobian.T, lower=1)
+        factor, solution, info = _lapack().dposv(gram, jacobian if wide else jacobian.T, lower=1)
         determinant = math.prod(factor.ravel(order="K")[:: size + 1].tolist()) ** 2 if info == 0 else 0.0
         flat = jacobian.ravel()
         mean_eigenvalue = flat.dot(flat) / size  # trace(gram) = |J|_F^2
@@ -152,7 +152,7 @@ class Manipulability:
             # G = m (J J^T)^-1 J  (wide)  or  m J (J^T J)^-1 = m ((J^T J)^-1 J^T)^T  (tall)
             np.multiply(solution.T if wide else solution, self.value, out=weighted_t)
         else:
-            u, s, vt, info = dgesvd(jacobian, full_matrices=0)  # LAPACK directly: ~2x numpy's wrapper
+            u, s, vt, info = _lapack().dgesvd(jacobian, full_matrices=0)  # LAPACK directly: ~2x numpy's wrapper
             if info != 0:
                 u, s, vt = np.linalg.svd(jacobian, full_matrices=False)
             values = s.tolist()
@@ -234,3 +234,11 @@ def _products_of_the_others(s: list[float]) -> NDArray[np.float64]:
 
 __all__ = ["Manipulability", "manipulability", "manipulability_gradient", "row_selection", "ROWS", "chain_columns",
            "check_joint_names"]
+
+
+@functools.cache
+def _lapack() -> Any:
+    """``scipy.linalg.lapack``, imported when first needed: ~0.12 s that ``import wbc`` does not pay."""
+    from scipy.linalg import lapack
+
+    return lapack

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 import warnings
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import qpsolvers
-import scipy.sparse as sp
 
 from ..core.quiet import silenced
 from ..core.validation import all_finite
@@ -17,7 +17,9 @@ from ..qp.problem import QP
 from .options import validate_options
 from .solver import DEFAULT_SETTINGS, WARM_START_SOLVERS, QPSolution, QPSolver
 
-_SPARSE_SOLVERS = set(getattr(qpsolvers, "sparse_solvers", ()))
+if TYPE_CHECKING:  # pragma: no cover
+    import qpsolvers
+
 
 #: backends that ran once in this process (:meth:`QpsolversBackend._first_use`)
 _FIRST_USE_DONE: set[str] = set()
@@ -35,7 +37,7 @@ class QpsolversBackend(QPSolver):
         settings = {**DEFAULT_SETTINGS.get(name, {}), **validate_options(name, options)}
         self.warm_start = bool(settings.pop("warm_start", True)) and name in WARM_START_SOLVERS
         self.settings = settings
-        self._sparse = name in _SPARSE_SOLVERS
+        self._sparse = name in getattr(_qpsolvers(), "sparse_solvers", ())
         self._previous: np.ndarray | None = None
         if name not in _FIRST_USE_DONE:
             self._first_use()
@@ -68,8 +70,8 @@ class QpsolversBackend(QPSolver):
         self._previous = None
 
     def solve(self, qp: QP) -> QPSolution:
-        matrix = sp.csc_matrix if self._sparse else (lambda m: m)
-        problem = qpsolvers.Problem(
+        matrix = _scipy_sparse().csc_matrix if self._sparse else (lambda m: m)
+        problem = _qpsolvers().Problem(
             matrix(qp.H),
             qp.c,
             matrix(qp.G) if qp.n_ineq else None,
@@ -86,7 +88,7 @@ class QpsolversBackend(QPSolver):
         try:
             with warnings.catch_warnings():  # failures are reported in the diagnostics instead
                 warnings.simplefilter("ignore")
-                solution = qpsolvers.solve_problem(problem, solver=self.name, initvals=initvals, **self.settings)
+                solution = _qpsolvers().solve_problem(problem, solver=self.name, initvals=initvals, **self.settings)
         except Exception as exc:  # backends raise many types; report, never propagate
             self._previous = None
             return QPSolution(None, False, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
@@ -125,3 +127,19 @@ def _optimality_defect(solution: qpsolvers.Solution, qp: QP) -> float:
     dual = dual / scale if math.isfinite(dual) else 0.0
     gap = gap / (scale * (1.0 + float(np.max(np.abs(x))))) if math.isfinite(gap) else 0.0
     return max(dual, gap)
+
+
+@functools.cache
+def _qpsolvers() -> ModuleType:
+    """qpsolvers, imported when a backend is first built (~0.06 s that ``import wbc`` does not pay)."""
+    import qpsolvers
+
+    return qpsolvers
+
+
+@functools.cache
+def _scipy_sparse() -> ModuleType:
+    """``scipy.sparse`` (imported with qpsolvers; named here for the sparse backends' matrices)."""
+    import scipy.sparse
+
+    return scipy.sparse
