@@ -3,7 +3,9 @@
 Calling an ``@njit`` function from Python goes through its dispatcher, which types every
 argument and looks the types up among the compiled signatures before it calls the compiled
 entry (~0.03-0.04 us per argument, ~0.07 us for two arrays and a float). A caller that has
-checked its arguments itself can call the compiled entry directly.
+checked its arguments itself can call the compiled entry directly. The entry itself gives each
+array argument a meminfo of numba's runtime (a malloc and a free, ~20 ns per array) unless the
+kernel is compiled without it (:data:`wbc.runtime.kernels._lazy.ENTRY`, as the control loop's are).
 """
 
 from __future__ import annotations

@@ -39,7 +39,7 @@ from . import (
     POSITION_WEIGHTS,
     prepare_cache,
 )
-from ._lazy import declared
+from ._lazy import ENTRY, declared
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -163,7 +163,7 @@ def _write_target(pose: np.ndarray, twist: np.ndarray, has_twist: bool, settings
 
 
 # the setters hold the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
-@declared("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE)
+@declared("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, **ENTRY)
 def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
     empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose``
@@ -175,7 +175,7 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
     return defect
 
 
-@declared("int64(float64[:, :], float64[:], float64)", cache=CACHE)
+@declared("int64(float64[:, :], float64[:], float64)", cache=CACHE, **ENTRY)
 def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """:func:`set_frame_target` without a feed-forward twist (zero): one argument fewer to pass,
     for the control loop's ``set_target(pose)``."""

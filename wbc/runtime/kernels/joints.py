@@ -18,7 +18,7 @@ from . import (
     STEERING_WEIGHT,
     prepare_cache,
 )
-from ._lazy import declared
+from ._lazy import ENTRY, declared
 from .ops import STACK, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -26,7 +26,8 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 # ---------------------------------------------------------- configuration
 
 
-@declared("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE)  # GIL held: see set_frame_pose
+# GIL held: see set_frame_target
+@declared("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE, **ENTRY)
 def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.ndarray) -> bool:
     """``reached = q + v dt`` (``pinocchio.integrate`` on coordinates that form a vector space:
     1-DOF revolute and prismatic joints), the control loop's ``robot.integrate`` in one call.

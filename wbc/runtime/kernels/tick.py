@@ -35,12 +35,12 @@ from types import ModuleType
 
 import numpy as np
 from llvmlite import ir
-from numba import carray, types
+from numba import types
 from numba.extending import intrinsic
 
 from . import _cache, prepare_cache
 from ._clock import now_ns
-from ._lazy import declared
+from ._lazy import ENTRY, declared
 from .ops import (
     FLAG_ACCEPTED,
     FLAG_COUNT,
@@ -130,7 +130,7 @@ _Q = types.Array(types.float64, 1, "A", readonly=True)
 
 # the GIL stays held: releasing and taking it back costs ~0.05 us a tick, and a tick is a few us
 # declared, not compiled at import: a first start compiles it with the controller's kernels (a compile worker may)
-@declared(types.int64(types.int64[::1], _Q, types.float64[::1], types.float64), cache=CACHE)
+@declared(types.int64(types.int64[::1], _Q, types.float64[::1], types.float64), cache=CACHE, **ENTRY)
 def run_program(packed: np.ndarray, q: np.ndarray, out: np.ndarray, dt: float) -> int:
     """Copy ``q`` into the program's input (unless it is empty), then run the rows of the program
     ``packed`` in order; RUN_FOUND_NAN when a NaN screen found a NaN, else RUN_ACCEPTED when the
@@ -150,7 +150,7 @@ def run_program(packed: np.ndarray, q: np.ndarray, out: np.ndarray, dt: float) -
             or (out.size and (packed[PROGRAM_OUTPUT] < 0 or out.size != packed[PROGRAM_OUTPUT_SIZE]))):
         return RUN_BAD_INPUT
     if q.size:
-        target = carray(_float64_at(operand_addresses[packed[PROGRAM_INPUT]]), (q.size,))
+        target = _float64_at(operand_addresses[packed[PROGRAM_INPUT]])
         for i in range(q.size):
             target[i] = q[i]
     addresses = np.int64(operand_addresses.ctypes.data)
@@ -164,7 +164,7 @@ def run_program(packed: np.ndarray, q: np.ndarray, out: np.ndarray, dt: float) -
             _call_external(op[1], addresses, row, dt)
     outcome = RUN_FOUND_NAN if flags[FLAG_FOUND_NAN] else RUN_ACCEPTED if flags[FLAG_ACCEPTED] else 0
     if outcome == RUN_ACCEPTED and out.size:
-        answer = carray(_float64_at(operand_addresses[packed[PROGRAM_OUTPUT]]), (out.size,))
+        answer = _float64_at(operand_addresses[packed[PROGRAM_OUTPUT]])
         for i in range(out.size):
             out[i] = answer[i]
     if clock != 0:
