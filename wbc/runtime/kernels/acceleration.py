@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from . import BASE_X, BASE_Y, BASE_YAW, BASE_YAW_CHANNEL, prepare_cache
-from ._lazy import declared
+from ._lazy import ENTRY, declared
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
 
@@ -43,7 +43,7 @@ def braking_speed(distance: np.ndarray, a_max: np.ndarray, dt: float, out: np.nd
 @declared("void(float64[:], float64, boolean, boolean, float64[:], float64, int64[:], int64[:], float64[:], "
           "float64[:, :], float64, float64[:], float64[:], float64[:], float64[:], float64[:], int64[:], int64[:], "
           "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], boolean)",
-          cache=CACHE, nogil=True)
+          cache=CACHE, nogil=True, **ENTRY)
 def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: bool, q: np.ndarray, dt: float,
                         joints: np.ndarray, base: np.ndarray, twist_speed: np.ndarray, H0: np.ndarray,
                         wheel_speed: float, accel: np.ndarray, jerk: np.ndarray, speed: np.ndarray,
@@ -69,7 +69,8 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
     """
     n, n_joints, n_wheels = prev.size, joints.size, H0.shape[0]
     if new_tick:
-        prev2[:] = prev
+        for i in range(n):
+            prev2[i] = prev[i]
     for k in range(n_joints):
         prev[k] = v[joints[k]]
     if base[BASE_X] >= 0:
@@ -95,7 +96,8 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
     for i in range(n):
         prev[i] = min(max(prev[i], -speed[i]), speed[i])
     if restart:
-        prev2[:] = prev
+        for i in range(n):
+            prev2[i] = prev[i]
     box_lower, box_upper = scratch[:n], scratch[n:2 * n]
     for i in range(n):
         step = accel[i] * dt
