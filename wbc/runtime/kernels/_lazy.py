@@ -20,12 +20,14 @@ from numba import njit
 SIGNATURE = "wbc_signature"
 
 #: options of a kernel that Python calls on the control loop's path (``Controller.step``'s program,
-#: ``set_target``, ``robot.integrate``): compiled without numba's reference-counted runtime (its
-#: internal option ``_nrt``), an array argument enters without a meminfo of its own -- a malloc
-#: and a free, ~20 ns per array (a 2-array call 113 -> 70 ns; the user's loop 2.38-2.46 -> 2.08-2.12
-#: us, session 24, benchmarks/README.md section 3). Such a kernel only reads and writes the arrays it
-#: is given, for the call: numba refuses to compile one that makes an array (``carray`` too:
-#: index the pointer instead).
+#: ``set_target``, ``robot.integrate``, AccelerationLimits' bounds): compiled without numba's
+#: reference-counted runtime (its internal option ``_nrt``), an array argument enters without a
+#: meminfo of its own -- a malloc and a free, ~20 ns per array (a 2-array call 113 -> 70 ns; the
+#: user's loop 2.38-2.46 -> 2.08-2.12 us, session 24, benchmarks/README.md section 3). Such a kernel
+#: only reads and writes the arrays it is given, for the call: numba refuses to compile one that
+#: makes an array (``carray`` and ``a[:] = b`` too: index the pointer, write the loop). Its callees
+#: must not return a new array either (a caller without the runtime would never free it): the
+#: declared kernels return numbers only.
 ENTRY = {"_nrt": False}
 
 
