@@ -1,5 +1,6 @@
 """Every installed QP solver returns the same command on QPs recorded from real ticks."""
 
+import os
 import subprocess
 import sys
 
@@ -150,6 +151,7 @@ def test_a_fresh_process_prints_nothing_with_any_backend(name):
 
 CRASH_PROBE = r"""
 import sys
+import os
 import subprocess
 import sys
 
@@ -187,3 +189,17 @@ def test_no_backend_kills_the_process_on_ill_conditioned_qps(name):
                            cwd=NEUTRAL)
     assert child.returncode == 0, f"{name} killed the process ({child.returncode}): {child.stderr[-2000:]}"
     assert child.stdout.strip().endswith("survived")
+
+
+def test_a_daqp_that_does_not_import_is_an_unknown_solver(tmp_path):
+    """A daqp package that is there but fails to import (its shared library missing) is refused by
+    name, as qpsolvers refuses it -- not an ImportError from inside the backend."""
+    (tmp_path / "daqp").mkdir()
+    (tmp_path / "daqp" / "__init__.py").write_text('raise ImportError("libdaqp.so: cannot open shared object file")\n')
+    code = ("import wbc\n"
+            "try:\n    wbc.solvers.make_solver('daqp')\n"
+            "except wbc.UnknownSolverError as error:\n    print('refused:', error)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                            env={**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])})
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("refused: unknown or uninstalled QP solver 'daqp'"), result.stdout

@@ -15,7 +15,7 @@ backend (:mod:`wbc.solvers.daqp`) that hands the preallocated buffers of
 
 from __future__ import annotations
 
-import importlib.util
+import importlib
 from typing import Any
 
 from ..core.errors import UnknownSolverError
@@ -45,10 +45,20 @@ def make_solver(name: str, options: dict[str, Any] | None = None) -> QPSolver:
         UnknownSolverError: ``name`` is not a solver qpsolvers finds installed.
         InvalidSolverOptionError: an unknown key or a bad value in ``options``.
     """
-    if name == "daqp" and importlib.util.find_spec("daqp") is not None:
+    if name == "daqp" and _imports("daqp"):
         return DaqpBackend(options)  # (without qpsolvers, which would import daqp to list it)
     if not isinstance(name, str) or name not in available_solvers():
         raise UnknownSolverError(
             f"unknown or uninstalled QP solver {name!r}; installed: {', '.join(available_solvers())}"
         )
     return QpsolversBackend(name, options)
+
+
+def _imports(module: str) -> bool:
+    """Whether ``module`` imports (a package that is there but broken, e.g. its shared library
+    missing, does not: as qpsolvers, which then does not list it)."""
+    try:
+        importlib.import_module(module)
+    except ImportError:
+        return False
+    return True
