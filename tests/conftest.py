@@ -7,6 +7,12 @@ from collections.abc import Generator
 from pathlib import Path
 from types import ModuleType
 
+# the TOML reader of the tests that read pyproject.toml or TOML blocks: `from conftest import tomllib`
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib  # noqa: F401
+
 import numpy as np
 import pytest
 
@@ -91,7 +97,6 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]) ->
         if reason is not None:
             report.outcome, report.longrepr = "skipped", (str(item.path), 0, f"Skipped: {reason}")
 
-ROOT = Path(__file__).resolve().parents[1]
 TASKS = ROOT / "tasks"
 #: working directory of `python -c` subprocesses: outside the checkout, so that they import
 #: the installed wbc (from the checkout root, `-c` would import the source tree, which has

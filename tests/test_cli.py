@@ -7,15 +7,10 @@ import sys
 import textwrap
 from pathlib import Path
 
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
 import pytest
 
 import wbc
-from conftest import NEUTRAL, ROOT, TASKS, require
+from conftest import NEUTRAL, ROOT, TASKS, require, tomllib
 from wbc.app.cli import main
 
 
@@ -41,9 +36,8 @@ def test_run_json_summary(capsys):
 def test_json_alone_on_stdout_with_every_backend(solver):
     """`--json` leaves stdout to the JSON whatever the backend prints on first use (highspy 1.16's
     banner), in a process of its own as a user runs it."""
-    result = subprocess.run([sys.executable, "-c", "from wbc.app.cli import main; raise SystemExit(main())", "run",
-                             str(TASKS / "youbot_circle.toml"), "--duration", "0.1", "--solver", solver, "--json",
-                             "--no-progress"], capture_output=True, text=True, timeout=600)
+    result = wbc_process("run", str(TASKS / "youbot_circle.toml"), "--duration", "0.1", "--solver", solver, "--json",
+                         "--no-progress", timeout=600)
     assert result.returncode == 0, result.stderr
     (summary,) = json.loads(result.stdout)
     assert summary["solver"] == solver and summary["ticks"] == 10
@@ -124,11 +118,12 @@ CIRCLE = str(TASKS / "youbot_circle.toml")
 CONSOLE = "from wbc.app.cli import console; console()"
 
 
-def wbc_process(*args: str, cwd=NEUTRAL, **kwargs) -> subprocess.CompletedProcess:
-    """``wbc ARGS`` as a separate process (its stdout/stderr/exit status as a user sees them)."""
-    code = CONSOLE
+def wbc_process(*args: str, code: str = CONSOLE, cwd=NEUTRAL, timeout: float = 300,
+                **kwargs) -> subprocess.CompletedProcess:
+    """``wbc ARGS`` as a separate process (its stdout/stderr/exit status as a user sees them);
+    ``code``: the ``python -c`` source that runs it (the executable's, unless a test adds to it)."""
     return subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, capture_output=True, text=True,
-                          timeout=300, **kwargs)
+                          timeout=timeout, **kwargs)
 
 
 def test_bad_scenario_file_exits_2_without_traceback(tmp_path):
@@ -220,8 +215,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_run(tmp_path, op
     (tmp_path / "some_dir").mkdir()
     (tmp_path / "a_file").write_text("")
     before = files_under(tmp_path)
-    result = subprocess.run([sys.executable, "-c", NO_RUN, "run", CIRCLE, "--no-progress", option, value],
-                            cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    result = wbc_process("run", CIRCLE, "--no-progress", option, value, code=NO_RUN, cwd=tmp_path)
     assert result.returncode == 2, result.stderr
     assert result.stderr.startswith(f"wbc: error: {message}") and result.stderr.count("\n") == 1, result.stderr
     assert "Traceback" not in result.stderr and result.stdout == ""
@@ -256,9 +250,8 @@ def test_ctrl_c_while_an_output_is_written_leaves_no_file(tmp_path, option, name
     if option == "--html":
         require("viser")
     target = tmp_path / "new" / name
-    result = subprocess.run([sys.executable, "-c", INTERRUPTED_WRITE, "run", CIRCLE, "--duration", "0.1",
-                             "--no-progress", "--json", option, str(target)],
-                            cwd=NEUTRAL, capture_output=True, text=True, timeout=300)
+    result = wbc_process("run", CIRCLE, "--duration", "0.1", "--no-progress", "--json", option, str(target),
+                         code=INTERRUPTED_WRITE)
     assert result.returncode == 130, result.stderr
     assert result.stderr == "wbc: interrupted\n"
     assert json.loads(result.stdout)[0]["ticks"] == 10, "the summaries came before the files"
@@ -321,11 +314,9 @@ def test_the_executable_is_console_and_python_m_wbc_runs_it():
 def test_the_executable_runs_the_exit_handlers_then_flushes_and_keeps_the_status(tmp_path):
     code = ("import atexit, sys\n"
             "atexit.register(lambda: sys.stdout.write('handler ran\\n'))\n" + CONSOLE)
-    done = subprocess.run([sys.executable, "-c", code, "solvers"], cwd=NEUTRAL, capture_output=True, text=True,
-                          timeout=300)
+    done = wbc_process("solvers", code=code)
     assert done.returncode == 0 and "daqp" in done.stdout and done.stdout.endswith("handler ran\n"), done
-    failed = subprocess.run([sys.executable, "-c", code, "run", str(tmp_path / "missing.toml")], cwd=NEUTRAL,
-                            capture_output=True, text=True, timeout=300)
+    failed = wbc_process("run", str(tmp_path / "missing.toml"), code=code)
     assert failed.returncode == 2 and failed.stdout == "handler ran\n" and "wbc: error:" in failed.stderr
 
 
@@ -334,8 +325,7 @@ def test_the_executable_waits_for_threads_that_are_not_daemons(tmp_path):
     code = ("import threading, time\n"
             f"threading.Thread(target=lambda: (time.sleep(0.5), open({str(marker)!r}, 'w').write('done'))).start()\n"
             + CONSOLE)
-    result = subprocess.run([sys.executable, "-c", code, "solvers"], cwd=NEUTRAL, capture_output=True, text=True,
-                            timeout=300)
+    result = wbc_process("solvers", code=code)
     assert result.returncode == 0 and marker.read_text() == "done"
 
 
@@ -347,8 +337,8 @@ def test_the_executable_stops_its_compile_workers(tmp_path):
             "    print('workers', *(kernels._workers.pids if kernels._workers else ()))\n"
             "atexit.register(report)\n" + CONSOLE)
     environment = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "WBC_COMPILE_WORKERS": "1"}
-    result = subprocess.run([sys.executable, "-c", code, "run", CIRCLE, "--duration", "0.1", "--no-progress"],
-                            cwd=NEUTRAL, capture_output=True, text=True, timeout=600, env=environment)
+    result = wbc_process("run", CIRCLE, "--duration", "0.1", "--no-progress", code=code, timeout=600,
+                         env=environment)
     assert result.returncode == 0, result.stderr
     pids = [int(word) for word in result.stdout.splitlines()[-1].split()[1:]]
     assert len(pids) == 1

@@ -4,24 +4,18 @@ side-by-side CLI plot; the docs figure."""
 
 import importlib.util
 import json
-import sys
 
 import numpy as np
 import pinocchio as pin
 import pytest
 
-from conftest import ROOT, TASKS
+from conftest import ROOT, TASKS, tomllib
 from wbc.app.cli import main
 from wbc.app.closed_loop import run, velocity_ratio
 from wbc.app.plotting import manipulability_traces
 from wbc.app.references import Line
 from wbc.app.scenario import load_scenario
 from wbc.model.manipulability import manipulability
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 GUARDED, UNGUARDED = TASKS / "youbot_stretch.toml", TASKS / "youbot_stretch_no_barrier.toml"
 M_MIN = 0.04
