@@ -416,11 +416,32 @@ def test_the_split_of_the_users_loop_times_the_peers_loop_and_nests_its_times(mo
     np.testing.assert_allclose(run["q"], configurations[-1], rtol=0.0, atol=1e-12)
 
 
-def test_endurance_times_a_fixed_workload_fitted_to_the_tick(capsys):
+def test_endurance_times_a_fixed_workload_and_the_same_tick_beside_the_ticks(capsys):
     from benchmarks import endurance
 
     endurance.endurance(TASKS / "youbot_circle.toml", ticks=2000, windows=2)
     out = capsys.readouterr().out
     assert "non-optimal ticks: 0" in out and "the fixed workload (the machine's tail): p50" in out
-    assert len([line for line in out.splitlines() if line.split()[:1] in (["1"], ["2"])]) == 2
+    assert "the same tick replayed (the machine's tail for this work): p50" in out
+    windows = [line.split() for line in out.splitlines() if line.split()[:1] in (["1"], ["2"])]
+    assert len(windows) == 2 and all(len(words) == 10 for words in windows)  # tick, RSS, workload, same tick
     assert endurance.fixed_workload(7).args == (range(7),)
+
+
+def test_the_replayed_tick_is_the_same_tick_every_time():
+    """The endurance control: tick 20 of the circle loop again and again -- the same command bit for
+    bit (the same path), and a tick that moves the robot (not a resting one)."""
+    from benchmarks import endurance
+    from wbc.app.scenario import load_scenario
+
+    replay = endurance.same_tick(TASKS / "youbot_circle.toml", ticks=20)
+    commands = [replay().copy() for _ in range(5)]
+    assert all(np.array_equal(command, commands[0]) for command in commands)
+    assert np.abs(commands[0]).max() > 1e-3
+    scenario = load_scenario(TASKS / "youbot_circle.toml")
+    controller, q = scenario.make_controller(), scenario.q0.copy()
+    for k in range(20):  # the same loop written out: its tick 20 is the replayed one
+        scenario.reference_task.set_target(*scenario.reference(k * scenario.dt))
+        q = scenario.robot.integrate(q, controller.step(q), scenario.dt)
+    scenario.reference_task.set_target(*scenario.reference(20 * scenario.dt))
+    np.testing.assert_allclose(controller.step(q), commands[0], rtol=0.0, atol=1e-12)
