@@ -325,6 +325,24 @@ def test_placo_peer_reads_its_input(tmp_path, capsys):
     assert "placo_peer: input needs" in capsys.readouterr().err
 
 
+def test_placo_runs_summary_ratios_per_run_and_of_the_fastest_runs():
+    """Per alternation, wbc's median over placo's; and the fastest run of each side over the
+    other's (a host that slows whole runs: here wbc's second and placo's third), on made-up runs."""
+    from benchmarks import peers
+
+    def run(median_us: float) -> np.ndarray:
+        return np.full(11, median_us * 1e-6)
+
+    runs = {peers.WBC: [run(3.0), run(5.0), run(3.1)], peers.PLACO_QP: [run(3.2), run(3.3), run(3.4)],
+            peers.PLACO: [run(4.8), run(5.0), run(7.5)]}
+    summary = peers._runs_summary(runs)
+    np.testing.assert_allclose(summary["median_ratio_vs_placo"][peers.WBC], [3.0 / 4.8, 5.0 / 5.0, 3.1 / 7.5])
+    assert summary["fastest_ratio_vs_placo"][peers.WBC] == pytest.approx(3.0 / 4.8)
+    assert summary["fastest_ratio_vs_placo"][peers.PLACO_QP] == pytest.approx(3.2 / 4.8)
+    (line,) = [line for line in peers._runs_table(summary, None) if line.startswith(f"- {peers.WBC} / placo")]
+    assert line.endswith("the fastest run of each 0.62") and "median tick 0.62 (0.41–1.00)" in line
+
+
 def test_peers_reports_placo_not_run(tmp_path, monkeypatch):
     """Without placo the benchmark runs and says why placo did not."""
     from benchmarks import peers
