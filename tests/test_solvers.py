@@ -151,9 +151,6 @@ def test_a_fresh_process_prints_nothing_with_any_backend(name):
 
 CRASH_PROBE = r"""
 import sys
-import os
-import subprocess
-import sys
 
 import numpy as np
 from wbc.qp.problem import QP
