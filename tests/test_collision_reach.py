@@ -15,7 +15,7 @@ from conftest import bounding_sphere, pair_levers
 from test_collision_distances import Oracle
 from wbc.collision import RobotGeometry
 from wbc.collision.avoidance import CollisionAvoidanceData
-from wbc.collision.layout import JOINT
+from wbc.collision.layout import HALF_EXTENTS, JOINT, ROTATION, TRANSLATION
 
 YOUBOT = wbc.load_robot("youbot")
 NEUTRAL = YOUBOT.neutral()
@@ -226,3 +226,51 @@ def test_the_reach_bounds_the_relative_speed_of_any_two_points_of_the_spheres(rn
                 assert worst <= reach * (1 + 1e-12) + 1e-12, (links[a], b, worst, reach)
                 tight += worst > 0.5 * reach
     assert tight > 50  # the bound is not vacuous: often within a factor 2
+
+
+@pytest.mark.parametrize("gap", [0.12, 0.25])
+def test_the_bounding_spheres_leave_a_pair_out_just_past_its_reach(gap):
+    """The broad phase's cutoff (wbc.collision.kernels._cutoff: ``d_min + reach / rate``, applied to
+    the bounding spheres before any other bound): a sphere on the platform's diagonal through a top
+    corner, ``gap`` beyond it, where the bounding spheres' distance is the pair's distance, and the
+    heading frozen, so that the pair's reach over every configuration (the cutoff's) is its reach
+    here (``speed_x + speed_y``: the base translates the platform): the pair is kept 1e-6 inside the
+    threshold gain and left out 1e-6 beyond it. (Where the two reaches differ, the exact rule
+    decides the pairs near the threshold and the cutoff is invisible, as it should be.)"""
+    q = NEUTRAL.copy()
+    q[[X, Y, HEADING]] = 0.3, -0.2, 0.4
+    geometry = RobotGeometry(YOUBOT)
+    a = list(geometry.links).index("base_link")
+    table = geometry.table
+    data = YOUBOT.model.createData()
+    pin.forwardKinematics(YOUBOT.model, data, q)
+    centre, radius = bounding_sphere(table, a, data.oMi)
+    corner = data.oMi[int(table[a, JOINT])].act(table[a, TRANSLATION]
+                                                + table[a, ROTATION].reshape(3, 3) @ table[a, HALF_EXTENTS])
+    assert np.linalg.norm(corner - centre) == pytest.approx(radius, abs=1e-12)  # the sphere through the corners
+    direction = (corner - centre) / radius
+    obstacles = [wbc.Sphere(corner + (gap + 0.03) * direction, 0.03)]
+    table = wbc.collision.Distances(YOUBOT, obstacles, geometry=geometry).table
+    b = len(geometry.links)
+    speed = np.array(YOUBOT.velocity_limit)
+    speed[[X, Y]] = np.sqrt(2.0) * YOUBOT.base.max_linear_speed
+    speed[HEADING] = 0.0  # frozen
+    reach, bound, _ = _reach_of(a, b, table, q, speed)
+    assert reach == pytest.approx(speed[X] + speed[Y], rel=1e-12)
+    assert bound == pytest.approx(gap, abs=1e-12)  # the corner is the platform's point nearest the sphere
+    dt = 0.5 * (gap - MIN_DISTANCE) / reach  # then the threshold gain is 0.5
+    present = {}
+    for factor in (1.0 - 1e-6, 1.0 + 1e-6):
+        avoidance = wbc.CollisionAvoidance(obstacles, self_collision=False, min_distance=MIN_DISTANCE,
+                                           detection_distance=0.3, gain=0.5 * factor)
+        controller = wbc.Controller(YOUBOT, [wbc.PostureTask(cost=1e-3)],
+                                    [wbc.JointVelocityLimits(), wbc.DofFreezing(["base_yaw"]), avoidance], dt=dt)
+        controller.step(q)
+        data = controller.data(avoidance)
+        np.testing.assert_allclose(data._reach[YOUBOT.nv:][data.distances.pairs[:, 0] == a], reach, rtol=1e-8)
+        entries = data.pairs.count
+        pairs = data.distances.pairs[data.pairs.pair[:entries]]
+        present[factor] = bool(np.any((pairs[:, 0] == a) & (pairs[:, 1] == b)))
+        if present[factor]:
+            assert data.pairs.distance[list(pairs[:, 0] == a).index(True)] == pytest.approx(gap, abs=1e-9)
+    assert present == {1.0 - 1e-6: True, 1.0 + 1e-6: False}

@@ -121,7 +121,8 @@ class CollisionAvoidance(DistanceMargins, Constraint):
     ``gain (d - min_distance) / dt`` above that sum is left out before its distance is measured
     (:func:`~wbc.collision.kernels._out_of_reach`; first against a bound of that sum over every
     configuration, formed once per pair from the chain's lengths,
-    :func:`~wbc.collision.reach.lever_bounds`: one comparison decides most pairs). Its row would
+    :func:`~wbc.collision.reach.lever_bounds`: one comparison decides most pairs, applied to the
+    bounding spheres before any other bound, :func:`~wbc.collision.kernels._cutoff`). Its row would
     hold for every command the controller returns, so nothing changes but the work (and
     :attr:`CollisionAvoidanceData.pairs`, which lists only the pairs within reach). A coordinate
     without such a bound never lets a pair it moves be left out; with

@@ -624,16 +624,31 @@ def _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, dista
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
-def _spheres_apart(table, world, a, b, detection):
-    """True when the bounding spheres of shapes a and b (neither a plane) are ``detection`` apart
-    or more: ``|c_b - c_a|^2 > (r_a + r_b + detection)^2`` (with a relative 1e-9 to spare, so
-    rounding never skips a pair that :func:`bound_distance` would keep). ~5 flops, no square
-    root: what rejects most pairs."""
+def _spheres_apart(table, world, a, b, cutoff):
+    """True when the bounding spheres of shapes a and b (neither a plane) are ``cutoff`` apart
+    or more: ``|c_b - c_a|^2 > (r_a + r_b + cutoff)^2`` (with a relative 1e-9 to spare, so
+    rounding never skips a pair that :func:`bound_distance` would keep below ``cutoff``). ~5
+    flops, no square root: what rejects most pairs."""
     if table[a, KIND] == PLANE or table[b, KIND] == PLANE:
         return False
     dx, dy, dz = world[b, 12] - world[a, 12], world[b, 13] - world[a, 13], world[b, 14] - world[a, 14]
-    reach = table[a, BOUND_RADIUS] + table[b, BOUND_RADIUS] + detection
+    reach = table[a, BOUND_RADIUS] + table[b, BOUND_RADIUS] + cutoff
     return dx * dx + dy * dy + dz * dz > reach * reach * (1.0 + 1e-9)
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
+def _cutoff(detection, d_min, pair_reach, inverse_rate):
+    """The distance from which pair p needs no row at any configuration: ``detection``, or, when
+    smaller, ``d_min + reach_p / rate``, where its damper asks ``d_dot >= -rate (d - d_min)``
+    faster than its reach at every configuration (``pair_reach``: ``reach[nv + p]`` of
+    :func:`_refresh_reach`; ``inverse_rate = dt / gain``). With it the bounding spheres alone
+    (:func:`_spheres_apart`, no square root) reject the pairs that the reach rejects after
+    :func:`bound_distance` (~20 ns a pair): the youBot's self pairs on every tick. A pair with
+    ``bound >= cutoff`` is one that ``not bound < detection`` or ``reach_p < rate (bound - d_min)``
+    leaves out (the 1e-9 of :func:`_spheres_apart` covers the rounding of ``1 / rate``; NaN or inf:
+    ``detection``)."""
+    limit = d_min + pair_reach * inverse_rate
+    return limit if limit < detection else detection
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
@@ -715,9 +730,11 @@ def _pair_distances(table, pairs, placements, jacobians_t, support, world, detec
     count = 0
     n_pending = 0
     out = scratch[48:58]
+    inverse_rate = 1.0 / rate if rate > 0.0 else math.inf  # (rate = gain / dt > 0 from a controller)
     for k in range(pairs.shape[0]):
         a, b = pairs[k, PAIR_A], pairs[k, PAIR_B]
-        if _spheres_apart(table, world, a, b, detection):
+        cutoff = _cutoff(detection, d_min, reach[nv + k], inverse_rate) if nv > 0 else detection
+        if _spheres_apart(table, world, a, b, cutoff):
             continue
         bound = bound_distance(table, world, a, b)
         if not bound < detection:
