@@ -1,6 +1,7 @@
 import importlib
 import os
 import re
+import signal
 import sys
 import tempfile
 from collections.abc import Generator
@@ -23,6 +24,13 @@ import wbc
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.append(str(ROOT))
+
+# the tests that interrupt a `wbc` child with SIGINT need it to reach the child's Python handler: a
+# suite started in the background (`pytest ... &` without job control, nohup, some CI runners)
+# inherits SIGINT ignored, which exec passes on and Python then keeps (no KeyboardInterrupt). A
+# handler here is reset to the default in every child at exec.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # CI replays the same examples every run (a red CI must be reproducible); locally
 # hypothesis explores new ones (that is how the HiGHS cycling case was found)
