@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..runtime import kernels
 from .errors import InvalidInputError
 
-ROTATION_TOLERANCE = 1e-6  # max |R^T R - I| and |det R - 1| accepted for a rotation
+ROTATION_TOLERANCE = kernels.ROTATION_TOLERANCE  # max |R^T R - I| and |det R - 1| accepted for a rotation
 _FLOAT64 = np.dtype(np.float64)
 _Item = TypeVar("_Item")
 

@@ -22,13 +22,13 @@ _POSE_OK, _POSE_SHAPE = kernels.POSE_OK, kernels.POSE_SHAPE
 _FLOAT64 = np.dtype(np.float64)
 
 
-def _set_pose(pose: NDArray[np.float64], settings: NDArray[np.float64], tolerance: float) -> int:
+def _set_pose(pose: NDArray[np.float64], settings: NDArray[np.float64]) -> int:
     """:func:`wbc.runtime.kernels.set_frame_pose` through its compiled entry, without numba's type
     check (``pose`` is checked to be a 2-D float64 array first; any strides, read-only too): this
     function replaces itself by that entry on its first call (the kernels load lazily)."""
     global _set_pose
     _set_pose = unchecked_entry(kernels.set_frame_pose)
-    return _set_pose(pose, settings, tolerance)
+    return _set_pose(pose, settings)
 
 
 class FrameTask(ErrorTask):
@@ -109,12 +109,12 @@ class FrameTask(ErrorTask):
         if twist is None:
             given: Any = pose  # (its attributes are read inside the try)
             try:  # the control loop's fast path: a 2-D float64 array, checked and copied in one compiled call
-                defect = (_set_pose(given, self._settings, ROTATION_TOLERANCE) if given.dtype is _FLOAT64
-                          and given.ndim == 2 else _POSE_SHAPE)
+                defect = (_set_pose(given, self._settings) if given.dtype is _FLOAT64 and given.ndim == 2
+                          else _POSE_SHAPE)
             except (AttributeError, TypeError):  # not an ndarray (the entry unboxes ndarrays only)
                 defect = _POSE_SHAPE
             if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
-                kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings, ROTATION_TOLERANCE)
+                kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
         else:
             twist = np.array(as_vector(twist, 6, "target twist"))
             kernels.set_frame_target(np.array(as_pose(pose, "target pose")), twist, self._settings,

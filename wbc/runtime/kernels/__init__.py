@@ -80,6 +80,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: results of :func:`pose_defect` (and POSE_SHAPE: not 4 x 4, from :func:`set_frame_target`)
 POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION, POSE_SHAPE = range(5)
+#: max ``|R^T R - I|`` and ``|det R - 1|`` accepted for a rotation (``wbc.core.validation``'s, and
+#: :func:`set_frame_pose`'s built in: one argument fewer for the control loop's ``set_target``)
+ROTATION_TOLERANCE = 1e-6
 
 # ------------------------------------------------------------------- tasks
 

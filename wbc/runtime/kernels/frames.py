@@ -37,6 +37,7 @@ from . import (
     POSITION_SETTINGS,
     POSITION_TARGET,
     POSITION_WEIGHTS,
+    ROTATION_TOLERANCE,
     prepare_cache,
 )
 from ._lazy import ENTRY, declared
@@ -175,11 +176,12 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
     return defect
 
 
-@declared("int64(float64[:, :], float64[:], float64)", cache=CACHE, **ENTRY)
-def set_frame_pose(pose: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
-    """:func:`set_frame_target` without a feed-forward twist (zero): one argument fewer to pass,
-    for the control loop's ``set_target(pose)``."""
-    defect = _target_defect(pose, tolerance)
+@declared("int64(float64[:, :], float64[:])", cache=CACHE, **ENTRY)
+def set_frame_pose(pose: np.ndarray, settings: np.ndarray) -> int:
+    """:func:`set_frame_target` without a feed-forward twist (zero) and with the library's
+    ``ROTATION_TOLERANCE``: two arguments fewer to pass (~0.01 us), for the control loop's
+    ``set_target(pose)``."""
+    defect = _target_defect(pose, ROTATION_TOLERANCE)
     if defect == POSE_OK:
         _write_target(pose, settings, False, settings)
     return defect
