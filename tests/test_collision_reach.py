@@ -242,10 +242,10 @@ def test_the_bounding_spheres_leave_a_pair_out_just_past_its_reach(gap):
     geometry = RobotGeometry(YOUBOT)
     a = list(geometry.links).index("base_link")
     table = geometry.table
-    data = YOUBOT.model.createData()
-    pin.forwardKinematics(YOUBOT.model, data, q)
-    centre, radius = bounding_sphere(table, a, data.oMi)
-    corner = data.oMi[int(table[a, JOINT])].act(table[a, TRANSLATION]
+    kinematics = YOUBOT.model.createData()
+    pin.forwardKinematics(YOUBOT.model, kinematics, q)
+    centre, radius = bounding_sphere(table, a, kinematics.oMi)
+    corner = kinematics.oMi[int(table[a, JOINT])].act(table[a, TRANSLATION]
                                                 + table[a, ROTATION].reshape(3, 3) @ table[a, HALF_EXTENTS])
     assert np.linalg.norm(corner - centre) == pytest.approx(radius, abs=1e-12)  # the sphere through the corners
     direction = (corner - centre) / radius
@@ -270,7 +270,8 @@ def test_the_bounding_spheres_leave_a_pair_out_just_past_its_reach(gap):
         np.testing.assert_allclose(data._reach[YOUBOT.nv:][data.distances.pairs[:, 0] == a], reach, rtol=1e-8)
         entries = data.pairs.count
         pairs = data.distances.pairs[data.pairs.pair[:entries]]
-        present[factor] = bool(np.any((pairs[:, 0] == a) & (pairs[:, 1] == b)))
+        entry = np.flatnonzero((pairs[:, 0] == a) & (pairs[:, 1] == b))
+        present[factor] = entry.size > 0
         if present[factor]:
-            assert data.pairs.distance[list(pairs[:, 0] == a).index(True)] == pytest.approx(gap, abs=1e-9)
+            assert data.pairs.distance[entry[0]] == pytest.approx(gap, abs=1e-9)
     assert present == {1.0 - 1e-6: True, 1.0 + 1e-6: False}

@@ -643,10 +643,11 @@ def _cutoff(detection, d_min, pair_reach, inverse_rate):
     faster than its reach at every configuration (``pair_reach``: ``reach[nv + p]`` of
     :func:`_refresh_reach`; ``inverse_rate = dt / gain``). With it the bounding spheres alone
     (:func:`_spheres_apart`, no square root) reject the pairs that the reach rejects after
-    :func:`bound_distance` (~20 ns a pair): the youBot's self pairs on every tick. A pair with
-    ``bound >= cutoff`` is one that ``not bound < detection`` or ``reach_p < rate (bound - d_min)``
-    leaves out (the 1e-9 of :func:`_spheres_apart` covers the rounding of ``1 / rate``; NaN or inf:
-    ``detection``)."""
+    :func:`bound_distance` (~20 ns a pair): the youBot's self pairs on every tick. A pair whose
+    spheres are apart by more than the cutoff (and the 1e-9 spare of :func:`_spheres_apart`, which
+    covers the rounding of ``1 / rate``) is one that ``not bound < detection`` or
+    ``reach_p < rate (bound - d_min)`` leaves out; at the cutoff itself the reach rule keeps it, and
+    so do the spheres. NaN or inf: ``detection``."""
     limit = d_min + pair_reach * inverse_rate
     return limit if limit < detection else detection
 
