@@ -128,11 +128,13 @@ class Robot:
         for array in (self.lower, self.upper, self.velocity_limit):
             array.flags.writeable = False
         self.joint_names: list[str] = list(model.names[1:])
-        #: q + v dt integrates every coordinate (decided once: vector-space joints and a base that
-        #: keeps the joints' own integration); else the base's integrate (SE(2), SE(3), ...)
-        self._vector_space = (all(joint.shortname() in VECTOR_SPACE_JOINTS for joint in model.joints[1:])
-                              and type(self.base).integrate is MobileBase.integrate)
-        self._configuration_shape = (model.nq,)  # (np.empty takes a tuple ~15 ns faster than an int)
+        #: (nq,) when q + v dt integrates every coordinate (decided once: vector-space joints and a
+        #: base that keeps the joints' own integration), else None: the base's integrate (SE(2),
+        #: SE(3), ...). (One attribute for the flag and the shape; np.empty takes a tuple ~15 ns
+        #: faster than an int.)
+        self._vector_space_shape: tuple[int] | None = (
+            (model.nq,) if all(joint.shortname() in VECTOR_SPACE_JOINTS for joint in model.joints[1:])
+            and type(self.base).integrate is MobileBase.integrate else None)
         self._input_map = self.base.allocate_input_map(self.nv)
         self._input_map_varies = self.base.is_nonholonomic  # S depends on q (else S = I)
         self._frame_ids: dict[str, int] = {}
@@ -333,8 +335,9 @@ class Robot:
         Raises:
             InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
         """
-        if self._vector_space and type(dt) is float:  # the control loop's fast path
-            reached = _empty(self._configuration_shape)
+        shape = self._vector_space_shape
+        if shape is not None and type(dt) is float:  # the control loop's fast path
+            reached = _empty(shape)
             given_q: Any = q  # (their attributes are read inside the try)
             given_v: Any = v
             try:  # float64 vectors (any strides, read-only too): one compiled call, without numba's type check
