@@ -87,7 +87,16 @@ class FrameTask(ErrorTask):
         self.position_cost, self.orientation_cost = position_cost, orientation_cost
         self._target_rotation[...] = np.eye(3)
         self.max_speed, self.max_angular_speed = max_speed, max_angular_speed
-        self._has_target = False
+
+    @property
+    def _has_target(self) -> bool:
+        """Whether a target was set: the flag the compiled setters write into the settings
+        (``FRAME_HAS_TARGET``), so that ``set_target`` writes no attribute and reads none."""
+        return bool(self._settings[kernels.FRAME_HAS_TARGET])
+
+    @_has_target.setter
+    def _has_target(self, value: bool) -> None:
+        self._settings[kernels.FRAME_HAS_TARGET] = 1.0 if value else 0.0
 
     def default_name(self) -> str:
         return f"FrameTask({self.frame})"
@@ -119,8 +128,6 @@ class FrameTask(ErrorTask):
             twist = np.array(as_vector(twist, 6, "target twist"))
             kernels.set_frame_target(np.array(as_pose(pose, "target pose")), twist, self._settings,
                                      ROTATION_TOLERANCE)
-        if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
-            self._has_target = True
 
     def set_target_from_configuration(self, robot: Robot, q: ArrayLike) -> None:
         """Hold the frame at the pose it has in configuration ``q``."""

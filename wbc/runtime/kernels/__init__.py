@@ -92,7 +92,8 @@ FRAME_TARGET_POSITION = slice(9, 12)  # target position p* [m]
 FRAME_WEIGHTS = slice(12, 18)  # W = sqrt(cost), (linear; angular)
 FRAME_FEEDFORWARD = slice(18, 24)  # xi* [m/s, rad/s] (zero without feed-forward; weighted at tick time)
 FRAME_GAIN, FRAME_MAX_SPEED, FRAME_MAX_ANGULAR_SPEED = 24, 25, 26  # gain in (0, 1], [m/s], [rad/s]
-FRAME_SETTINGS = 27
+FRAME_HAS_TARGET = 27  # 1.0 once the setters wrote a target (read before the first tick, never in one)
+FRAME_SETTINGS = 28
 #: layout of a frame's placement data (one vector per controller and frame, see frame_in_joint)
 FRAME_LOCAL = slice(0, 12)  # frame placement in its parent joint: rotation (row-major), translation [m]
 FRAME_LOCAL_ROTATION = slice(0, 9)  # its rotation part

@@ -16,6 +16,7 @@ from . import (
     FRAME_DATA,
     FRAME_FEEDFORWARD,
     FRAME_GAIN,
+    FRAME_HAS_TARGET,
     FRAME_LOCAL,
     FRAME_LOCAL_ROTATION,
     FRAME_MAX_ANGULAR_SPEED,
@@ -161,15 +162,17 @@ def _write_target(pose: np.ndarray, twist: np.ndarray, has_twist: bool, settings
         position[a] = pose[a, 3]
     for a in range(6):
         feedforward[a] = twist[a] if has_twist else 0.0
+    settings[FRAME_HAS_TARGET] = 1.0
 
 
 # the setters hold the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
 @declared("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, **ENTRY)
 def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
     """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
-    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``) -- when ``pose``
-    is 4 x 4 (else POSE_SHAPE) and passes :func:`pose_defect` with ``tolerance``; returns its
-    verdict (nothing written unless POSE_OK): the control loop's ``set_target`` is one call."""
+    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``; its
+    ``FRAME_HAS_TARGET`` flag set) -- when ``pose`` is 4 x 4 (else POSE_SHAPE) and passes
+    :func:`pose_defect` with ``tolerance``; returns its verdict (nothing written unless POSE_OK):
+    the control loop's ``set_target`` is one call."""
     defect = _target_defect(pose, tolerance)
     if defect == POSE_OK:
         _write_target(pose, twist, len(twist) == 6, settings)
