@@ -1,5 +1,6 @@
 """Public API surface and bad input: clear exceptions at the boundary, before any solver runs."""
 
+import copy
 import importlib.metadata
 import shutil
 
@@ -137,6 +138,34 @@ def test_stepping_without_a_target_is_an_error(youbot):
     controller = wbc.Controller(youbot, [wbc.FrameTask("ee", 1.0, 1.0)])
     with pytest.raises(wbc.InvalidInputError, match="set_target"):
         controller.step(youbot.neutral())
+
+
+def test_a_refused_first_target_leaves_the_task_without_one(youbot):
+    """Whether a FrameTask has a target is written by the compiled setter with the target, only for
+    a pose it accepts: a refused first target (on the fast path or with a twist) leaves the task
+    waiting for one; a copy takes the state of its original."""
+    task = wbc.FrameTask("ee", 1.0, 1.0)
+    controller = wbc.Controller(youbot, [task], warm_up=False)
+    q = youbot.neutral()
+    pose = youbot.frame_pose(q, "ee")
+    unready = copy.deepcopy(task)
+    for bad_pose, twist in ((np.full((4, 4), np.nan), None), (np.diag([2.0, 1.0, 1.0, 1.0]), None),
+                            (np.eye(3), None), (pose, [1.0, 2.0]), (np.diag([2.0, 1.0, 1.0, 1.0]), np.zeros(6))):
+        with pytest.raises(wbc.InvalidInputError):
+            task.set_target(bad_pose, twist)
+        with pytest.raises(wbc.InvalidInputError, match="no target set"):
+            controller.step(q)
+    task.set_target(pose)
+    ready = copy.deepcopy(task)
+    controller.step(q)
+    assert controller.last.success
+    for copied, has_target in ((unready, False), (ready, True)):
+        other = wbc.Controller(youbot, [copied], warm_up=False)
+        if has_target:
+            np.testing.assert_allclose(other.step(q), controller.step(q), atol=1e-12)
+        else:
+            with pytest.raises(wbc.InvalidInputError, match="no target set"):
+                other.step(q)
 
 
 def test_controller_rejects_empty_or_foreign_stacks(youbot):
