@@ -182,7 +182,7 @@ def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, 
 @declared("int64(float64[:, :], float64[:])", cache=CACHE, **ENTRY)
 def set_frame_pose(pose: np.ndarray, settings: np.ndarray) -> int:
     """:func:`set_frame_target` without a feed-forward twist (zero) and with the library's
-    ``ROTATION_TOLERANCE``: two arguments fewer to pass (~0.01 us), for the control loop's
+    ``ROTATION_TOLERANCE``: two arguments fewer to pass (~0.03 us), for the control loop's
     ``set_target(pose)``."""
     defect = _target_defect(pose, ROTATION_TOLERANCE)
     if defect == POSE_OK:
