@@ -9,7 +9,7 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.settings import Cost, Operand
-from ..core.validation import ROTATION_TOLERANCE, as_gain, as_pose, as_speed_limit, as_vector
+from ..core.validation import as_gain, as_pose, as_speed_limit, as_vector
 from ..model.kinematics import Kinematics, frame_in_joint
 from ..model.robot import Robot
 from ..runtime import kernels
@@ -125,9 +125,9 @@ class FrameTask(ErrorTask):
             if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
                 kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
         else:
-            twist = np.array(as_vector(twist, 6, "target twist"))
-            kernels.set_frame_target(np.array(as_pose(pose, "target pose")), twist, self._settings,
-                                     ROTATION_TOLERANCE)
+            twist = as_vector(twist, 6, "target twist")  # (both checked before anything is written)
+            kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
+            self._feedforward[...] = twist
 
     def set_target_from_configuration(self, robot: Robot, q: ArrayLike) -> None:
         """Hold the frame at the pose it has in configuration ``q``."""
@@ -162,7 +162,7 @@ class FrameTaskData(ErrorTaskData):
         self._frame = np.zeros(kernels.FRAME_DATA)  # placement in the joint, then kernel scratch
         self._frame[kernels.FRAME_LOCAL] = local
         self._position_error, self._orientation_error = self.error[:3], self.error[3:]
-        kernels.prepare("set_frame_pose", "set_frame_target", "pose_defect")  # set_target's, in the control loop
+        kernels.prepare("set_frame_pose", "pose_defect")  # set_target's, in the control loop
 
     def compute_error_and_jacobian(self, kin: Kinematics, error: np.ndarray, jacobian: np.ndarray) -> None:
         """``e = (p* - p, log3(R* R^T))`` and the frame's world-aligned Jacobian (Pinocchio's)."""

@@ -78,7 +78,7 @@ if TYPE_CHECKING:  # pragma: no cover
 
 # ------------------------------------------------------------- validation
 
-#: results of :func:`pose_defect` (and POSE_SHAPE: not 4 x 4, from :func:`set_frame_target`)
+#: results of :func:`pose_defect` (and POSE_SHAPE: not 4 x 4, from :func:`set_frame_pose`)
 POSE_OK, POSE_NOT_FINITE, POSE_LAST_ROW, POSE_NOT_ROTATION, POSE_SHAPE = range(5)
 #: max ``|R^T R - I|`` and ``|det R - 1|`` accepted for a rotation (``wbc.core.validation``'s, and
 #: :func:`set_frame_pose`'s built in: one argument fewer for the control loop's ``set_target``)
@@ -171,7 +171,7 @@ DAQP_SENSE_SOFT, DAQP_SENSE_ZERO_ROW = 8, 2048
 
 #: the compiled functions of each topic module, re-exported here by :func:`load`
 COMPILED = {
-    "frames": ("log3", "pose_defect", "frame_jacobian", "set_frame_target", "set_frame_pose",
+    "frames": ("log3", "pose_defect", "frame_jacobian", "set_frame_pose",
                "frame_task_rows",
                "position_task_rows"),
     "joints": ("integrate_vector_space", "posture_rows", "steering_row", "position_limit_bounds", "heading_rows"),

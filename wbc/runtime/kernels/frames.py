@@ -144,49 +144,27 @@ def frame_jacobian(joint_jacobians: np.ndarray, joint_rotation: np.ndarray, join
         jacobian[3, k], jacobian[4, k], jacobian[5, k] = wx, wy, wz
 
 
-
-@njit(inline="always")
-def _target_defect(pose: np.ndarray, tolerance: float) -> int:
-    if pose.shape[0] != 4 or pose.shape[1] != 4:
-        return POSE_SHAPE
-    return pose_defect(pose, tolerance)
-
-
-@njit(inline="always")
-def _write_target(pose: np.ndarray, twist: np.ndarray, has_twist: bool, settings: np.ndarray) -> None:
-    rotation, position, feedforward = settings[FRAME_TARGET_ROTATION], settings[FRAME_TARGET_POSITION], \
-        settings[FRAME_FEEDFORWARD]
-    for a in range(3):
-        for b in range(3):
-            rotation[3 * a + b] = pose[a, b]
-        position[a] = pose[a, 3]
-    for a in range(6):
-        feedforward[a] = twist[a] if has_twist else 0.0
-    settings[FRAME_HAS_TARGET] = 1.0
-
-
-# the setters hold the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
-@declared("int64(float64[:, :], float64[:], float64[:], float64)", cache=CACHE, **ENTRY)
-def set_frame_target(pose: np.ndarray, twist: np.ndarray, settings: np.ndarray, tolerance: float) -> int:
-    """FrameTask target: R* and p* from ``pose``, the feed-forward ``twist`` (length 6, or
-    empty for none; weighted at tick time) into the settings vector (layout ``FRAME_*``; its
-    ``FRAME_HAS_TARGET`` flag set) -- when ``pose`` is 4 x 4 (else POSE_SHAPE) and passes
-    :func:`pose_defect` with ``tolerance``; returns its verdict (nothing written unless POSE_OK):
-    the control loop's ``set_target`` is one call."""
-    defect = _target_defect(pose, tolerance)
-    if defect == POSE_OK:
-        _write_target(pose, twist, len(twist) == 6, settings)
-    return defect
-
-
+# the setter holds the GIL: releasing it would cost ~0.05 us of a ~0.2 us call
 @declared("int64(float64[:, :], float64[:])", cache=CACHE, **ENTRY)
 def set_frame_pose(pose: np.ndarray, settings: np.ndarray) -> int:
-    """:func:`set_frame_target` without a feed-forward twist (zero) and with the library's
-    ``ROTATION_TOLERANCE``: two arguments fewer to pass (~0.03 us), for the control loop's
-    ``set_target(pose)``."""
-    defect = _target_defect(pose, ROTATION_TOLERANCE)
+    """FrameTask target: R* and p* from ``pose`` and a zero feed-forward twist into the settings
+    vector (layout ``FRAME_*``; its ``FRAME_HAS_TARGET`` flag set) -- when ``pose`` is 4 x 4 (else
+    POSE_SHAPE) and passes :func:`pose_defect` with the library's ``ROTATION_TOLERANCE``; returns
+    its verdict (nothing written unless POSE_OK): the control loop's ``set_target(pose)`` is one
+    call. (A feed-forward twist is written by the caller after it: ``FrameTask.set_target``.)"""
+    if pose.shape[0] != 4 or pose.shape[1] != 4:
+        return POSE_SHAPE
+    defect = pose_defect(pose, ROTATION_TOLERANCE)
     if defect == POSE_OK:
-        _write_target(pose, settings, False, settings)
+        rotation, position, feedforward = settings[FRAME_TARGET_ROTATION], settings[FRAME_TARGET_POSITION], \
+            settings[FRAME_FEEDFORWARD]
+        for a in range(3):
+            for b in range(3):
+                rotation[3 * a + b] = pose[a, b]
+            position[a] = pose[a, 3]
+        for a in range(6):
+            feedforward[a] = 0.0
+        settings[FRAME_HAS_TARGET] = 1.0
     return defect
 
 

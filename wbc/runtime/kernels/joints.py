@@ -26,7 +26,7 @@ CACHE = prepare_cache()  # before the first @njit below compiles; False: no writ
 # ---------------------------------------------------------- configuration
 
 
-# GIL held: see set_frame_target
+# GIL held: see set_frame_pose
 @declared("boolean(float64[:], float64[:], float64, float64[::1])", cache=CACHE, **ENTRY)
 def integrate_vector_space(q: np.ndarray, v: np.ndarray, dt: float, reached: np.ndarray) -> bool:
     """``reached = q + v dt`` (``pinocchio.integrate`` on coordinates that form a vector space:
