@@ -537,7 +537,8 @@ class Controller:
         # the hot path's callables (bound once: wbc.control.pipelines)
         self._assemble, self._fast, self._command = self._assembly.run, solve.fast, solve.command(self._inputs)
         # the control loop's path, when the program does the whole tick and v = x: one native call
-        # from q to the checked answer (step), from the first tick on (its tasks checked first)
+        # from q to the checked answer (step), from the first tick on (its tasks checked first: here when
+        # they are ready now, else by the first step)
         self._native_step: _NativeStep | None = None  # step's
         self._stepper: functools.partial[int] | None = None  # the program's stepper: its entry is what _native_step
         if (bound is not None and not split and self._assembly.all_in_program and self._command is None
@@ -547,6 +548,8 @@ class Controller:
             self._stepper = program.stepper()
             self._packed_program = self._stepper.args[0]  # (step calls the partial's entry itself: ~60 ns less)
             self._answer_size, self._outcome = bound.x.size, bound.control_view
+            if self._assembly.ready():  # every target set already: the first tick is the native call too
+                self._native_step = self._stepper.func
         self._solver_name = self._solver.name
 
     # --------------------------------------------------------------- hot path

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..constraints.constraint import ConstraintData, ConstraintRows
+from ..core.errors import InvalidInputError
 from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..qp.lifting import LiftedQP
@@ -193,6 +194,15 @@ class Assembly:
         for task in self._unready:
             task.check_ready()
         self._unready = []
+
+    def ready(self) -> bool:
+        """Whether every task can be evaluated now (targets set before the controller was built):
+        :meth:`check_ready` without raising; once True, no tick checks them any more."""
+        try:
+            self.check_ready()
+        except InvalidInputError:
+            return False
+        return True
 
     def screen(self, q: NDArray[np.float64]) -> None:
         """The program found a NaN: raise if it came from ``q`` (naming what is wrong with it)."""
