@@ -105,8 +105,8 @@ class FrameTask(ErrorTask):
         """Set the target of the next ticks.
 
         Args:
-            pose: the 4x4 world pose of the frame (a float64 array without ``twist`` takes the
-                control loop's fast path: one compiled check and copy).
+            pose: the 4x4 world pose of the frame (a float64 array takes the control loop's fast
+                path: one compiled check and copy; a twist is checked first, written after it).
             twist: optional feed-forward twist of a moving target (6, world-aligned at the frame
                 origin, (linear [m/s]; angular [rad/s])); None for a fixed target.
 
@@ -125,9 +125,9 @@ class FrameTask(ErrorTask):
             if defect != _POSE_OK:  # convert (a writable copy: e.g. a read-only array), or say what is wrong
                 kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
         else:
-            twist = as_vector(twist, 6, "target twist")  # (both checked before anything is written)
-            kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
-            self._feedforward[...] = twist
+            feedforward = as_vector(twist, 6, "target twist")  # checked before the pose is written
+            self.set_target(pose)  # (the pose's checks, and a zero twist)
+            self._feedforward[...] = feedforward
 
     def set_target_from_configuration(self, robot: Robot, q: ArrayLike) -> None:
         """Hold the frame at the pose it has in configuration ``q``."""
