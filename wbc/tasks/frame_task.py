@@ -126,7 +126,7 @@ class FrameTask(ErrorTask):
                 kernels.set_frame_pose(np.array(as_pose(pose, "target pose")), self._settings)
         else:
             feedforward = as_vector(twist, 6, "target twist")  # checked before the pose is written
-            self.set_target(pose)  # (the pose's checks, and a zero twist)
+            FrameTask.set_target(self, pose)  # the pose's checks and a zero twist (not a subclass's override)
             self._feedforward[...] = feedforward
 
     def set_target_from_configuration(self, robot: Robot, q: ArrayLike) -> None:
