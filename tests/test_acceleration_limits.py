@@ -236,25 +236,35 @@ def test_jerk_bounds_the_change_of_acceleration(youbot):
 
 @pytest.mark.parametrize("duplicate", [copy.deepcopy, lambda c: pickle.loads(pickle.dumps(c))],
                          ids=["deepcopy", "pickle"])
-def test_a_copy_continues_from_the_previous_command(youbot, duplicate):
-    """A copy of a running controller carries the previous command: without jerk limits it commands
-    what the original does; with them it knows no earlier command and takes the last acceleration
-    as zero, so its first step changes the speed by at most j dt^2 (not a jump from rest)."""
-    q0 = np.array([0.0, 0.0, 0.0, 0.0, 0.5, 1.0, 1.2, 0.0])
+def test_a_copy_continues_exactly(youbot, duplicate):
+    """A copy of a running controller carries the previous command, the heading it was computed
+    at and the channels' history: with and without jerk limits, on a turned base with wheel
+    limits (the base-frame and wheel rows depend on the heading), it commands bit for bit what
+    the original does -- and so its first step changes the base-frame speed by at most
+    ``a_max dt`` (a copy that took the heading as 0 changed it by 8x that, marked optimal)."""
+    a_max = 1.0  # [m/s^2] the youBot sidecar's base_linear
     for jerk in (None, 20.0):
-        ee, posture = reach_tasks(youbot, offset=(0.3, -0.2, 0.1))
-        controller = wbc.Controller(youbot, [ee, posture], [wbc.JointVelocityLimits(),
-                                                            wbc.AccelerationLimits(max_jerk=jerk)])
-        q = q0
-        for _ in range(20):
-            q = youbot.integrate(q, controller.step(q), controller.dt)
-        previous = controller.context.previous.copy()
+        q0 = np.array([0.0, 0.0, 1.2, 0.0, 0.5, 1.0, 1.2, 0.0])  # base yaw 1.2 rad
+        ee = wbc.FrameTask("ee", position_cost=1.0, orientation_cost=0.5, gain=0.5)
+        pose = youbot.frame_pose(q0, "ee")
+        pose[:3, 3] += [2.0, -1.5, 0.0]  # far: the base drives and turns
+        ee.set_target(pose)
+        controller = wbc.Controller(youbot, [ee, wbc.PostureTask(1e-3, gain=0.05)],
+                                    [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits(),
+                                     wbc.AccelerationLimits(max_jerk=jerk)])
+        qs, vs = closed_loop(controller, q0, 40)
+        q = youbot.integrate(qs[-1], vs[-1], controller.dt)
         twin = duplicate(controller)
-        v = twin.step(q)
-        if jerk is None:
-            np.testing.assert_allclose(v, controller.step(q), rtol=0, atol=1e-12)
-        else:
-            assert np.abs(v[2:] - previous[2:]).max() <= jerk * controller.dt**2 + TOLERANCE
+        for tick in range(3):
+            v = controller.step(q)
+            np.testing.assert_array_equal(twin.step(q), v)
+            assert twin.last.success
+            if tick == 0:  # world (x, y) -> base frame at each command's own heading
+                def forward_left(w: np.ndarray, yaw: float) -> np.ndarray:
+                    return np.array([np.cos(yaw) * w[0] + np.sin(yaw) * w[1], -np.sin(yaw) * w[0] + np.cos(yaw) * w[1]])
+                change = forward_left(v, q[2]) - forward_left(vs[-1], qs[-1][2])
+                assert np.abs(change).max() <= a_max * controller.dt + TOLERANCE
+            q = youbot.integrate(q, v, controller.dt)
 
 
 # ------------------------------------------------------------------ viability (§7)

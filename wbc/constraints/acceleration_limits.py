@@ -212,7 +212,6 @@ class AccelerationLimitsData(ConstraintData):
         self._joints = self._joints.astype(np.int64)
         self._zero = np.zeros(nv)
         self._seen: object = None  # the context's previous command at the last compute (one shift per tick)
-        self._started = False  # computed once already
         self._heading = 0.0  # the heading at the last compute: the previous command's heading
         self._viability_channels(robot)
         self._braking_rates(robot)
@@ -322,10 +321,7 @@ class AccelerationLimitsData(ConstraintData):
             v, heading = previous, self._heading
         else:
             v, heading = self._zero, 0.0
-        # a copy or pickle of a running controller: no earlier command known, the last acceleration zero
-        restart = not self._started and previous is not None
-        self._started = True
-        self._bounds(v, float(heading), new_tick, restart, q, dt, self._joints, self._base, self._twist_speed,
+        self._bounds(v, float(heading), new_tick, q, dt, self._joints, self._base, self._twist_speed,
                      self._H0, self._wheel_speed, self._accel, self._jerk, self._speed, self._prev, self._prev2,
                      self._viable, self._viable_q, self._viable_accel, self._position_lower, self._position_upper,
                      self._scratch, rows.lower, rows.upper, rows.h, self._base_rows)
@@ -333,6 +329,15 @@ class AccelerationLimitsData(ConstraintData):
             self._heading = float(q[self._yaw])
         if self.n_inequalities:
             self._heading_rows.write(q, rows.G)
+
+    def warm_state(self) -> tuple[float, NDArray[np.float64], NDArray[np.float64]]:
+        """The heading the previous command was computed at and the channels' history
+        (``w_prev``, ``w_prev2``): a copy's box and jerk bounds continue exactly."""
+        return self._heading, self._prev.copy(), self._prev2.copy()
+
+    def resume(self, state: tuple[float, NDArray[np.float64], NDArray[np.float64]]) -> None:
+        self._heading = state[0]
+        self._prev[...], self._prev2[...] = state[1], state[2]
 
     def row_labels(self) -> list[str]:
         base = ["base a_x upper", "base a_x lower", "base a_y upper", "base a_y lower"] if self._base_rows else []

@@ -15,6 +15,7 @@ The controller hands each constraint views into its preallocated QP buffers
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -77,6 +78,17 @@ class ConstraintData:
         compute exactly what :meth:`compute` would; a subclass that overrides ``compute`` but
         not ``add_ops`` is computed in Python (``program.ops_follow_compute``)."""
         return False
+
+    def warm_state(self) -> Any:
+        """What this data keeps from tick to tick beyond the controller's previous command (e.g. a
+        history of the channels it bounds), for a copy or pickle of a running controller to compute
+        its next tick exactly as this one would: a picklable value, or None (the default: nothing)."""
+        return None
+
+    def resume(self, state: Any) -> None:
+        """Continue from ``state``: the :meth:`warm_state` of the same constraint's data in the
+        controller that this data's controller copies (called once, after the copy is built, when
+        that was not None)."""
 
     def row_labels(self) -> list[str]:
         """Human-readable names of the inequality rows, then of the equality rows (read when the

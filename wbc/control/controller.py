@@ -206,11 +206,13 @@ class Controller:
 
     def _warm_state(self) -> WarmState:
         """What the next tick starts from besides the specification: the tick counter, the
-        previous command (the context's) and the working sets of the DAQP workspaces that the
-        program solves in (a qpsolvers backend carries its own warm start when copied)."""
+        previous command (the context's), the working sets of the DAQP workspaces that the
+        program solves in (a qpsolvers backend carries its own warm start when copied) and what
+        the constraints keep from tick to tick (:meth:`ConstraintData.warm_state`)."""
         previous = self._context.previous
         return WarmState(self._buffers.tick, [workspace.working_set for workspace in self._daqp_workspaces()],
-                         None if previous is None else previous.copy())
+                         None if previous is None else previous.copy(),
+                         [data.warm_state() for data in self._constraint_data])
 
     def _daqp_workspaces(self) -> list[NativeWorkspace]:
         """The native DAQP workspaces the tick program solves in (the levels' or the one QP's)."""
@@ -706,6 +708,7 @@ class WarmState(NamedTuple):
     tick: int  #: the tick counter
     working_sets: list[NDArray[np.intc]]  #: DAQP's constraint states, one per workspace of the program
     previous: NDArray[np.float64] | None  #: the previous command (``TickContext.previous``)
+    constraints: list[Any]  #: each constraint data's :meth:`~wbc.constraints.constraint.ConstraintData.warm_state`
 
 
 def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmState) -> Controller:
@@ -719,4 +722,7 @@ def _rebuilt(cls: type[Controller], specification: dict[str, Any], warm: WarmSta
     if len(workspaces) == len(warm.working_sets):  # (the same modes: always, unless DAQP's C API went missing)
         for workspace, states in zip(workspaces, warm.working_sets, strict=True):
             workspace.working_set = states
+    for data, state in zip(controller._constraint_data, warm.constraints, strict=True):
+        if state is not None:
+            data.resume(state)
     return controller

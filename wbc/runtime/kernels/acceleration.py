@@ -40,11 +40,11 @@ def braking_speed(distance: np.ndarray, a_max: np.ndarray, dt: float, out: np.nd
             out[i] = step * (delta / (m + 1) + 0.5 * m)
 
 
-@declared("void(float64[:], float64, boolean, boolean, float64[:], float64, int64[:], int64[:], float64[:], "
+@declared("void(float64[:], float64, boolean, float64[:], float64, int64[:], int64[:], float64[:], "
           "float64[:, :], float64, float64[:], float64[:], float64[:], float64[:], float64[:], int64[:], int64[:], "
           "float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], float64[:], boolean)",
           cache=CACHE, nogil=True, **ENTRY)
-def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: bool, q: np.ndarray, dt: float,
+def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, q: np.ndarray, dt: float,
                         joints: np.ndarray, base: np.ndarray, twist_speed: np.ndarray, H0: np.ndarray,
                         wheel_speed: float, accel: np.ndarray, jerk: np.ndarray, speed: np.ndarray,
                         prev: np.ndarray, prev2: np.ndarray, viable: np.ndarray, viable_q: np.ndarray,
@@ -55,8 +55,8 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
 
     History: on a ``new_tick`` ``w_prev2 <- w_prev``; then ``w_prev <-`` the channels of ``v`` (the
     reference velocity; its base twist taken at ``heading`` and scaled as a whole into
-    ``twist_speed`` and ``wheel_speed``), clipped into ``speed``; ``restart``: ``w_prev2 <- w_prev``
-    (no earlier command known). Bounds per channel, each clipped into the ones before::
+    ``twist_speed`` and ``wheel_speed``), clipped into ``speed``. Bounds per channel, each clipped
+    into the ones before::
 
         box:        max(w_prev - a dt, -speed) <= w <= min(w_prev + a dt, speed)
         viability:  -braking_speed(q - q_lower) <= w <= braking_speed(q_upper - q)   (channels ``viable``,
@@ -95,9 +95,6 @@ def acceleration_bounds(v: np.ndarray, heading: float, new_tick: bool, restart: 
         prev[base[BASE_YAW_CHANNEL]] = scale * twist[2]
     for i in range(n):
         prev[i] = min(max(prev[i], -speed[i]), speed[i])
-    if restart:
-        for i in range(n):
-            prev2[i] = prev[i]
     box_lower, box_upper = scratch[:n], scratch[n:2 * n]
     for i in range(n):
         step = accel[i] * dt
