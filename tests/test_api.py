@@ -74,6 +74,27 @@ def test_a_refused_target_keeps_the_previous_one():
         np.testing.assert_array_equal(task.target, pose)
 
 
+@pytest.mark.parametrize("make", [lambda: wbc.PositionTask("ee", gain=0.5), lambda: wbc.CoMTask(gain=0.5)],
+                         ids=["PositionTask", "CoMTask"])
+def test_a_refused_point_target_keeps_the_previous_point_and_velocity(youbot, make):
+    """set_target(position, velocity): a good position with a bad velocity (or the reverse) is
+    refused whole -- the next command is that of a task given only the earlier target (the
+    position was written before the velocity was checked: the target moved on a refused call)."""
+    q = np.array([0.0, 0.0, 0.3, 0.2, 0.5, 1.0, 1.2, 0.0])
+    point, velocity = np.array([0.4, -0.2, 0.3]), np.array([0.05, 0.0, -0.02])
+    task, reference = make(), make()
+    task.set_target(point, velocity)
+    reference.set_target(point, velocity)
+    for bad_point, bad_velocity in (([9.0, 9.0, 9.0], [np.nan, 0.0, 0.0]), ([np.inf, 0.0, 0.0], [0.1, 0.1, 0.1]),
+                                    ([9.0, 9.0, 9.0], [1.0, 2.0])):
+        with pytest.raises(wbc.InvalidInputError):
+            task.set_target(bad_point, bad_velocity)
+    commands = [wbc.Controller(youbot, [t, wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()]).step(q)
+                for t in (task, reference)]
+    np.testing.assert_array_equal(commands[0], commands[1])
+    np.testing.assert_array_equal(task.target, point)
+
+
 def test_a_target_with_a_twist_is_kept_whole_or_replaced_whole(youbot):
     """FrameTask.set_target: a refused pose or twist keeps the previous pose *and* feed-forward
     twist; a later target without a twist drops the twist. Checked through the command, against a

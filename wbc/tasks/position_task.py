@@ -61,10 +61,13 @@ class PositionTask(ErrorTask):
         """Set the target point [m] (world) and optionally its feed-forward velocity [m/s].
 
         Raises:
-            InvalidInputError: ``position`` or ``velocity`` is not 3 finite numbers.
+            InvalidInputError: ``position`` or ``velocity`` is not 3 finite numbers. The previous
+                target is then kept.
         """
-        self._target[...] = as_vector(position, 3, "target position")
-        self._feedforward[...] = 0.0 if velocity is None else as_vector(velocity, 3, "target velocity")
+        target = as_vector(position, 3, "target position")
+        feedforward = 0.0 if velocity is None else as_vector(velocity, 3, "target velocity")  # both checked first
+        self._target[...] = target
+        self._feedforward[...] = feedforward
         if not self._has_target:  # (an attribute write through Item.__setattr__ costs ~0.2 us)
             self._has_target = True
 
