@@ -82,6 +82,17 @@ def test_generic_budgets_reach_the_backends_own_setting(name):
                 make_solver(name, {generic: value})
 
 
+@pytest.mark.parametrize("name", [name for name in KNOWN if "max_iter" in BUDGET_KEYS[name]])
+def test_an_iteration_budget_is_a_whole_number(name):
+    """A fractional iteration budget is refused when the backend is built (it was a raw TypeError
+    from DAQP's constructor, or a TypeError in every tick of the others); a whole float is that int."""
+    with pytest.raises(InvalidSolverOptionError, match="counts iterations: it must be a whole number, got 1.5"):
+        make_solver(name, {"max_iter": 1.5})
+    setting = make_solver(name, {"max_iter": 1000.0}).settings[BUDGET_KEYS[name]["max_iter"]]
+    assert setting == 1000 and isinstance(setting, int)
+    assert make_solver(name, {"max_iter": 1000.0}).solve(small_qp()).success
+
+
 def test_a_generic_and_an_own_budget_must_agree():
     with pytest.raises(InvalidSolverOptionError, match="two different budgets"):
         make_solver("daqp", {"max_iter": 5, "iter_limit": 6})

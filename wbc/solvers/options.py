@@ -130,16 +130,17 @@ def _check_key(name: str, key: object, valid: dict[str, object] | None) -> None:
                                    f"valid keys: {', '.join(sorted(valid))}")
 
 
-def _check_value(name: str, key: str, value: object, default: object) -> None:
+def _check_value(name: str, key: str, value: object, default: object) -> object:
+    """``value``, checked for ``key`` (an iteration budget given as a whole float: that int)."""
     where = f"solver option {key!r} of {name}"
     if isinstance(default, bool) or key == "warm_start":
         if not isinstance(value, bool):
             raise InvalidSolverOptionError(f"{where} must be a bool, got {value!r}")
-        return
+        return value
     budget, tolerance = _BUDGET.search(key), _TOLERANCE.search(key) and not (
         isinstance(default, numbers.Real) and default < 0)
     if not (isinstance(default, numbers.Real) or budget or tolerance):
-        return  # not a number: the backend checks it
+        return value  # not a number: the backend checks it
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InvalidSolverOptionError(f"{where} must be a number, got {value!r}")
     number = float(value)
@@ -147,6 +148,11 @@ def _check_value(name: str, key: str, value: object, default: object) -> None:
         raise InvalidSolverOptionError(f"{where} is a budget: it must be finite and > 0, got {value!r}")
     if tolerance and not (math.isfinite(number) and number >= 0):
         raise InvalidSolverOptionError(f"{where} is a tolerance: it must be finite and >= 0, got {value!r}")
+    if budget and budget.group(1) != "time_limit" and not isinstance(value, numbers.Integral):
+        if not number.is_integer():
+            raise InvalidSolverOptionError(f"{where} counts iterations: it must be a whole number, got {value!r}")
+        return int(number)
+    return value
 
 
 def validate_options(name: str, options: dict[str, Any] | None) -> dict[str, Any]:
@@ -160,7 +166,7 @@ def validate_options(name: str, options: dict[str, Any] | None) -> dict[str, Any
     checked: dict[str, Any] = {}
     for key, value in options.items():
         _check_key(name, key, valid)
-        _check_value(name, key, value, None if valid is None else valid.get(key))
+        value = _check_value(name, key, value, None if valid is None else valid.get(key))
         own = BUDGET_KEYS.get(name, {}).get(key, key)
         if own in checked and checked[own] != value:
             raise InvalidSolverOptionError(f"{name}: {key!r} and {own!r} give two different budgets")
