@@ -350,6 +350,22 @@ def test_malformed_arguments_raise_a_wbc_error_naming_them(youbot, make, match):
         make(youbot)
 
 
+@pytest.mark.parametrize("call, match", [
+    (lambda y, c, t: c.step([0, 0, 0, [0], 0.5, 1.0, 1.2, 0.0]), r"q must be an array of shape \(8,\)"),
+    (lambda y, c, t: y.frame_pose([0, 0, 0, [0], 0.5, 1.0, 1.2, 0.0], "ee"), r"q must be an array of shape \(8,\)"),
+    (lambda y, c, t: t.set_target([[1, 0, 0, 0], [0, 1, 0], [0, 0, 1, 0], [0, 0, 0, 1]]),
+     r"target pose must be an array of shape \(4, 4\)"),
+    (lambda y, c, t: wbc.Sphere([[0.7], 0.0, 0.1], 0.05), r"Sphere center must be an array of shape \(3,\)"),
+], ids=["step", "frame_pose", "set_target", "Sphere"])
+def test_ragged_nested_lists_are_refused_naming_the_argument(youbot, call, match):
+    """Ragged nested lists (numpy cannot make an array of them) raise a wbc error naming the
+    argument and the shape it needs, not numpy's "inhomogeneous shape" ValueError."""
+    task = wbc.FrameTask("ee")
+    controller = wbc.Controller(youbot, [hold(youbot, HOME)])
+    with pytest.raises(wbc.InvalidInputError, match=match):
+        call(youbot, controller, task)
+
+
 @pytest.mark.parametrize("q", [np.zeros(8, dtype=bool), np.array(["0"] * 8), [None] * 8])
 def test_configurations_that_are_not_numbers_are_refused(youbot, q):
     controller = wbc.Controller(youbot, [hold(youbot, HOME)])

@@ -22,9 +22,13 @@ _Item = TypeVar("_Item")
 
 def _real_array(value: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.float64]:
     """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
-    if np.iscomplexobj(value):
+    try:
+        complex_values, kind = np.iscomplexobj(value), np.asarray(value).dtype.kind
+    except (TypeError, ValueError) as exc:  # e.g. ragged nested lists
+        raise InvalidInputError(f"{name} must be an array of shape {shape} (numbers, not ragged nested lists), "
+                                f"got {_describe(value)}") from exc
+    if complex_values:
         raise InvalidInputError(f"{name} must be real, got complex values")
-    kind = np.asarray(value).dtype.kind
     if kind in "bOUSV" and not (kind == "O" and _all_real(value)):
         raise InvalidInputError(f"{name} must be numeric (int or float), got {_describe(value)}")
     try:
