@@ -231,6 +231,9 @@ def test_load_robot_errors(tmp_path):
     broken.write_text("<robot name='x'><joint name='j' type='revolute'/></robot>")
     with pytest.raises(wbc.ModelError):
         wbc.load_robot(broken)
+    for not_a_name in (None, 3, ["youbot"]):  # (a raw TypeError of pathlib before)
+        with pytest.raises(wbc.ModelError, match="takes a shipped model's name .*youbot.* or a file's path, got"):
+            wbc.load_robot(not_a_name)
 
 
 def test_any_urdf_path_loads_and_a_planar_base_is_detected(tmp_path):

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -456,6 +457,9 @@ def load_robot(name_or_path: str | Path, base: str | None = None, *, wheels: Seq
     if isinstance(name_or_path, str) and name_or_path in shipped_models():
         _no_declaration(declared, name_or_path)
         return _load_from_sidecar(model_path(name_or_path, "toml"))
+    if not isinstance(name_or_path, (str, os.PathLike)):
+        raise ModelError(f"load_robot takes a shipped model's name ({', '.join(shipped_models())}) or a file's "
+                         f"path, got {type(name_or_path).__name__} {name_or_path!r}")
     path = Path(name_or_path)
     if not path.is_file():
         raise ModelError(
