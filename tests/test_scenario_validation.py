@@ -123,6 +123,11 @@ def test_planned_reference_keys_are_checked(tmp_path):
         load_scenario(write(tmp_path, edited("threshold = 1e-4", "treshold = 1e-4", planned)))
     with pytest.raises(ScenarioError, match=r"needs centre"):
         load_scenario(write(tmp_path, edited('path = "line"', 'path = "arc"', planned)))
+    wrist = 'wrist = ["joint_4", "joint_5", "joint_6"]'
+    for names, count in (('["joint_4"]', "at least 3 items"), ('["joint_4", "joint_5", "joint_6", "joint_1"]',
+                                                               "at most 3 items")):  # (a raw IndexError of the planner)
+        with pytest.raises(ScenarioError, match=rf"\[reference\] wrist = .*list should have {count}"):
+            load_scenario(write(tmp_path, edited(wrist, f"wrist = {names}", planned)))
 
 
 def test_scenario_reduced_must_be_a_bool():

@@ -15,7 +15,7 @@ from wbc.analysis.singularity import singularity_measure
 from wbc.app.cli import main
 from wbc.app.closed_loop import run
 from wbc.app.scenario import load_scenario
-from wbc.core.errors import PlanningError, ScenarioError
+from wbc.core.errors import InvalidInputError, PlanningError, ScenarioError
 from wbc.trajectory import JointTrajectory, LinePath, branch_switches, plan
 
 if sys.version_info >= (3, 11):
@@ -191,3 +191,12 @@ def test_planner_refuses_a_goal_inside_the_region(scenarios):
     goal[1, 3] = -0.15  # about where the line meets theta5 = 0
     with pytest.raises(PlanningError, match="start or goal"):
         plan(robot, LinePath(T_A, goal), q0, 3.0, THRESHOLD)
+
+
+@pytest.mark.parametrize("wrist", [("joint_4",), ("joint_4", "joint_5", "joint_6", "joint_1"), "joint_4"])
+def test_the_planner_takes_three_wrist_joints(scenarios, wrist):
+    """``plan(wrist=...)`` names three joints; another count is refused before planning (was a raw
+    IndexError for fewer, the extra ones silently ignored for more)."""
+    robot, q0 = scenarios["planned"].robot, scenarios["planned"].q0
+    with pytest.raises(InvalidInputError, match="wrist names three joints"):
+        plan(robot, LinePath(T_A, T_B), q0, 6.0, THRESHOLD, wrist=wrist)

@@ -162,7 +162,7 @@ class PlannedReference(GoalKeys):
     threshold: Positive
     reroute: bool = True
     margin: Positive | None = None
-    wrist: list[str] | None = None
+    wrist: Annotated[list[str], Field(min_length=3, max_length=3)] | None = None
 
     @model_validator(mode="after")
     def _centre(self) -> PlannedReference:

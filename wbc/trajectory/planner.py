@@ -137,6 +137,8 @@ def plan(robot: Robot, path: Path, q0: ArrayLike, duration: float, threshold: fl
     speed_fraction = as_positive(speed_fraction, "speed_fraction")
     if margin < 1.0:
         raise InvalidInputError(f"margin must be >= 1, got {margin}")
+    if wrist is not None and (isinstance(wrist, str) or len(wrist) != 3):
+        raise InvalidInputError(f"wrist names three joints, e.g. ('joint_4', 'joint_5', 'joint_6'), got {wrist!r}")
     timed = TimedPath(path, duration)
 
     def sample(trajectory: TimedPath, q_start: ArrayLike) -> JointTrajectory:
