@@ -2,6 +2,7 @@
 formulas and finite differences, closed loops through random point clouds on a mecanum, a
 differential and a synchro base (reduced and plain), the push-out, inert rows, bad input."""
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -318,3 +319,18 @@ walls = {walls}
     path.write_text(text)
     with pytest.raises(wbc.ScenarioError, match=message):
         load_scenario(path)
+
+
+@pytest.mark.parametrize("start, end, spacing", [([-1e308, 0.27], [1e308, 0.27], 0.02),  # (a raw OverflowError)
+                                                 ([0.0, 0.0], [1.0, 0.0], 1e-300),  # (numpy's "maximum size")
+                                                 ([0.0, 0.0], [30_000.0, 0.0], 0.02)])
+def test_a_wall_of_too_many_points_is_refused_naming_it(start, end, spacing):
+    """A wall is cut into at most MAX_SEGMENT_POINTS points; beyond, a wbc error names the wall and
+    the fix -- its length computed without overflow (endpoints near 1e308), no numpy warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(wbc.InvalidInputError, match=r"a wall's points from .* would take more than 1000000 "
+                                                        r"points: give a larger spacing"):
+            wbc.collision.footprint.wall_points(start, end, spacing)
+    points = wbc.collision.footprint.wall_points([0.0, 0.0], [20_000.0, 0.0], 0.02)  # at the cap: 10^6 pieces
+    assert len(points) == 1_000_001 and np.abs(np.diff(points[:, 0])).max() <= 0.02 + 1e-9  # (rounding at 2e4 m)

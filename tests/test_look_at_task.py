@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -148,3 +150,23 @@ def test_bad_input_is_refused_by_name(youbot):
     with pytest.raises(wbc.InvalidInputError, match="no target set"):
         controller.step(youbot.neutral())
     assert repr(task) == "LookAtTask(frame='ee', axis=[0.0, 0.0, 1.0], cost=[1.0, 1.0, 1.0], gain=1.0)"
+
+
+def test_huge_finite_axes_and_targets_keep_their_direction(youbot):
+    """Directions are normalised without overflow (``np.linalg.norm`` of entries near 1e308 is inf):
+    an axis of 1e308s is the same unit axis as one of 1s, and a target at 1e308 (1, 1, 1) is looked
+    at as one far along (1, 1, 1) -- no numpy warning in the tick, the rows those of a target at
+    1e300 (1, 1, 1) (the line of sight's change with the frame's motion is 0 at that range)."""
+    np.testing.assert_allclose(wbc.LookAtTask("ee", axis=[1e308, 1e308, 0.0]).axis, [2**-0.5, 2**-0.5, 0.0],
+                               rtol=0, atol=1e-15)
+    q = np.array([0.0, 0.0, 0.3, 0.2, 0.5, 1.0, 1.2, 0.0])
+    commands = []
+    for scale in (1e308, 1e300):
+        task = wbc.LookAtTask("ee", axis=[0.0, 0.0, 1.0], target=[scale] * 3)
+        controller = wbc.Controller(youbot, [task, wbc.PostureTask(1e-3)], [wbc.JointVelocityLimits()])
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            commands.append(controller.step(q))
+        assert controller.last.success, controller.last.status
+    assert np.abs(commands[1]).max() > 1e-3  # the task acts: not a zero row
+    np.testing.assert_allclose(commands[0], commands[1], rtol=0, atol=1e-12)

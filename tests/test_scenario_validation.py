@@ -329,3 +329,25 @@ def test_a_duration_option_out_of_the_tick_range_is_refused_before_the_run(durat
     (line,) = result.stderr.splitlines()
     assert line.startswith(f"wbc: error: --duration {float(duration):g} s is {ticks} of youbot_circle"), line
     assert "at most 1e+07" in line
+
+
+@pytest.mark.parametrize("normal, start_axis", [([0.0, 0.0, 1e308], [0.0, 1.0, 0.0]),
+                                                ([0.0, 0.0, 1.0], [0.0, 1e308, 1e308]),
+                                                ([0.0, 0.0, 1e-6], [0.0, 2e-8, 0.0])])
+def test_a_circle_takes_the_direction_of_huge_or_tiny_vectors(normal, start_axis):
+    """``normal`` and ``start_axis`` are directions: 1e308 entries (whose ``np.linalg.norm`` is inf)
+    and small ones give the circle of the unit vectors -- it was silently another circle (the axis
+    divided by inf), with a numpy warning. Against the written-out point at t = 3 s."""
+    from wbc.app.references import Circle
+
+    start = np.eye(4)
+    start[:3, 3] = (0.4, -0.1, 0.3)
+    circle = Circle(start=start, radius=0.2, period=8.0, normal=np.array(normal), start_axis=np.array(start_axis),
+                    ramp_time=0.0)
+    a = np.array(start_axis) / np.max(np.abs(start_axis))
+    a -= np.array([0.0, 0.0, 1.0]) * a[2]  # in the plane of the normal (0, 0, 1)
+    a /= np.linalg.norm(a)
+    b = np.cross([0.0, 0.0, 1.0], a)
+    phi = 2 * np.pi * 3.0 / 8.0
+    expected = start[:3, 3] - 0.2 * a + 0.2 * (np.cos(phi) * a + np.sin(phi) * b)
+    np.testing.assert_allclose(circle(3.0)[0][:3, 3], expected, rtol=0, atol=1e-12)

@@ -15,7 +15,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..core.errors import InvalidInputError
-from ..core.validation import as_pose, as_positive, as_vector
+from ..core.validation import as_pose, as_positive, as_vector, direction
 
 
 class ReferenceMotion(Protocol):
@@ -78,15 +78,15 @@ class Circle:
         self.period = as_positive(self.period, "period")
         normal = as_vector(self.normal, 3, "normal")
         axis = as_vector(self.start_axis, 3, "start_axis")
-        size = float(np.linalg.norm(normal))
-        if not size > 1e-12:
+        unit_normal, size = direction(normal)  # (entries near 1e308 keep their direction)
+        if unit_normal is None or not size > 1e-12:
             raise InvalidInputError(f"normal must be a nonzero vector (the circle plane's normal), got {normal}")
-        normal = normal / size
-        axis = axis - normal * (normal @ axis)
-        if np.linalg.norm(axis) < 1e-9 * max(1.0, float(np.linalg.norm(self.start_axis))):
+        unit_axis, length = direction(axis)
+        in_plane = None if unit_axis is None else unit_axis - unit_normal * (unit_normal @ unit_axis)
+        if in_plane is None or np.linalg.norm(in_plane) < 1e-9 * max(1.0, 1.0 / length):  # (|axis| < 1e-9: zero)
             raise InvalidInputError(f"start_axis {self.start_axis} is parallel to normal {self.normal} (or zero): "
                                     "give a direction in the circle plane, from its centre toward the start point")
-        self.normal, self.start_axis = normal, axis / np.linalg.norm(axis)
+        self.normal, self.start_axis = unit_normal, in_plane / np.linalg.norm(in_plane)
         self._b = np.cross(self.normal, self.start_axis)
         self.centre = self.start[:3, 3] - self.radius * self.start_axis
         self._pose = self.start.copy()

@@ -4,6 +4,7 @@ every tick) and polygons in the world frame; velocity-damper rows on the base ve
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -13,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
-from ..core.validation import as_gain, as_positive
+from ..core.validation import as_gain, as_positive, direction
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
@@ -29,6 +30,8 @@ if TYPE_CHECKING:  # pragma: no cover
 #: [m] spacing of the points that stand for a polygon obstacle's edges: the footprint keeps
 #: ``min_distance - POLYGON_SPACING / 2`` from the edges themselves (a corner between two samples)
 POLYGON_SPACING = 0.01
+#: the most points a wall or a polygon edge is cut into (16 MB of points: a 20 km wall at 2 cm)
+MAX_SEGMENT_POINTS = 1_000_000
 _MIN_CELLS = 1024  # grid cells allocated at least (grown with the points: 4 per point)
 
 
@@ -74,11 +77,24 @@ def _segments_cross(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[n
     return side(a, b, c) * side(a, b, d) <= 0.0 and side(c, d, a) * side(c, d, b) <= 0.0
 
 
+def _pieces(a: NDArray[np.float64], b: NDArray[np.float64], spacing: float, what: str) -> int:
+    """How many pieces of at most ``spacing`` [m] the segment ``a``-``b`` takes (>= 1); refused
+    beyond :data:`MAX_SEGMENT_POINTS` (its length computed without overflow: endpoints near 1e308)."""
+    with np.errstate(over="ignore"):  # (an inf difference: too many points, refused below)
+        difference = b - a
+    _, length = direction(difference)
+    count = length / spacing
+    if not count <= MAX_SEGMENT_POINTS:
+        raise InvalidInputError(f"{what} from {a.tolist()} to {b.tolist()} at most {spacing:g} m apart would take "
+                                f"more than {MAX_SEGMENT_POINTS} points: give a larger spacing or a shorter segment")
+    return max(math.ceil(count), 1)
+
+
 def polygon_boundary_points(polygon: NDArray[np.float64], spacing: float = POLYGON_SPACING) -> NDArray[np.float64]:
     """Points along the edges of ``polygon`` at most ``spacing`` apart, its vertices included."""
     pieces = []
     for a, b in zip(polygon, np.roll(polygon, -1, axis=0), strict=True):
-        count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+        count = _pieces(a, b, spacing, "a polygon edge's points")
         pieces.append(a + np.outer(np.arange(count) / count, b - a))
     return np.concatenate(pieces)
 
@@ -91,7 +107,7 @@ def wall_points(start: ArrayLike, end: ArrayLike, spacing: float = 0.02) -> NDAr
     if a.shape != (2,) or b.shape != (2,) or not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise InvalidInputError(f"a wall's start and end must be finite points (x, y) [m], got {start!r}, {end!r}")
     spacing = as_positive(spacing, "spacing")
-    count = max(int(np.ceil(np.linalg.norm(b - a) / spacing)), 1)
+    count = _pieces(a, b, spacing, "a wall's points")
     return a + np.outer(np.linspace(0.0, 1.0, count + 1), b - a)
 
 

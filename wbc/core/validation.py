@@ -78,6 +78,19 @@ def all_finite(x: NDArray[np.float64]) -> bool:
     return math.isfinite(x.dot(finite_weights(x.size)))
 
 
+def direction(vector: NDArray[np.float64]) -> tuple[NDArray[np.float64] | None, float]:
+    """``(vector / |vector|, |vector|)`` without overflow: the vector is scaled by its largest
+    entry first, so entries near 1e308 keep their direction (``np.linalg.norm`` would overflow to
+    inf and the quotient to 0); ``|vector|`` itself may be inf then. ``(None, 0.0)`` for the zero
+    vector, ``(None, inf)`` for one with an inf entry (no direction either way)."""
+    scale = float(np.max(np.abs(vector)))
+    if not (scale > 0.0 and math.isfinite(scale)):
+        return None, (0.0 if scale == 0.0 else math.inf)
+    scaled = vector / scale
+    length = float(np.linalg.norm(scaled))  # in [1, sqrt(size)]
+    return scaled / length, scale * length
+
+
 def as_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
     """Return ``value`` as a finite float64 vector of length ``size``.
 

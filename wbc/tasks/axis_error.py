@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.errors import InvalidInputError
-from ..core.validation import as_vector
+from ..core.validation import as_vector, direction
 
 #: below this ``|a x d|`` the vectors count as aligned or opposed (the limits above)
 PARALLEL = 1e-9
@@ -36,11 +36,11 @@ MIN_AXIS_NORM = 1e-9
 
 def as_unit_axis(value: ArrayLike, name: str) -> NDArray[np.float64]:
     """``value`` (3 finite numbers, not zero) scaled to unit length."""
-    axis = np.array(as_vector(value, 3, name), dtype=float)
-    norm = float(np.linalg.norm(axis))
-    if not norm > MIN_AXIS_NORM:
+    axis = as_vector(value, 3, name)
+    unit, norm = direction(axis)  # (entries near 1e308 keep their direction)
+    if unit is None or not norm > MIN_AXIS_NORM:
         raise InvalidInputError(f"{name} must be a non-zero direction (3 numbers, e.g. [0, 0, 1]), got {axis}")
-    return axis / norm
+    return unit
 
 
 def skew(x: np.ndarray) -> NDArray[np.float64]:

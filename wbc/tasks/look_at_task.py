@@ -6,7 +6,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.settings import Cost
-from ..core.validation import as_vector
+from ..core.validation import as_vector, direction
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from .axis_error import as_unit_axis, axis_error, skew
@@ -102,13 +102,11 @@ class LookAtTaskData(ErrorTaskData):
     def compute_error_and_jacobian(self, kin: Kinematics, error: np.ndarray, jacobian: np.ndarray) -> None:
         placement = kin.frame_placement(self._frame_id)
         a = placement.rotation @ self.task.axis
-        sight = self.task._target - placement.translation
-        rho = float(np.linalg.norm(sight))
-        if not rho >= MIN_TARGET_DISTANCE:  # no direction to look along: ask nothing
+        d, rho = direction(self.task._target - placement.translation)  # (a target near 1e308 keeps its direction)
+        if d is None or not rho >= MIN_TARGET_DISTANCE:  # no direction to look along: ask nothing
             error[:] = 0.0
             jacobian[...] = 0.0
             return
-        d = sight / rho
         e_a, e_d = axis_error(a, d, error)
         frame_jacobian = kin.frame_jacobian(self._frame_id)
         sight_rate = (np.eye(3) - np.outer(d, d)) / rho  # -dd/dp
