@@ -4,6 +4,7 @@ Oracle: ``pinocchio.integrate(model, q, v dt)``."""
 
 import copy
 import dataclasses
+import warnings
 
 import numpy as np
 import pinocchio as pin
@@ -87,6 +88,24 @@ def test_a_non_finite_q_or_v_is_refused_naming_it(youbot, where, bad):
     (q if where == "q" else v)[3] = bad
     with pytest.raises(wbc.InvalidInputError, match=f"^{where} contains NaN or inf"):
         youbot.integrate(q, v, 0.01)
+
+
+@pytest.mark.parametrize("robot_kind", ["vector space", "continuous joint"])
+def test_a_step_that_overflows_is_refused_without_a_warning(youbot, tmp_path, robot_kind):
+    """Finite q, v and dt whose ``q + v dt`` overflows: refused (it returned inf entries, with a
+    numpy warning) on the compiled path and on Pinocchio's; a step just inside range is taken."""
+    if robot_kind == "vector space":
+        robot = youbot
+    else:
+        (tmp_path / "wheel_arm.urdf").write_text(CONTINUOUS)
+        robot = wbc.load_robot(tmp_path / "wheel_arm.urdf")
+    q = pin.neutral(robot.model)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(wbc.InvalidInputError, match=r"q \+ v dt overflows \(dt = 10.0, largest \|v\| = 1e\+308\)"):
+            robot.integrate(q, np.full(robot.nv, 1e308), 10.0)
+        reached = robot.integrate(q, np.full(robot.nv, 1e300), 10.0)
+    assert np.all(np.isfinite(reached)) and np.abs(reached).max() >= 1e301
 
 
 def test_other_inputs_take_the_checked_path(youbot, rng):

@@ -31,7 +31,7 @@ from pydantic import Field, ValidationError
 
 from ..core.errors import InvalidInputError, ModelError, ModelWarning, UnknownFrameError
 from ..core.schema import Positive, Table, explain, read_toml, suggest
-from ..core.validation import as_positive, as_vector
+from ..core.validation import all_finite, as_positive, as_vector
 from ..runtime import kernels
 from ..runtime.native_entry import unchecked_entry
 from . import shipped
@@ -334,7 +334,8 @@ class Robot:
             shipped robot) that is ``q + v dt``, computed and checked in one compiled call.
 
         Raises:
-            InvalidInputError: a malformed ``q`` or ``v``, or ``dt`` not a finite number > 0.
+            InvalidInputError: a malformed ``q`` or ``v``, ``dt`` not a finite number > 0, or a step
+                ``v dt`` so large that the configuration reached is not finite.
         """
         shape = self._vector_space_shape
         if shape is not None and type(dt) is float:  # the control loop's fast path
@@ -351,7 +352,12 @@ class Robot:
         v = self.check_velocity(v)
         if not (type(dt) is float and dt > 0.0 and dt != math.inf):  # the control loop's fast path
             dt = as_positive(dt, "dt")
-        return self.base.integrate(self.model, q, v, dt)
+        with np.errstate(over="ignore", invalid="ignore"):  # (an overflow is refused below)
+            reached = self.base.integrate(self.model, q, v, dt)
+        if not all_finite(reached):
+            raise InvalidInputError(f"q + v dt overflows (dt = {dt}, largest |v| = {np.abs(v).max():g}): "
+                                    "no finite configuration is reached")
+        return reached
 
     def __repr__(self) -> str:
         return f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, base={self.base.name})"
