@@ -332,5 +332,10 @@ def test_a_wall_of_too_many_points_is_refused_naming_it(start, end, spacing):
         with pytest.raises(wbc.InvalidInputError, match=r"a wall's points from .* would take more than 1000000 "
                                                         r"points: give a larger spacing"):
             wbc.collision.footprint.wall_points(start, end, spacing)
-    points = wbc.collision.footprint.wall_points([0.0, 0.0], [20_000.0, 0.0], 0.02)  # at the cap: 10^6 pieces
+
+
+def test_a_wall_at_the_point_cap_is_cut():
+    """A wall of exactly MAX_SEGMENT_POINTS pieces is accepted, no point further than the spacing apart."""
+    points = wbc.collision.footprint.wall_points([0.0, 0.0], [20_000.0, 0.0], 0.02)  # 10^6 pieces
+    assert wbc.collision.footprint.MAX_SEGMENT_POINTS == 1_000_000
     assert len(points) == 1_000_001 and np.abs(np.diff(points[:, 0])).max() <= 0.02 + 1e-9  # (rounding at 2e4 m)

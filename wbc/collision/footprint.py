@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
-from ..core.validation import as_gain, as_positive, direction
+from ..core.validation import as_gain, as_positive
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
@@ -79,11 +79,10 @@ def _segments_cross(a: NDArray[np.float64], b: NDArray[np.float64], c: NDArray[n
 
 def _pieces(a: NDArray[np.float64], b: NDArray[np.float64], spacing: float, what: str) -> int:
     """How many pieces of at most ``spacing`` [m] the segment ``a``-``b`` takes (>= 1); refused
-    beyond :data:`MAX_SEGMENT_POINTS` (its length computed without overflow: endpoints near 1e308)."""
+    beyond :data:`MAX_SEGMENT_POINTS` (endpoints near 1e308: an inf length, refused)."""
     with np.errstate(over="ignore"):  # (an inf difference: too many points, refused below)
         difference = b - a
-    _, length = direction(difference)
-    count = length / spacing
+    count = math.hypot(*difference) / spacing
     if not count <= MAX_SEGMENT_POINTS:
         raise InvalidInputError(f"{what} from {a.tolist()} to {b.tolist()} at most {spacing:g} m apart would take "
                                 f"more than {MAX_SEGMENT_POINTS} points: give a larger spacing or a shorter segment")
