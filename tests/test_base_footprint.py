@@ -321,6 +321,28 @@ walls = {walls}
         load_scenario(path)
 
 
+@pytest.mark.parametrize(("key", "value", "message"), [
+    ("points", "[[1.0, 2.0], [1.0, true]]", "points = .*: expected an array of \\[x, y\\] points"),
+    ("points", '[["1.0", 2.0]]', "points = .*: expected an array of \\[x, y\\] points"),
+    ("footprint", "[[-0.3, -0.2], [0.3, false], [0.3, 0.2]]", "footprint = .*: expected an array of \\[x, y\\]"),
+    ("polygons", "[[[0.6, -0.45], [0.8, -0.45], [true, -0.25]]]", "polygons = .*: expected an array of polygons"),
+])
+def test_point_arrays_of_a_scenario_hold_numbers_only(tmp_path, key, value, message):
+    """``true`` in a scenario's point array is a typo, not the coordinate 1.0 (which numpy would read)."""
+    from wbc.app.scenario import load_scenario
+
+    entries = {"footprint": "[[-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2]]", key: value}
+    text = 'name = "w"\n[robot]\nname = "youbot"\n[[tasks]]\ntype = "PostureTask"\ncost = 1.0\n' \
+           '[[constraints]]\ntype = "BaseFootprintAvoidance"\n' + "".join(f"{k} = {v}\n" for k, v in entries.items())
+    path = tmp_path / "w.toml"
+    path.write_text(text)
+    with pytest.raises(wbc.ScenarioError, match=f"\\[\\[constraints\\]\\] #1 \\(BaseFootprintAvoidance\\) {message}"):
+        load_scenario(path)
+    path.write_text(text.replace("true", "1.0").replace("false", "-0.1").replace('"1.0"', "1.0"))
+    avoidance = load_scenario(path).constraints[0]  # the same numbers, typed as numbers: loaded
+    assert isinstance(avoidance, wbc.BaseFootprintAvoidance) and len(avoidance.footprint) >= 3
+
+
 @pytest.mark.parametrize("start, end, spacing", [([-1e308, 0.27], [1e308, 0.27], 0.02),  # (a raw OverflowError)
                                                  ([0.0, 0.0], [1.0, 0.0], 1e-300),  # (numpy's "maximum size")
                                                  ([0.0, 0.0], [30_000.0, 0.0], 0.02)])

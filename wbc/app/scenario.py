@@ -74,9 +74,13 @@ CONSTRAINT_TYPES: dict[str, type[Constraint]] = {name: getattr(constraint_module
                                                  if name not in ("Constraint", "ConstraintRows")}
 CONSTRAINT_TYPES["CollisionAvoidance"] = CollisionAvoidance
 CONSTRAINT_TYPES["BaseFootprintAvoidance"] = BaseFootprintAvoidance
-#: keys whose values the constructor checks itself (arrays of points and polygons, obstacle tables)
-_CHECKED_BY_CONSTRUCTOR = {CollisionAvoidance: ("obstacles",),
-                           BaseFootprintAvoidance: ("footprint", "points", "polygons")}
+#: keys whose values the constructor checks itself (obstacle tables)
+_CHECKED_BY_CONSTRUCTOR = {CollisionAvoidance: ("obstacles",)}
+_POINTS = list[list[float]]
+_POLYGONS = list[list[list[float]]]
+#: keys holding arrays of [x, y] points [m]: numbers only, checked here (``true`` is no coordinate;
+#: numpy would read it as 1.0), their shapes by the constructor
+_POINT_ARRAYS = {BaseFootprintAvoidance: {"footprint": _POINTS, "points": _POINTS, "polygons": _POLYGONS}}
 MAX_TICKS = 10**7  #: longest run a scenario may ask for (duration / dt)
 _Item = TypeVar("_Item", Task, Constraint)
 
@@ -399,7 +403,7 @@ def _check_arguments(cls: type[Any], arguments: dict[str, Any], label: str) -> N
     for key, value in arguments.items():
         if key in _CHECKED_BY_CONSTRUCTOR.get(cls, ()):
             continue  # tables and arrays, checked by _obstacles and the constructor
-        hint = _toml_hint(hints[key]) if key in hints else _Numbers
+        hint = _POINT_ARRAYS.get(cls, {}).get(key) or (_toml_hint(hints[key]) if key in hints else _Numbers)
         if cls is PostureTask and key == "target":
             hint = Literal["initial"] | hint
         try:
@@ -436,7 +440,9 @@ def _adapter(hint: Any) -> TypeAdapter[Any]:
 
 def _describe(hint: Any) -> str:
     names = {float: "a finite number", int: "an integer", str: "a string", bool: "true or false",
-             type(None): "nothing", list[float]: "an array of numbers", list[str]: "an array of strings"}
+             type(None): "nothing", list[float]: "an array of numbers", list[str]: "an array of strings",
+             _POINTS: "an array of [x, y] points (numbers)",
+             _POLYGONS: "an array of polygons, each an array of [x, y] points (numbers)"}
     options = typing.get_args(hint) if typing.get_origin(hint) in (Union, types.UnionType) else (hint,)
     return " or ".join(names.get(o) or " or ".join(map(repr, typing.get_args(o))) for o in options
                        if o is not type(None))
