@@ -366,11 +366,25 @@ def test_ragged_nested_lists_are_refused_naming_the_argument(youbot, call, match
         call(youbot, controller, task)
 
 
-@pytest.mark.parametrize("q", [np.zeros(8, dtype=bool), np.array(["0"] * 8), [None] * 8])
+@pytest.mark.parametrize("q", [np.zeros(8, dtype=bool), np.array(["0"] * 8), [None] * 8,
+                               [0.0] * 7 + [True], (0.0, 0.0, np.bool_(False), 0, 0, 0, 0, 0)])
 def test_configurations_that_are_not_numbers_are_refused(youbot, q):
     controller = wbc.Controller(youbot, [hold(youbot, HOME)])
     with pytest.raises(wbc.InvalidInputError, match="q must be numeric"):
         controller.step(q)
+
+
+def test_a_boolean_among_numbers_is_refused_in_every_array_input(youbot):
+    """numpy reads [0.5, True, 0.4] as floats; wbc refuses true/false wherever it wants numbers."""
+    pose = np.eye(4).tolist()
+    pose[0][3] = True
+    with pytest.raises(wbc.InvalidInputError, match="target pose must be numeric .*not true/false"):
+        wbc.FrameTask("ee").set_target(pose)
+    with pytest.raises(wbc.InvalidInputError, match="center must be numeric .*not true/false"):
+        wbc.Sphere([0.5, True, 0.4], 0.1)
+    with pytest.raises(wbc.InvalidInputError, match="cost must be numeric .*not true/false"):
+        wbc.Controller(youbot, [wbc.PostureTask(cost=[1.0] * (youbot.nv - 1) + [False])])
+    assert wbc.Sphere([0.5, 1, 0.4], 0.1).center.tolist() == [0.5, 1.0, 0.4]  # ints are numbers
 
 
 def test_integer_and_object_configurations_are_converted(youbot):

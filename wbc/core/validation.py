@@ -29,8 +29,10 @@ def _real_array(value: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[
                                 f"got {_describe(value)}") from exc
     if complex_values:
         raise InvalidInputError(f"{name} must be real, got complex values")
-    if kind in "bOUSV" and not (kind == "O" and _all_real(value)):
-        raise InvalidInputError(f"{name} must be numeric (int or float), got {_describe(value)}")
+    # (numpy reads a list [1.0, True] as floats: a list's items are looked at one by one)
+    if kind in "bOUSV" and not (kind == "O" and _all_real(value)) or (
+            kind in "iuf" and isinstance(value, list | tuple) and not _all_real(value)):
+        raise InvalidInputError(f"{name} must be numeric (int or float, not true/false), got {_describe(value)}")
     try:
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
