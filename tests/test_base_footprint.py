@@ -154,6 +154,42 @@ def test_far_points_give_inert_rows_and_each_side_gets_its_own_row(youbot):
     assert np.all(rows.G == 0.0) and np.all(rows.h == 1.0)
 
 
+@pytest.mark.parametrize("outliers", [[[1e10, 1e10]], [[1e308, 1e308], [-1e308, -1e308]],
+                                      [[-1.7e308, 5.0], [1.7e308, -5.0], [3.0, 1.7e308]]])
+def test_wild_returns_in_a_scan_change_no_row(youbot, outliers):
+    """Points up to ~3e308 apart (a scan with wild returns) are bucketed without overflow (the grid's
+    cell count wrapped round int64 and the process crashed) and leave the rows of the near points
+    -- and a closed loop through the compiled tick -- exactly as without them."""
+    near = np.array([[0.5, 0.0], [0.0, 0.45], [-0.6, -0.3]])
+    results = []
+    for points in (near, np.concatenate([near, outliers])):
+        avoidance = wbc.BaseFootprintAvoidance(RECTANGLE, points=points, detection_distance=0.5, capacity=16)
+        data, rows = bound_rows(avoidance, youbot)
+        data.compute(SimpleNamespace(q=youbot.neutral()), 0.01, rows)
+        path = drive(youbot, [wbc.BaseFootprintAvoidance(RECTANGLE, points=points)], [0.3, 0.1, 0.0],
+                     youbot.neutral(), 60)
+        results.append((rows.G.copy(), rows.h.copy(), data.min_distance, path))
+    (G, h, closest, path), (G_wild, h_wild, closest_wild, path_wild) = results
+    assert closest == pytest.approx(0.2, abs=1e-12) and np.count_nonzero(np.any(G != 0.0, axis=1)) == 3
+    np.testing.assert_array_equal(G_wild, G)
+    np.testing.assert_array_equal(h_wild, h)
+    assert closest_wild == closest
+    np.testing.assert_array_equal(path_wild, path)
+    assert footprint_clearance(RECTANGLE, path[-1], near) >= 0.05 - 1e-6
+
+
+@pytest.mark.parametrize("x", [1e25, -1e300])
+def test_a_base_far_off_the_points_grid_gets_no_row(youbot, x):
+    """The base ~1e25 cells off the grid: the cell range it searches is empty (its float-to-int
+    conversion was undefined beyond int64), no row, no crash."""
+    avoidance = wbc.BaseFootprintAvoidance(RECTANGLE, points=[[0.5, 0.0], [1.0, 1.0]], capacity=4)
+    data, rows = bound_rows(avoidance, youbot)
+    q = youbot.neutral()
+    q[0] = x
+    data.compute(SimpleNamespace(q=q), 0.01, rows)
+    assert np.all(rows.G == 0.0) and np.all(rows.h == 1.0) and data.min_distance == np.inf
+
+
 @pytest.mark.parametrize("capacity", [1, 5, 8, 16])
 def test_each_angular_sector_gets_the_row_of_its_closest_point(youbot, capacity):
     """Two points per sector (angles -pi + 2 pi (k + 1/4 or 3/4) / capacity about the centroid, the

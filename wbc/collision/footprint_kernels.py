@@ -59,19 +59,23 @@ def build_grid(fixed, scan, n_scan, cell, cell_of, cell_start, ordered, meta):
         px, py = (fixed[i, 0], fixed[i, 1]) if i < n_fixed else (scan[i - n_fixed, 0], scan[i - n_fixed, 1])
         x0, x1, y0, y1 = min(x0, px), max(x1, px), min(y0, py), max(y1, py)
     max_cells = cell_start.shape[0] - 1
+    # counted in floats from half spans and half cells (exact halvings): points 1e308 apart neither
+    # overflow the span nor the cell count (int64 products wrapped round, the writes went astray)
+    half_x, half_y = 0.5 * x1 - 0.5 * x0, 0.5 * y1 - 0.5 * y0
     while True:
-        nx = int((x1 - x0) / cell) + 1
-        ny = int((y1 - y0) / cell) + 1
-        if nx * ny <= max_cells:
+        columns = math.floor(half_x / (0.5 * cell)) + 1.0
+        rows = math.floor(half_y / (0.5 * cell)) + 1.0
+        if columns * rows <= max_cells:
             break
         cell *= 2.0
+    nx, ny = int(columns), int(rows)
     cells = nx * ny
     for c in range(cells + 1):
         cell_start[c] = 0
     for i in range(total):
         px, py = (fixed[i, 0], fixed[i, 1]) if i < n_fixed else (scan[i - n_fixed, 0], scan[i - n_fixed, 1])
-        ix = min(int((px - x0) / cell), nx - 1)
-        iy = min(int((py - y0) / cell), ny - 1)
+        ix = min(int((0.5 * px - 0.5 * x0) / (0.5 * cell)), nx - 1)
+        iy = min(int((0.5 * py - 0.5 * y0) / (0.5 * cell)), ny - 1)
         c = iy * nx + ix
         cell_of[i] = c
         cell_start[c + 1] += 1
@@ -149,6 +153,17 @@ diamond = njit(cache=CACHE, nogil=True, inline="always")(diamond_angle)
 
 
 @njit(cache=CACHE, nogil=True, inline="always")
+def _floor_within(x, low, high):
+    """``floor(x)`` clamped to [low, high] (ints) before it becomes an int: a float beyond int64 (a
+    base ~1e19 cells off the grid, an inf) converts to nothing defined."""
+    if not x > low:
+        return low
+    if x >= high:
+        return high
+    return int(math.floor(x))
+
+
+@njit(cache=CACHE, nogil=True, inline="always")
 def _footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turns, settings, dt, columns, sectors,
                     best, G, h):
     """:func:`footprint_rows`' work, inlined into it and into the tick program's op
@@ -165,10 +180,10 @@ def _footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, tur
         centre_y = pose[1] + s * shape[0] + c * shape[1]
         x0, y0, cell = meta[0], meta[1], meta[2]
         nx, ny = int(meta[3]), int(meta[4])
-        ix0 = max(int(math.floor((centre_x - reach - x0) / cell)), 0)
-        ix1 = min(int(math.floor((centre_x + reach - x0) / cell)), nx - 1)
-        iy0 = max(int(math.floor((centre_y - reach - y0) / cell)), 0)
-        iy1 = min(int(math.floor((centre_y + reach - y0) / cell)), ny - 1)
+        ix0 = _floor_within((centre_x - reach - x0) / cell, 0, nx)  # (a base far off the grid: empty ranges)
+        ix1 = _floor_within((centre_x + reach - x0) / cell, -1, nx - 1)
+        iy0 = _floor_within((centre_y - reach - y0) / cell, 0, ny)
+        iy1 = _floor_within((centre_y + reach - y0) / cell, -1, ny - 1)
         for iy in range(iy0, iy1 + 1):
             for ix in range(ix0, ix1 + 1):
                 cell_index = iy * nx + ix
