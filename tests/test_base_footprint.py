@@ -276,16 +276,24 @@ def test_a_base_that_starts_too_close_is_pushed_out(youbot):
     ([[0, 0], [1, 0], [np.nan, 1]], "NaN"),
     ([[0, 0], [0, 0], [1, 1]], "coincide"),
     ("square", "array"),
+    ([[0, 0], [1e200, 0], [0, 1e200]], "beyond 1e\\+150 m .* give the vertices in metres"),  # (the area overflowed)
 ])
 def test_a_bad_footprint_is_refused(footprint, message):
-    with pytest.raises(wbc.InvalidInputError, match=message):
-        wbc.BaseFootprintAvoidance(footprint)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (no numpy warning on the way)
+        with pytest.raises(wbc.InvalidInputError, match=message):
+            wbc.BaseFootprintAvoidance(footprint)
+        with pytest.raises(wbc.InvalidInputError, match=message.replace("array", "vertices")):
+            wbc.BaseFootprintAvoidance(RECTANGLE, polygons=[footprint])
 
 
 def test_bad_points_and_settings_are_refused_and_the_last_scan_stays(youbot):
     avoidance = wbc.BaseFootprintAvoidance(RECTANGLE, points=[[0.5, 0.0]])
     for points, message in [([[0.5, np.nan]], r"points\[0\].*NaN"), (np.ones((3, 3)), "shape"),
-                            ([1.0, 2.0, 3.0], "shape"), ([[0.4, 0.0], [np.inf, 0.0]], r"points\[1\]")]:
+                            ([1.0, 2.0, 3.0], "shape"), ([[0.4, 0.0], [np.inf, 0.0]], r"points\[1\]"),
+                            (np.array([[0.5 + 3j, 1j]]), "must be real"),  # (the imaginary part was dropped)
+                            ([[0.4, True]], "not true/false"), ([[0.4, 0.0], [1.0]], "ragged"),
+                            (np.array([["0.4", "0.0"]]), "numeric")]:
         with pytest.raises(wbc.InvalidInputError, match=message):
             avoidance.set_points(points)
     np.testing.assert_array_equal(avoidance.points, [[0.5, 0.0]])

@@ -5,6 +5,7 @@ URDF's raw shapes), a robot pushed out of the margin, bad input."""
 import copy
 import pickle
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -335,6 +336,25 @@ def test_bad_input_is_refused():
     with pytest.raises(wbc.InvalidInputError, match="Sphere center"):
         sphere.center = (0, np.inf, 0)
     np.testing.assert_array_equal(sphere.center, (0, 0, 0))  # kept its place
+
+
+def test_huge_obstacles_are_placed_exactly_or_refused_without_a_numpy_warning():
+    """Values near the float range: norms and differences computed without overflow (numpy's
+    RuntimeWarning leaked; a plane's 1e200 normal was called zero)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        plane = wbc.Plane((1e200, 1e200, 0.0), 1e200)  # |n| = sqrt(2) 1e200: the plane x + y = sqrt(2)
+        np.testing.assert_allclose(plane.normal, [2 ** -0.5, 2 ** -0.5, 0.0], rtol=1e-15)
+        assert plane.offset == pytest.approx(2 ** -0.5, rel=1e-15)
+        with pytest.raises(wbc.InvalidInputError, match="Plane normal .* too long .* give a unit normal"):
+            wbc.Plane((1.5e308, 1.5e308, 0.0), 0.0)  # |n| overflows
+        capsule = wbc.Capsule((-1e154, 0.0, 0.0), (1e154, 0.0, 0.0), 0.05)  # |p1 - p0|^2 overflows
+        np.testing.assert_array_equal(capsule.points[0], [-1e154, 0.0, 0.0])
+        np.testing.assert_array_equal(capsule.points[1], [1e154, 0.0, 0.0])
+        with pytest.raises(wbc.InvalidInputError, match="Capsule p0, p1 are too far apart"):
+            wbc.Capsule((-1e308, 0.0, 0.0), (1e308, 0.0, 0.0), 0.05)  # p1 - p0 overflows
+        box = wbc.Box(np.eye(4), (1e300, 1e300, 1e300))  # its bounding radius overflows: never culled
+        np.testing.assert_array_equal(box.size, [1e300] * 3)
 
 
 def test_a_urdf_without_collision_geometry_is_refused_when_the_controller_is_built(tmp_path):

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
-from ..core.validation import as_gain, as_positive
+from ..core.validation import MAX_COORDINATE, as_gain, as_positive, real_array
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
@@ -52,6 +52,9 @@ def as_polygon(value: ArrayLike, name: str) -> NDArray[np.float64]:
                                 f"{polygon.shape}")
     if not np.all(np.isfinite(polygon)):
         raise InvalidInputError(f"{name} contains NaN or inf")
+    if np.abs(polygon).max() > MAX_COORDINATE:
+        raise InvalidInputError(f"{name} has a vertex beyond {MAX_COORDINATE:g} m (its area would overflow): "
+                                "give the vertices in metres")
     following = np.roll(polygon, -1, axis=0)
     edges = following - polygon
     if np.any(np.hypot(edges[:, 0], edges[:, 1]) <= 1e-9):
@@ -195,10 +198,10 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
             InvalidInputError: not an (N, 2) array, or a NaN/inf point (its index is named): the
                 previous points stay in force.
         """
-        try:
-            scan = np.ascontiguousarray(points, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise InvalidInputError(f"points must be an (N, 2) array of (x, y) [m], got {points!r}") from None
+        if type(points) is np.ndarray and points.dtype == np.float64:  # a scan from a driver: no conversion
+            scan = np.ascontiguousarray(points)
+        else:  # (numbers only: complex, bool, strings refused; not copied: the kernel copies)
+            scan = np.ascontiguousarray(real_array(points, "points"))
         if scan.size == 0:
             scan = scan.reshape(0, 2)
         if scan.ndim != 2 or scan.shape[1] != 2:

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.errors import InvalidInputError
-from ..core.validation import as_pose, as_positive, as_vector
+from ..core.validation import as_pose, as_positive, as_vector, direction
 from ..model.robot import rpy_matrix
 from . import layout
 
@@ -175,7 +175,7 @@ class Box(Obstacle):
         if not np.all(edges > 0.0):
             raise InvalidInputError(f"Box size must be three edge lengths > 0 [m], got {edges.tolist()}")
         self._row[layout.HALF_EXTENTS] = edges / 2.0
-        self._row[layout.BOUND_RADIUS] = float(np.linalg.norm(edges)) / 2.0
+        self._row[layout.BOUND_RADIUS] = direction(edges)[1] / 2.0  # (inf past ~1e308: never culled)
         self._publish()
 
     def _describe(self) -> str:
@@ -200,11 +200,11 @@ class Capsule(Obstacle):
     def set_points(self, p0: ArrayLike, p1: ArrayLike) -> None:
         """Put the segment's ends at ``p0`` and ``p1`` [m], world (they may coincide: a sphere)."""
         start, end = _point(p0, "Capsule p0"), _point(p1, "Capsule p1")
-        length = float(np.linalg.norm(end - start))
+        with np.errstate(over="ignore"):  # (an inf difference: refused below)
+            axis, length = direction(end - start)
         if not math.isfinite(length):
             raise InvalidInputError(f"Capsule p0, p1 are too far apart: {start.tolist()}, {end.tolist()}")
-        axis = (end - start) / length if length > 0.0 else np.array([0.0, 0.0, 1.0])
-        self._place(_frame_along(axis), (start + end) / 2.0)
+        self._place(_frame_along(np.array([0.0, 0.0, 1.0]) if axis is None else axis), start / 2.0 + end / 2.0)
         self._row[layout.HALF_LENGTH] = length / 2.0
         self._row[layout.BOUND_RADIUS] = length / 2.0 + self._row[layout.RADIUS]
         self._publish()
@@ -252,12 +252,14 @@ class Plane(Obstacle):
 
     def set(self, normal: ArrayLike, offset: float) -> None:
         """Move the plane to ``normal·x = offset``."""
-        direction = _point(normal, "Plane normal")
-        length = float(np.linalg.norm(direction))
-        if not (length > 0.0 and math.isfinite(length)):
-            raise InvalidInputError(f"Plane normal must be a non-zero finite vector, got {direction.tolist()}")
+        given = _point(normal, "Plane normal")
+        unit, length = direction(given)
+        if unit is None:
+            raise InvalidInputError(f"Plane normal must be a non-zero vector, got {given.tolist()}")
+        if not math.isfinite(length):
+            raise InvalidInputError(f"Plane normal {given.tolist()} is too long (its length overflows): give a unit "
+                                    "normal and the offset along it")
         distance = as_vector([offset], 1, "Plane offset")[0] / length
-        unit = direction / length
         self._place(_frame_along(unit), unit * distance)
         self._publish()
 

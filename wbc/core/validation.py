@@ -16,17 +16,21 @@ from ..runtime import kernels
 from .errors import InvalidInputError
 
 ROTATION_TOLERANCE = kernels.ROTATION_TOLERANCE  # max |R^T R - I| and |det R - 1| accepted for a rotation
+#: [m] the largest |coordinate| of a polygon's vertex (a base footprint, a polygon obstacle, a support
+#: polygon): the products of areas and turn tests stay finite (1e150 squared is 1e300)
+MAX_COORDINATE = 1e150
 _FLOAT64 = np.dtype(np.float64)
 _Item = TypeVar("_Item")
 
 
-def _real_array(value: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[np.float64]:
-    """``value`` as a float64 array of ``shape``; complex, non-numeric or misshapen input is refused."""
+def _real_array(value: ArrayLike, shape: tuple[int, ...] | None, name: str) -> NDArray[np.float64]:
+    """``value`` as a float64 array of ``shape`` (None: its own); complex, non-numeric or misshapen
+    input is refused."""
     try:
         complex_values, kind = np.iscomplexobj(value), np.asarray(value).dtype.kind
     except (TypeError, ValueError) as exc:  # e.g. ragged nested lists
-        raise InvalidInputError(f"{name} must be an array of shape {shape} (numbers, not ragged nested lists), "
-                                f"got {_describe(value)}") from exc
+        raise InvalidInputError(f"{name} must be an array{'' if shape is None else f' of shape {shape}'} (numbers, "
+                                f"not ragged nested lists), got {_describe(value)}") from exc
     if complex_values:
         raise InvalidInputError(f"{name} must be real, got complex values")
     # (numpy reads a list [1.0, True] as floats: a list's items are looked at one by one)
@@ -37,9 +41,15 @@ def _real_array(value: ArrayLike, shape: tuple[int, ...], name: str) -> NDArray[
         array = np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{name} must be numeric, got {_describe(value)}") from exc
-    if array.shape != shape:
+    if shape is not None and array.shape != shape:
         raise InvalidInputError(f"{name} must have shape {shape}, got {array.shape}")
     return array
+
+
+def real_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as a float64 array of its own shape; complex, boolean, non-numeric or ragged input
+    is refused (:class:`InvalidInputError` naming ``name``)."""
+    return _real_array(value, None, name)
 
 
 def _all_real(value: ArrayLike) -> bool:
@@ -111,7 +121,7 @@ def as_vector(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
 
 def as_weights(value: ArrayLike, size: int, name: str) -> NDArray[np.float64]:
     """Return a scalar or per-axis cost as a non-negative finite vector of length ``size``."""
-    array = _real_array(value, np.shape(value), name)
+    array = _real_array(value, None, name)
     if array.ndim == 0:
         array = np.full(size, float(array))
     array = as_vector(array, size, name)
