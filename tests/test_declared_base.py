@@ -238,6 +238,48 @@ def test_tiago_loads_with_a_warning_and_drives_on_its_declared_differential_base
     assert np.hypot(q[0], q[1]) > 0.3  # the base moved
 
 
+def test_tiago_avoids_an_obstacle_with_its_package_collision_meshes():
+    """TIAGo's <collision> meshes are package://example-robot-data/... paths: CollisionAvoidance
+    finds them in the folders above the URDF (as the 3-D view does; it raised ModelError), and its
+    margin holds against a ball in the tool's way (coal on the URDF's meshes as the oracle)."""
+    import coal
+    import pinocchio as pin
+
+    urdf = tiago_urdf()
+    robot = wbc.load_robot(urdf, "differential", wheels=["wheel_left_joint", "wheel_right_joint"],
+                           max_linear_speed=1.0, max_yaw_rate=1.0)
+    q = robot.neutral()
+    start = robot.frame_pose(q, "arm_tool_link")[:3, 3]
+    ball = wbc.Sphere(start + [0.15, 0.0, 0.0], 0.05)
+    avoidance = wbc.CollisionAvoidance([ball], self_collision=False, min_distance=0.02)
+    tool = wbc.PositionTask("arm_tool_link", gain=0.5)
+    tool.set_target(start + [0.3, 0.0, 0.0])  # through the ball
+    controller = wbc.Controller(robot, [tool, wbc.PostureTask(cost=1e-3)],
+                                [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.NonholonomicBase(),
+                                 avoidance], dt=0.01)
+    meshes = pin.buildGeomFromUrdf(robot.model, str(urdf), pin.GeometryType.COLLISION,
+                                   package_dirs=[str(p) for p in urdf.parents])
+    data, placements = robot.model.createData(), pin.GeometryData(meshes)
+
+    def clearance(q):
+        pin.forwardKinematics(robot.model, data, q)
+        pin.updateGeometryPlacements(robot.model, data, meshes, placements)
+        ball_pose = coal.Transform3s(np.eye(3), ball.center)
+        result = np.inf
+        for k, item in enumerate(meshes.geometryObjects):
+            request, answer = coal.DistanceRequest(), coal.DistanceResult()
+            pose = coal.Transform3s(placements.oMg[k].rotation, placements.oMg[k].translation)
+            result = min(result, coal.distance(item.geometry, pose, coal.Sphere(0.05), ball_pose, request, answer))
+        return result
+
+    closest = np.inf
+    for _ in range(150):
+        q = robot.integrate(q, controller.step(q), controller.dt)
+        closest = min(closest, clearance(q))
+    assert 0.02 - 2e-3 <= closest < 0.03  # it came to the ball and kept the margin
+    assert np.linalg.norm(robot.frame_pose(q, "arm_tool_link")[:3, 3] - start) > 0.05  # it moved
+
+
 # ------------------------------------------------------------------ the same in a sidecar
 SIDECAR = """name = "cart"
 urdf = "cart.urdf"

@@ -39,6 +39,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..collision import Box, Capsule, CollisionAvoidance, Plane, Sphere
 from ..collision.obstacles import Obstacle as CollisionObstacle
+from ..model.meshes import package_dirs
 from ..model.robot import Robot
 from .closed_loop import RunResult, TickObserver, orientation_tracked
 from .outputs import HTML_FORMATS, check_output, write_atomically
@@ -218,16 +219,6 @@ def _segment_placement(end: NDArray[np.float64]) -> NDArray[np.float64]:
     placement[:3, :3] = np.column_stack([x, np.cross(z, x), z])
     placement[:3, 3] = end / 2
     return placement
-
-
-def package_dirs(urdf: Path) -> list[str]:
-    """Where ``package://NAME/...`` mesh paths of ``urdf`` are looked for: the URDF's folder and
-    every folder above it (a ROS install tree or a Python package's data, e.g.
-    ``.../share/example-robot-data/robots/tiago_description/robots/tiago.urdf`` names meshes as
-    ``package://example-robot-data/robots/...``, found in ``.../share``); Pinocchio adds
-    ``ROS_PACKAGE_PATH`` itself."""
-    folder = urdf.resolve().parent
-    return [str(folder), *(str(parent) for parent in folder.parents)]
 
 
 def _urdf_visuals(robot: Robot) -> list[Shape]:

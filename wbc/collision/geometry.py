@@ -31,6 +31,7 @@ import pinocchio as pin
 from numpy.typing import NDArray
 
 from ..core.errors import InvalidInputError, ModelError
+from ..model.meshes import package_dirs as mesh_folders
 from ..model.robot import Robot
 from . import layout
 
@@ -57,7 +58,8 @@ class RobotGeometry:
         robot: the robot; its URDF (``robot.source``) is read for ``<collision>`` elements.
         srdf: optional SRDF file whose ``<disable_collisions>`` pairs get no distance.
         package_dirs: folders where ``package://`` mesh paths are resolved (Pinocchio's
-            ``package_dirs``; the URDF's folder is always searched).
+            ``package_dirs``; the URDF's folder and every folder above it, and ``ROS_PACKAGE_PATH``,
+            are always searched: :func:`wbc.model.meshes.package_dirs`).
         samples: configurations drawn uniformly within the joint limits (unbounded axes in
             [-1, 1]) to find the pairs that are always in contact. A pair in contact at every
             sample is excluded; a pair that is free in a fraction f of the joint space survives
@@ -140,6 +142,7 @@ class RobotGeometry:
             for k in np.flatnonzero(always).tolist():
                 if not data.collisionResults[k].isCollision():
                     always[k] = False
+                    data.deactivateCollisionPair(k)  # settled: later samples test the others only
             if not always.any():
                 break
         kept = []
@@ -159,13 +162,15 @@ def _load_collision_model(robot: Robot, package_dirs: Sequence[str | Path]) -> p
     if robot.source is None:
         raise ModelError(f"robot '{robot.name}' has no URDF file to read collision geometry from; load it with "
                          "wbc.load_robot(path) from a URDF with <collision> elements")
-    folders = [str(Path(folder)) for folder in package_dirs] + [str(Path(robot.source).parent)]
+    folders = [str(Path(folder)) for folder in package_dirs] + mesh_folders(robot.source)
     try:
         model = pin.buildGeomFromUrdf(robot.model, str(robot.source), pin.GeometryType.COLLISION,
                                       package_dirs=folders)
     except (ValueError, RuntimeError, OSError) as exc:
-        raise ModelError(f"{robot.source}: cannot load the collision geometry: {exc} (a package:// mesh is "
-                         "looked up in package_dirs and the URDF's folder)") from exc
+        raise ModelError(f"{robot.source}: cannot load the collision geometry: {exc} (a package://NAME/... mesh "
+                         "is looked up as NAME/... in the URDF's folder and every folder above it, in "
+                         "ROS_PACKAGE_PATH, and in RobotGeometry's package_dirs: add the folder that holds NAME "
+                         "to ROS_PACKAGE_PATH)") from exc
     if model.ngeoms == 0:
         raise ModelError(f"robot '{robot.name}' has no collision geometry: its URDF {robot.source} has no "
                          "<collision> element that Pinocchio could read; add <collision> elements (box, sphere, "
