@@ -16,7 +16,7 @@ from ..runtime import kernels
 from .errors import InvalidInputError
 
 ROTATION_TOLERANCE = kernels.ROTATION_TOLERANCE  # max |R^T R - I| and |det R - 1| accepted for a rotation
-#: [m] the largest |coordinate| of a polygon's vertex (a base footprint, a polygon obstacle, a support
+#: [m] the largest absolute coordinate of a polygon's vertex (a base footprint, a polygon obstacle, a support
 #: polygon): the products of areas and turn tests stay finite (1e150 squared is 1e300)
 MAX_COORDINATE = 1e150
 _FLOAT64 = np.dtype(np.float64)
