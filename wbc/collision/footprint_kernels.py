@@ -59,16 +59,17 @@ def build_grid(fixed, scan, n_scan, cell, cell_of, cell_start, ordered, meta):
         px, py = (fixed[i, 0], fixed[i, 1]) if i < n_fixed else (scan[i - n_fixed, 0], scan[i - n_fixed, 1])
         x0, x1, y0, y1 = min(x0, px), max(x1, px), min(y0, py), max(y1, py)
     max_cells = cell_start.shape[0] - 1
-    # counted in floats from half spans and half cells (exact halvings): points 1e308 apart neither
-    # overflow the span nor the cell count (int64 products wrapped round, the writes went astray)
+    # the spans in cells from half spans and half cells (exact halvings: points 1e308 apart do not
+    # overflow), compared as floats before they become ints (numba's math.floor returns an int64:
+    # beyond its range, inf included, the conversion is undefined; int64 products wrapped round)
     half_x, half_y = 0.5 * x1 - 0.5 * x0, 0.5 * y1 - 0.5 * y0
     while True:
-        columns = math.floor(half_x / (0.5 * cell)) + 1.0
-        rows = math.floor(half_y / (0.5 * cell)) + 1.0
-        if columns * rows <= max_cells:
-            break
+        across, along = half_x / (0.5 * cell), half_y / (0.5 * cell)
+        if across < max_cells and along < max_cells:
+            nx, ny = math.floor(across) + 1, math.floor(along) + 1
+            if nx * ny <= max_cells:
+                break
         cell *= 2.0
-    nx, ny = int(columns), int(rows)
     cells = nx * ny
     for c in range(cells + 1):
         cell_start[c] = 0
