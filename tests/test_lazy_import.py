@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from conftest import NEUTRAL, child_environment
+from wbc.collision import kernels as collision_kernels
 from wbc.runtime import kernels
 from wbc.runtime.kernels import _cache, tick
 
@@ -25,6 +26,7 @@ from wbc.runtime.kernels import _cache, tick
 def warm():
     """Every kernel compiled (or loaded) in this process, so that their cache is warm for the subprocesses."""
     kernels.warm_up()
+    collision_kernels.warm_up()
 
 
 def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> subprocess.CompletedProcess:
@@ -143,6 +145,23 @@ def test_generated_sources_are_written_once_and_replace_the_stale_ones(tmp_path)
     assert second != first and second.read_text() == "x = 2\n"
     assert not first.exists() and not entry.exists()  # generated from other sources: gone with its entries
     assert _cache.write_generated(tmp_path / "missing", "gen_", "x = 3\n") is None  # not writable: in memory
+
+
+def test_collision_warm_up_compiles_every_kernel_python_calls_and_both_ops(warm):
+    """``wbc warmup`` covers the collision package: in a fresh process, its warm_up leaves each kernel
+    that Python calls compiled for one signature, and both tick-program ops built."""
+    result = _python("""
+        from wbc.collision import avoidance, footprint, footprint_kernels, kernels
+        kernels.warm_up()
+        names = ["world_poses", "pair_distances", "damper_rows", "corner_rows", "avoidance_rows", "insert_pair",
+                 "distance_of", "bound_of"]
+        counts = [len(getattr(kernels, name).signatures) for name in names]
+        counts.append(len(footprint_kernels.footprint_rows.signatures))
+        built = avoidance.avoidance_op.cache_info().currsize, footprint.footprint_op.cache_info().currsize
+        print(counts, built)
+    """)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[0] == f"{[1] * 9} (1, 1)"
 
 
 def test_warmup_command(warm):

@@ -30,7 +30,7 @@ _CHILD = textwrap.dedent("""
     import numpy as np
     import wbc
     from wbc.control.warm_up import warm_up_twin
-    from item_registry import CASES, CONFIGURATIONS, load
+    from item_registry import CASES, CONFIGURATIONS, _points_around_the_base, _sphere_near_the_gripper, load
 
     def signatures():
         found = {}
@@ -76,6 +76,31 @@ _CHILD = textwrap.dedent("""
             after = signatures()
             new = sorted(name for name, count in after.items() if count != before.get(name, 0))
             assert not new, f"{case.name} on {case.robot}, {controller.levels} ({controller.solver.name}): {new}"
+    # the collision items computed in Python (their kernels compiled at build, prepare_compute):
+    # coal's pairs (a cylinder), and the rows braked under acceleration bounds; a Distances too
+    import pathlib, tempfile
+    from test_collision_coal_shapes import URDF
+    path = pathlib.Path(tempfile.mkdtemp()) / "coal_arm.urdf"
+    path.write_text(URDF)
+    arm, youbot = wbc.load_robot(path), load("youbot")
+    q0, q1 = CONFIGURATIONS["youbot"]
+    runs = [(arm, arm.neutral(), [wbc.CollisionAvoidance([wbc.Box(np.eye(4), (0.1, 0.1, 0.1))])]),
+            (youbot, q0, [_sphere_near_the_gripper(youbot, q1), wbc.AccelerationLimits(max_jerk=50.0)]),
+            (youbot, q0, [_points_around_the_base(youbot, q1), wbc.AccelerationLimits(max_jerk=50.0)])]
+    for robot, q, constraints in runs:
+        controller = wbc.Controller(robot, [wbc.PostureTask(1.0, gain=0.3)], [wbc.JointVelocityLimits(), *constraints],
+                                    dt=0.01, warm_up=False)
+        python = [type(item).__name__ for item, _ in controller._python_constraints]
+        assert any(name in python for name in ("CollisionAvoidanceData", "BaseFootprintAvoidanceData")), python
+        before = signatures()
+        for _ in range(3):
+            q = robot.integrate(q, controller.step(q), 0.01)
+        assert signatures() == before, [type(c).__name__ for c in constraints]
+        built += 1
+    distances = wbc.collision.Distances(arm, [wbc.Box(np.eye(4), (0.1, 0.1, 0.1))])
+    buffers, before = distances.buffers(), signatures()
+    distances.compute(arm.neutral(), buffers)
+    assert signatures() == before, "Distances.compute"
     # the fallback answering (infeasible equality rows) calls its own kernel
     robot = load("youbot")
     clash = wbc.LinearConstraint([[0, 0, 0, 1, 0, 0, 0, 0], [0, 0, 0, 1, 0, 0, 0, 0]], b=[0.1, -0.1])

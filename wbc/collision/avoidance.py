@@ -20,9 +20,9 @@ from ..model.robot import Robot
 from ..model.tick_context import TickContext
 from ..runtime.native_entry import fits_signature, unchecked_entry
 from .braking import RowBraking
-from .distances import Distances, PairBuffers
+from .distances import Distances, PairBuffers, compiled_pairs_only
 from .geometry import RobotGeometry
-from .layout import COAL, DETECTION, GAIN, KIND, MIN_DISTANCE, PAIR_A, PAIR_B, PAIR_COLUMNS, PLANE, ROW, SCRATCH
+from .layout import DETECTION, GAIN, MIN_DISTANCE, PAIR_COLUMNS, ROW, SCRATCH
 from .obstacles import Obstacle
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -196,7 +196,7 @@ class CollisionAvoidanceData(ConstraintData):
         super().__init__(avoidance)
         geometry = RobotGeometry(robot, srdf=avoidance.srdf)
         self.distances = Distances(robot, avoidance.obstacles, avoidance.self_collision,
-                                   avoidance.detection_distance, avoidance.capacity, geometry)
+                                   avoidance.detection_distance, avoidance.capacity, geometry, prepare=False)
         capacity = self.distances.capacity
         #: rows: one per pair, then :data:`CORNER_ROWS` (at most ``capacity``) for the corners that tie
         #: with a pair's witness
@@ -270,6 +270,14 @@ class CollisionAvoidanceData(ConstraintData):
                     pending=pairs.pending.size, inequalities=self.n_inequalities, corners=self.corner_pair.size)
         return True
 
+    def prepare_compute(self) -> None:
+        """Compile what :meth:`compute` calls: :func:`~wbc.collision.kernels.avoidance_rows`, and the
+        kernels of coal's pairs when some pair has no compiled distance."""
+        from ..runtime.kernels._lazy import compile_named  # (numba: not by ``import wbc``)
+
+        coal = () if compiled_pairs_only(self.distances) else ("insert_pair", "damper_rows", "corner_rows")
+        compile_named(self.distances._kernels, "avoidance_rows", *coal)
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         pairs, settings, counts = self._pairs, self.constraint._settings, self._counts
         self._tick[0] = dt
@@ -339,14 +347,6 @@ class CollisionAvoidanceData(ConstraintData):
         active = self.active_labels()
         active += [f"{active[i]} corner" for i in self.corner_pair[:self.corners].tolist()]
         return active + [f"row {i} (no pair)" for i in range(len(active), self.n_inequalities)]
-
-
-def compiled_pairs_only(distances: Distances) -> bool:
-    """Whether every candidate pair of ``distances`` has a compiled distance at every configuration
-    (:func:`wbc.collision.kernels.pair_distance`), so that a tick never needs coal: no shape of kind
-    ``COAL`` (cylinder, mesh), no two planes."""
-    kinds = distances.table[:, KIND][distances.pairs[:, [PAIR_A, PAIR_B]]]
-    return not ((kinds == COAL).any() or ((kinds[:, 0] == PLANE) & (kinds[:, 1] == PLANE)).any())
 
 
 @functools.cache

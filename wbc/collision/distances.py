@@ -86,6 +86,9 @@ class Distances:
             dropped); when more pairs are within ``detection_distance``, the closest are kept.
         geometry: the robot's :class:`~wbc.collision.geometry.RobotGeometry` (built from its URDF
             when not given: pass one to share it, or to give an SRDF).
+        prepare: compile the kernels :meth:`compute` calls now (seconds on the first start after an
+            install, then read from numba's cache); False: at the first :meth:`compute` (a
+            :class:`~wbc.collision.CollisionAvoidance` compiles the ones its controller calls).
 
     Raises:
         InvalidInputError: ``obstacles`` not a list of obstacles, ``detection_distance`` or
@@ -96,8 +99,8 @@ class Distances:
 
     def __init__(self, robot: Robot, obstacles: Sequence[Obstacle] = (), self_collision: bool = True,
                  detection_distance: float = 0.3, capacity: int | None = None,
-                 geometry: RobotGeometry | None = None) -> None:
-        from . import kernels  # compiled on first use, never by ``import wbc``
+                 geometry: RobotGeometry | None = None, *, prepare: bool = True) -> None:
+        from . import kernels  # (never imported by ``import wbc``; its kernels compile when prepared)
 
         self._kernels = kernels
         self.robot = robot
@@ -142,6 +145,18 @@ class Distances:
         # witness points, and so the rows, ~1e-3 off; 1e-9 brings them to ~1e-4 (relative)
         self._request.gjk_tolerance = COAL_GJK_TOLERANCE
         self._transforms = coal.Transform3s(), coal.Transform3s()
+        self._prepared = False
+        if prepare:
+            self.prepare()
+
+    def prepare(self) -> None:
+        """Compile the kernels :meth:`compute` calls, if not yet: the distances, and coal's pairs'
+        entries when some pair has no compiled distance (:func:`~wbc.collision.kernels.insert_pair`)."""
+        if not self._prepared:
+            from ..runtime.kernels._lazy import compile_named  # (numba: not by ``import wbc``)
+
+            compile_named(self._kernels, "pair_distances", *(() if compiled_pairs_only(self) else ("insert_pair",)))
+            self._prepared = True
 
     def buffers(self) -> PairBuffers:
         """Result arrays of this object's capacity."""
@@ -178,6 +193,7 @@ class Distances:
                 or out.pending.size < self.pairs.shape[0]):
             raise InvalidInputError(f"buffers of capacity {out.capacity} and {out.rows.shape[1]} columns; this "
                                     f"Distances needs {self.capacity} and {self.robot.nv}: use its buffers()")
+        self.prepare()
         packed = self._kernels.pair_distances(
             self.table, self.pairs, placements, jacobians_t, self._support, self._world, self.detection_distance,
             out.pair, out.distance, out.witness_a, out.witness_b, out.normal, out.rows, out.pending, self._scratch)
@@ -261,4 +277,13 @@ def _support(model: pin.Model) -> NDArray[np.float64]:
     return support
 
 
+def compiled_pairs_only(distances: Distances) -> bool:
+    """Whether every candidate pair of ``distances`` has a compiled distance at every configuration
+    (:func:`wbc.collision.kernels.pair_distance`), so that a tick never needs coal: no shape of kind
+    ``COAL`` (cylinder, mesh), no two planes."""
+    kinds = distances.table[:, layout.KIND][distances.pairs[:, [layout.PAIR_A, layout.PAIR_B]]]
+    return not ((kinds == layout.COAL).any() or ((kinds[:, 0] == layout.PLANE) & (kinds[:, 1] == layout.PLANE)).any())
+
+
 __all__ = ["Distances", "PairBuffers"]
+

@@ -307,6 +307,12 @@ class BaseFootprintAvoidanceData(ConstraintData):
         program.keep_alive(avoidance)  # (the buffers the grid's addresses point to)
         return True
 
+    def prepare_compute(self) -> None:
+        """Compile what :meth:`compute` calls (:func:`~wbc.collision.footprint_kernels.footprint_rows`)."""
+        from ..runtime.kernels._lazy import compile_named  # (numba: not by ``import wbc``)
+
+        compile_named(self._kernels, "footprint_rows")
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         avoidance, pose = self.constraint, self._pose
         x, y, _ = self._columns

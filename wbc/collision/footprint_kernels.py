@@ -30,6 +30,7 @@ from pathlib import Path
 from numba import carray, njit
 
 from ..runtime.kernels import _cache
+from ..runtime.kernels._lazy import declared
 from ..runtime.kernels.tick import _float64_at, _int64_at
 from .avoidance import INERT  # the h of an inert row
 from .layout import GRID_CELL_START, GRID_CELLS, GRID_ORDERED, GRID_POINTS
@@ -112,7 +113,7 @@ def edge_table(vertices, edges):
         edges[i, 5] = ex / ey if ey != 0.0 else 0.0
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def signed_distance(px, py, edges):
     """Signed distance of the point (px, py) to the simple polygon of ``edges`` (:func:`edge_table`
     of its counter-clockwise vertices; < 0 inside), the closest boundary point and the unit normal
@@ -150,10 +151,10 @@ def diamond_angle(x: float, y: float) -> float:
     return 2.0 - y / (-x - y) if x < 0.0 else 3.0 + x / (x - y)
 
 
-diamond = njit(cache=CACHE, nogil=True, inline="always")(diamond_angle)
+diamond = njit(forceinline=True, no_cpython_wrapper=True, nogil=True)(diamond_angle)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _floor_within(x, low, high):
     """``floor(x)`` clamped to [low, high] (ints) before it becomes an int: a float beyond int64 (a
     base ~1e19 cells off the grid, an inf) converts to nothing defined."""
@@ -164,7 +165,7 @@ def _floor_within(x, low, high):
     return int(math.floor(x))
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turns, settings, dt, columns, sectors,
                     best, G, h):
     """:func:`footprint_rows`' work, inlined into it and into the tick program's op
@@ -229,9 +230,9 @@ def _footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, tur
     return active
 
 
-@njit("int64(float64[:, ::1], int64[::1], float64[::1], int64, float64[:, ::1], float64[::1], float64[::1], float64, "
-      "float64[::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, :], float64[:])", cache=CACHE,
-      nogil=True)
+@declared("int64(float64[:, ::1], int64[::1], float64[::1], int64, float64[:, ::1], float64[::1], float64[::1], "
+          "float64, float64[::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, :], float64[:])",
+          cache=CACHE, nogil=True)
 def footprint_rows(ordered, cell_start, meta, n_points, edges, shape, pose, turns, settings, dt, columns, sectors,
                    best, G, h):
     """This tick's rows (one per sector, see the module docstring); returns the number of sectors

@@ -27,17 +27,28 @@ rule of :mod:`wbc.runtime.kernels` applied to this package's folder: numba keys 
 own source file only, so the constants it reads from :mod:`wbc.collision.layout` are covered by a
 hash of every ``*.py`` file of ``wbc/collision/`` (:func:`wbc.runtime.kernels._cache.prepare`): any edit
 there recompiles these kernels.
+
+Importing this file compiles nothing. The kernels Python calls are declared
+(:mod:`wbc.runtime.kernels._lazy`) and compiled when an object that calls them is built -- a
+:class:`~wbc.collision.Distances`, or a controller computing a
+:class:`~wbc.collision.CollisionAvoidance` in Python
+(:meth:`~wbc.constraints.constraint.ConstraintData.prepare_compute`) -- and the tick program's op
+when a controller first adds it; :func:`warm_up` compiles all of them. The helpers are inlined by
+LLVM (``forceinline``), not by numba's IR inliner, which copied each helper's IR into every caller
+(the first start after an install with a :class:`~wbc.collision.CollisionAvoidance` took ~4 min).
 """
 
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from ..runtime.kernels import _cache
+from ..runtime.kernels._lazy import SIGNATURE, compile_named, declared
 from .layout import (
     BOUND_CENTER,
     BOUND_RADIUS,
@@ -66,7 +77,7 @@ _HX, _BC = HALF_EXTENTS.start, BOUND_CENTER.start
 POSE_COLUMNS = 15
 
 
-@njit("void(float64[:, ::1], float64[:, ::1], float64[:, ::1])", cache=CACHE, nogil=True)
+@declared("void(float64[:, ::1], float64[:, ::1], float64[:, ::1])", cache=CACHE, nogil=True)
 def world_poses(table, placements, world):
     """``world[s] = (R row-major (9), p (3), bounding centre (3))``: each shape's world pose (a
     shape of the world, joint 0 -- an obstacle --: its table pose as it is, joint 0's placement
@@ -94,7 +105,7 @@ def world_poses(table, placements, world):
             pose[12 + a] = pose[9 + a] + pose[3 * a] * x + pose[3 * a + 1] * y + pose[3 * a + 2] * z
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _segment(table, world, s):
     """The core segment of a sphere (a point) or capsule ``s``, world: (x0, y0, z0, x1, y1, z1)."""
     half = table[s, HALF_LENGTH] if table[s, KIND] == CAPSULE else 0.0
@@ -103,12 +114,12 @@ def _segment(table, world, s):
             world[s, 9] + ux, world[s, 10] + uy, world[s, 11] + uz)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _clamp01(x):
     return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def segment_segment(p, ra, q, rb, out):
     """Signed distance of two sphere-swept segments ``p = (x0, y0, z0, x1, y1, z1)`` (radius ra, a)
     and ``q`` (rb, b): ``out[0:10] = (d, w_a (3), w_b (3), normal (3))``. Closest points of the
@@ -158,7 +169,7 @@ def segment_segment(p, ra, q, rb, out):
     out[7], out[8], out[9] = nx, ny, nz
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _box_sd(x, y, z, h):
     """Signed distance of the point (x, y, z) to the box |x_i| <= h_i (local frame)."""
     ex, ey, ez = abs(x) - h[0], abs(y) - h[1], abs(z) - h[2]
@@ -168,7 +179,7 @@ def _box_sd(x, y, z, h):
     return math.sqrt(ex * ex + ey * ey + ez * ez)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _segment_box_parameter(a, d, h, scratch):
     """The t in [0, 1] that minimises the box's signed distance along a + t d (box frame;
     a, d, h: 3-tuples; scratch: >= 40 floats).
@@ -237,7 +248,7 @@ def _segment_box_parameter(a, d, h, scratch):
     return best_t
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def box_segment(table, world, box, p, radius, out, scratch):
     """Signed distance of box ``box`` (a) and the sphere-swept segment ``p`` of ``radius`` (b,
     world): ``out`` as in :func:`segment_segment`."""
@@ -278,7 +289,7 @@ def box_segment(table, world, box, p, radius, out, scratch):
         out[7 + m] = normal
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def segment_plane(p, radius, world, plane, out):
     """A sphere-swept segment ``p`` (a) and the half-space below plane ``plane`` (b): ``out`` as above."""
     nx, ny, nz = world[plane, 2], world[plane, 5], world[plane, 8]
@@ -292,7 +303,7 @@ def segment_plane(p, radius, world, plane, out):
     out[7], out[8], out[9] = -nx, -ny, -nz
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def box_plane(table, world, box, plane, out):
     """Box ``box`` (a) and the half-space below plane ``plane`` (b): the box's vertex deepest
     along -normal, ``c - sum_i h_i sign(n . R_i) R_i``."""
@@ -310,7 +321,7 @@ def box_plane(table, world, box, plane, out):
     out[7], out[8], out[9] = -nx, -ny, -nz
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _flip(out):
     """Swap the roles of a and b in ``out``."""
     for m in range(3):
@@ -327,7 +338,7 @@ _TIE = 1e-9
 _EDGE_BIAS = 1e-12
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _support(table, world, box, nx, ny, nz, toward, skip, out, at):
     """``out[at:at + 3]``: the point of ``box`` farthest along ``toward * n`` (``toward`` = +-1),
     ``c + sum_i h_i sign(toward n . R_i) R_i`` over the axes i != ``skip``. An axis with
@@ -416,7 +427,7 @@ def box_penetration(table, world, a, b, out):
         out[4 + m] = out[1 + m] + d * out[7 + m]
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _box_edge(world, src, axis, corner, half):
     """Edge ``corner`` (0..3) along ``axis`` of box ``src`` (half extents ``half``): its middle c and
     half-vector u (world), the edge from c - u to c + u."""
@@ -430,7 +441,7 @@ def _box_edge(world, src, axis, corner, half):
             world[src, 6 + axis] * half[axis])
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _edge_bound(x, y, z, ux, uy, uz, hx, hy, hz):
     """A lower bound of the distance of the box ``|x_i| <= h_i`` to the edge of middle m = (x, y,
     z) and half-vector u (both in the box's frame): the box's signed distance f is convex, so along
@@ -448,7 +459,7 @@ def _edge_bound(x, y, z, ux, uy, uz, hx, hy, hz):
     return f - abs(along) / f
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def box_box(table, world, a, b, out, scratch):
     """Two boxes: ``out`` as in :func:`segment_segment`. Apart, the closest points of two disjoint
     convex polytopes include a point on an edge of one of them (vertex-face, edge-edge; a
@@ -507,7 +518,7 @@ def box_box(table, world, a, b, out, scratch):
         box_penetration(table, world, a, b, out)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def pair_distance(table, world, a, b, out, scratch):
     """Signed distance of shapes a and b (rows of ``table``, world poses in ``world``) into ``out``;
     returns False for a pair that has no compiled distance (coal measures it): a shape of kind
@@ -537,7 +548,7 @@ def pair_distance(table, world, a, b, out, scratch):
     return True
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def bound_distance(table, world, a, b):
     """A lower bound of the distance of shapes a and b from their bounding spheres (a plane: its
     half-space; a box: the box itself against the other's bounding sphere, much tighter for a
@@ -563,7 +574,7 @@ def bound_distance(table, world, a, b):
     return bound
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def gradient_row(joint_a, joint_b, slot, witness_a, witness_b, normal, support, jacobians_t, rows):
     """``rows[slot] = normal . (J_b(w_b) - J_a(w_a))`` (see the module docstring)."""
     nx, ny, nz = normal[slot, 0], normal[slot, 1], normal[slot, 2]
@@ -583,7 +594,7 @@ def gradient_row(joint_a, joint_b, slot, witness_a, witness_b, normal, support, 
         rows[slot, k] = value
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _claim(value, count, distance):
     """The entry a pair at ``value`` takes: the next free one, else (full) the farthest entry when
     the pair is closer than it; -1 when the pair is not kept."""
@@ -610,7 +621,7 @@ def _write(k, entry, slot, table, pairs, support, jacobians_t, slot_pair, distan
                  witness_b, normal, support, jacobians_t, rows)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b, normal,
            rows):
     """Keep pair ``k`` with ``entry = (d, w_a (3), w_b (3), normal (3))`` if it is among the closest;
@@ -623,7 +634,7 @@ def _store(k, entry, count, table, pairs, support, jacobians_t, slot_pair, dista
     return count + 1 if slot == count else count
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _spheres_apart(table, world, a, b, cutoff):
     """True when the bounding spheres of shapes a and b (neither a plane) are ``cutoff`` apart
     or more: ``|c_b - c_a|^2 > (r_a + r_b + cutoff)^2`` (with a relative 1e-9 to spare, so
@@ -636,7 +647,7 @@ def _spheres_apart(table, world, a, b, cutoff):
     return dx * dx + dy * dy + dz * dz > reach * reach * (1.0 + 1e-9)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _cutoff(detection, d_min, pair_reach, inverse_rate):
     """The distance from which pair p needs no row at any configuration: ``detection``, or, when
     smaller, ``d_min + reach_p / rate``, where its damper asks ``d_dot >= -rate (d - d_min)``
@@ -652,7 +663,7 @@ def _cutoff(detection, d_min, pair_reach, inverse_rate):
     return limit if limit < detection else detection
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _out_of_reach(table, world, a, b, bound, support, jacobians_t, speed, margin):
     """True when no v with ``|v_k| <= speed[k]`` changes the distance d of shapes a and b at
     ``margin = gain (bound - d_min) / dt`` [m/s] or faster (``bound``: a lower bound of d): their
@@ -671,7 +682,7 @@ def _out_of_reach(table, world, a, b, bound, support, jacobians_t, speed, margin
     return _pair_reach(table, world, a, b, support, jacobians_t, speed, margin) < margin  # (False for inf, NaN)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _pair_reach(table, world, a, b, support, jacobians_t, speed, enough):
     """``sum_k speed_k (|v_O,k + w_k x c_x| + |w_k| r_x)`` over the coordinates k that move only one
     of shapes a and b (x that one): the bound on ``|d_dot|`` of :func:`_out_of_reach`, which holds
@@ -697,7 +708,7 @@ def _pair_reach(table, world, a, b, support, jacobians_t, speed, enough):
     return reach
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _refresh_reach(levers, speed, reach):
     """``reach[nv + p] = sum_k speed_k levers[p, k]`` (1e-9 relative to spare, so rounding never
     decides a pair :func:`_pair_reach` would keep): pair p's reach at every configuration
@@ -715,10 +726,11 @@ def _refresh_reach(levers, speed, reach):
             if levers[p, k] > 0.0:  # (0 inf is not 0)
                 total += speed[k] * levers[p, k]
         reach[nv + p] = total * (1.0 + 1e-9)
-    reach[:nv] = speed
+    for k in range(nv):  # (not reach[:nv] = speed: numba's slice assignment compiles for ~2 s)
+        reach[k] = speed[k]
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _pair_distances(table, pairs, placements, jacobians_t, support, world, detection, speed, levers, reach, rate,
                     d_min, slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
     """(``speed``: the bound on each |v_k|, empty for none; ``levers``, ``reach``: the
@@ -758,7 +770,7 @@ def _pair_distances(table, pairs, placements, jacobians_t, support, world, detec
     return count + (distance.size + 1) * n_pending
 
 
-@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+@declared("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
 def pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
@@ -780,7 +792,7 @@ def pair_distances(table, pairs, placements, jacobians_t, support, world, detect
 INERT = 1.0
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _damper_rows(count, written, distance, rows, G, h, settings, dt):
     scale = settings[GAIN] / dt
     for i in range(count):
@@ -793,7 +805,7 @@ def _damper_rows(count, written, distance, rows, G, h, settings, dt):
         h[i] = INERT
 
 
-@njit("void(int64, int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
+@declared("void(int64, int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
       cache=CACHE, nogil=True)
 def damper_rows(count, written, distance, rows, G, h, settings, dt):
     """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
@@ -812,7 +824,7 @@ END_ZONE = 0.1
 PARALLEL = 1.0 - 1e-3
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _across(ex, ey, ez, nx, ny, nz):
     """The length of (ex, ey, ez) across the unit normal n."""
     along = nx * ex + ny * ey + nz * ez
@@ -820,7 +832,7 @@ def _across(ex, ey, ez, nx, ny, nz):
     return math.sqrt(ex * ex + ey * ey + ez * ez)
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _end_distance(table, world, capsule, end, other, out, scratch):
     """The distance of the sphere at parameter ``end`` in [-1, 1] of ``capsule``'s segment to shape ``other``
     into ``out`` as in :func:`segment_segment` (a: the sphere); False for a shape measured by coal."""
@@ -841,7 +853,7 @@ def _end_distance(table, world, capsule, end, other, out, scratch):
     return True
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _overhang(table, world, box, capsule, witness, out):
     """Into ``out`` (2): the parameters in (-1, 1) of ``capsule``'s segment (``c + t half axis``)
     where it leaves the slab of the box's feature that holds ``witness`` (a face: the two axes
@@ -869,7 +881,7 @@ def _overhang(table, world, box, capsule, witness, out):
     out[1] = hi if lo < hi < 1.0 else 2.0
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b, support, jacobians_t, G, h, scale,
              d_min, speed, dt, scratch):
     """The damper of the sphere at parameter ``t`` of ``capsule``'s segment against ``other`` (the
@@ -904,7 +916,7 @@ def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b,
     return 1
 
 
-@njit(cache=CACHE, nogil=True, inline="always")
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                  normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
     """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
@@ -1000,7 +1012,7 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
     return n_rows
 
 
-@njit("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
+@declared("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[::1], float64[::1], float64, float64, float64[::1], int64[::1], float64[::1])", cache=CACHE,
       nogil=True)
@@ -1043,7 +1055,7 @@ def avoidance_op(table, pairs, placements, jacobians_t, support, world, index, d
     return packed, corners
 
 
-@njit("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+@declared("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
       "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1], int64[::1], "
       "float64[:, ::1], float64[::1])", cache=CACHE, nogil=True)
@@ -1068,7 +1080,7 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
                         size, size, size, tick[DT])
 
 
-@njit("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "
+@declared("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "
       "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])",
       cache=CACHE, nogil=True)
 def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b,
@@ -1079,7 +1091,7 @@ def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, 
                   normal, rows)
 
 
-@njit("float64(float64[:, ::1], float64[:, ::1], int64, int64, float64[::1], float64[::1])", cache=CACHE,
+@declared("float64(float64[:, ::1], float64[:, ::1], int64, int64, float64[::1], float64[::1])", cache=CACHE,
       nogil=True)
 def distance_of(table, world, a, b, out, scratch):
     """The signed distance of one pair (world poses already in ``world``) into ``out``; NaN when the
@@ -1091,7 +1103,22 @@ def distance_of(table, world, a, b, out, scratch):
     return np.nan
 
 
-@njit("float64(float64[:, ::1], float64[:, ::1], int64, int64)", cache=CACHE, nogil=True)
+@declared("float64(float64[:, ::1], float64[:, ::1], int64, int64)", cache=CACHE, nogil=True)
 def bound_of(table, world, a, b):
     """:func:`bound_distance`, compiled for the tests."""
     return bound_distance(table, world, a, b)
+
+
+def warm_up() -> None:
+    """Compile (or read from numba's cache) every kernel and op callback of the collision package
+    now: the declared kernels of this module and of :mod:`~wbc.collision.footprint_kernels`, and the
+    tick-program ops of :class:`~wbc.collision.CollisionAvoidance` and
+    :class:`~wbc.collision.BaseFootprintAvoidance` (``wbc warmup``)."""
+    from . import footprint_kernels
+    from .avoidance import avoidance_op
+    from .footprint import footprint_op
+
+    for module in (sys.modules[__name__], footprint_kernels):
+        compile_named(module, *(name for name, value in vars(module).items() if hasattr(value, SIGNATURE)))
+    avoidance_op()
+    footprint_op()

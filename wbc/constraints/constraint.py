@@ -68,6 +68,11 @@ class ConstraintData:
         when a controller is built, and only for hard constraints: every command the controller
         returns keeps them (``TickContext.speed_bound``). Default: no such bound."""
 
+    def prepare_compute(self) -> None:
+        """Compile what :meth:`compute` calls beyond :attr:`python_kernels` (kernels of other modules,
+        e.g. :mod:`wbc.collision.kernels`), when a controller that computes this constraint in Python is
+        built -- never in its first tick. Default: nothing."""
+
     def compute(self, kin: Kinematics, dt: float, rows: ConstraintRows) -> None:
         """Write this tick's bounds / rows."""
         raise NotImplementedError(f"{type(self).__name__} computes no rows")

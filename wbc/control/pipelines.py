@@ -144,6 +144,8 @@ class Assembly:
         self._tasks, self._constraints, self._run = tasks, constraints, program.runner()
         _prepare_kernels(item for item, _ in constraints)
         _prepare_kernels(item for item, *_ in tasks)
+        for constraint, _ in constraints:
+            constraint.prepare_compute()
         self._qp = buffers.qp
         self._q_screened, self._q_weights = q_screened, q_weights  # q is finite iff q . weights is
         self._prepare = inputs.prepare if inputs is not None and inputs.prepares else None

@@ -30,9 +30,10 @@ every program needs, is a compiled function prepared when a program is made
 (``tests/test_no_compile_in_ticks.py`` checks that no tick compiles). Everything compiled is
 cached on disk (``cache=CACHE``): after an install the first start of a controller compiles its
 own kernels once (a few seconds, announced by one line on stderr; ``wbc warmup`` compiles all of
-them up front, ~20 s); later starts read the machine code. On that first start, where a core is
-idle, worker processes compile part of them into the cache in parallel while the controller is
-built (:func:`batch`, :mod:`._pool`; ``WBC_COMPILE_WORKERS`` sets their number): one starts at
+them up front, with the collision package's, ~45 s); later starts read the machine code. On that
+first start, where a core is idle, worker processes compile part of them into the cache in
+parallel while the controller is built (:func:`batch`, :mod:`._pool`; ``WBC_COMPILE_WORKERS``
+sets their number): one starts at
 ``import wbc`` already, on the kernels every controller uses (:func:`start_compiling`), and is
 kept at the first build where its core was otherwise idle. Where numba finds no writable cache
 directory (a read-only install and a read-only home: ``NUMBA_CACHE_DIR`` unset, the package's

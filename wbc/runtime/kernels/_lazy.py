@@ -77,3 +77,11 @@ def compile_callees(function: Any, seen: set[int] | None = None) -> None:
         if hasattr(callee, "py_func") and id(callee) not in seen:
             seen.add(id(callee))
             compile_declared(callee, seen)
+
+
+def compile_named(module: Any, *names: str) -> None:
+    """:func:`compile_declared` for the declared kernels ``names`` of ``module`` -- a kernel module
+    outside :mod:`wbc.runtime.kernels` (:mod:`wbc.collision.kernels`), whose objects call it when
+    they are built, or when a controller built on them will call the kernels in Python."""
+    for name in names:
+        compile_declared(getattr(module, name))
