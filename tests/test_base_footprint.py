@@ -302,7 +302,9 @@ def test_a_base_that_starts_too_close_is_pushed_out(youbot):
     ([[0, 0], [1, 1], [1, 0], [0, 1]], "not a simple polygon"),
     ([[0, 0], [1, 0], [np.nan, 1]], "NaN"),
     ([[0, 0], [0, 0], [1, 1]], "coincide"),
-    ("square", "array"),
+    ("square", "numeric"),
+    ([[0, 0], [1, 0], [True, 1]], "not true/false"),  # (was read as the vertex (1, 1))
+    ([[0, 0], [1, 0], [1j, 1]], "must be real"),
     ([[0, 0], [1e200, 0], [0, 1e200]], "beyond 1e\\+150 m .* give the vertices in metres"),  # (the area overflowed)
 ])
 def test_a_bad_footprint_is_refused(footprint, message):
@@ -310,7 +312,7 @@ def test_a_bad_footprint_is_refused(footprint, message):
         warnings.simplefilter("error")  # (no numpy warning on the way)
         with pytest.raises(wbc.InvalidInputError, match=message):
             wbc.BaseFootprintAvoidance(footprint)
-        with pytest.raises(wbc.InvalidInputError, match=message.replace("array", "vertices")):
+        with pytest.raises(wbc.InvalidInputError, match=r"polygons\[0\].*" + message):
             wbc.BaseFootprintAvoidance(RECTANGLE, polygons=[footprint])
 
 

@@ -99,12 +99,14 @@ def test_the_com_task_moves_the_ground_projection_and_z_only_when_weighted(cost,
 
 
 @pytest.mark.parametrize("polygon, message", [
-    ([[0, 0], [1, 0]], "N >= 3"),
+    ([[0, 0], [1, 0]], "m >= 3"),
     ([[0, 0], [0, 1], [1, 0]], "counter-clockwise"),  # clockwise
     ([[0, 0], [2, 0], [1, 0.2], [1, 1]], "convex"),
     ([[0, 0], [1, 0], [1, 0], [0, 1]], "repeated vertex"),
-    ([[0, 0], [1, np.nan], [0, 1]], "finite"),
-    ("square", "(N, 2)"),
+    ([[0, 0], [1, np.nan], [0, 1]], "NaN or inf"),
+    ("square", "numeric"),
+    ([[0, 0], [1, 0], [True, 1]], "not true/false"),  # (was read as the vertex (1, 1))
+    ([[0, 0], [1, 0], [1j, 1]], "must be real"),
     ([[-1e200, -1e200], [1e200, -1e200], [0, 1e200]], "beyond 1e+150 m"),  # (its turn tests overflowed)
 ])
 def test_a_bad_polygon_is_refused(polygon, message):

@@ -14,7 +14,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..constraints.constraint import Constraint, ConstraintData, ConstraintRows
 from ..core.errors import InvalidInputError
 from ..core.settings import Operand
-from ..core.validation import MAX_COORDINATE, as_gain, as_positive, real_array
+from ..core.validation import as_gain, as_positive, polygon_vertices, real_array
 from ..model.kinematics import Kinematics
 from ..model.mobile_base import BaseKind
 from ..model.robot import Robot
@@ -43,18 +43,7 @@ def as_polygon(value: ArrayLike, name: str) -> NDArray[np.float64]:
         InvalidInputError: not an (m, 2) finite array, fewer than 3 vertices, zero area, repeated
             vertices or crossing edges (not a simple polygon).
     """
-    try:
-        polygon = np.array(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name} must be an (m, 2) array of vertices [m], got {value!r}") from None
-    if polygon.ndim != 2 or polygon.shape[1] != 2 or polygon.shape[0] < 3:
-        raise InvalidInputError(f"{name} must be an (m, 2) array of m >= 3 vertices (x, y) [m], got shape "
-                                f"{polygon.shape}")
-    if not np.all(np.isfinite(polygon)):
-        raise InvalidInputError(f"{name} contains NaN or inf")
-    if np.abs(polygon).max() > MAX_COORDINATE:
-        raise InvalidInputError(f"{name} has a vertex beyond {MAX_COORDINATE:g} m (its area would overflow): "
-                                "give the vertices in metres")
+    polygon = polygon_vertices(value, name)
     following = np.roll(polygon, -1, axis=0)
     edges = following - polygon
     if np.any(np.hypot(edges[:, 0], edges[:, 1]) <= 1e-9):

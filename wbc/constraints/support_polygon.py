@@ -10,7 +10,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.errors import InvalidInputError
 from ..core.settings import Setting
-from ..core.validation import MAX_COORDINATE, as_gain, as_nonnegative
+from ..core.validation import as_gain, as_nonnegative, polygon_vertices
 from ..model.kinematics import Kinematics
 from ..model.robot import Robot
 from ..tasks.com_task import require_mass
@@ -104,13 +104,7 @@ def polygon_edges(polygon: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.f
         InvalidInputError: not an (N, 2) array of finite numbers with N >= 3, a repeated vertex,
             clockwise or not convex.
     """
-    vertices = np.asarray(polygon, dtype=float) if _numeric(polygon) else None
-    if vertices is None or vertices.ndim != 2 or vertices.shape[1] != 2 or vertices.shape[0] < 3 \
-            or not np.all(np.isfinite(vertices)):
-        raise InvalidInputError(f"polygon must be an (N, 2) array of finite vertices [m], N >= 3, got {polygon!r}")
-    if np.abs(vertices).max() > MAX_COORDINATE:
-        raise InvalidInputError(f"polygon has a vertex beyond {MAX_COORDINATE:g} m (its turn tests would overflow): "
-                                "give the vertices in metres")
+    vertices = polygon_vertices(polygon, "polygon")
     edges = np.roll(vertices, -1, axis=0) - vertices
     lengths = np.linalg.norm(edges, axis=1)
     if np.any(lengths <= 0.0):
@@ -121,11 +115,3 @@ def polygon_edges(polygon: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.f
                                 "reverse the order of clockwise vertices")
     normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / lengths[:, None]  # the edge turned clockwise
     return normals, np.einsum("ij,ij->i", normals, vertices)
-
-
-def _numeric(value: object) -> bool:
-    try:
-        np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        return False
-    return True

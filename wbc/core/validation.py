@@ -52,6 +52,23 @@ def real_array(value: ArrayLike, name: str) -> NDArray[np.float64]:
     return _real_array(value, None, name)
 
 
+def polygon_vertices(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as an (m, 2) float64 array (a copy) of m >= 3 finite vertices (x, y) [m], each
+    coordinate within :data:`MAX_COORDINATE` (a polygon's area and turn tests stay finite);
+    complex, boolean, non-numeric or ragged input is refused (:class:`InvalidInputError` naming
+    ``name``)."""
+    polygon = np.array(real_array(value, name))
+    if polygon.ndim != 2 or polygon.shape[1] != 2 or polygon.shape[0] < 3:
+        raise InvalidInputError(f"{name} must be an (m, 2) array of m >= 3 vertices (x, y) [m], got shape "
+                                f"{polygon.shape}")
+    if not np.all(np.isfinite(polygon)):
+        raise InvalidInputError(f"{name} contains NaN or inf")
+    if np.abs(polygon).max() > MAX_COORDINATE:
+        raise InvalidInputError(f"{name} has a vertex beyond {MAX_COORDINATE:g} m (its area and turn tests would "
+                                "overflow): give the vertices in metres")
+    return polygon
+
+
 def _all_real(value: ArrayLike) -> bool:
     """True for an object array / nested list holding only real numbers (not bools)."""
     items = np.asarray(value, dtype=object).ravel()
