@@ -43,7 +43,7 @@ def controller(points: np.ndarray | None) -> wbc.Controller:
     task.set_target(robot.frame_pose(Q, "ee"))
     constraints = [wbc.JointPositionLimits(), wbc.JointVelocityLimits(), wbc.MecanumWheelLimits()]
     if points is not None:
-        constraints.append(wbc.BaseFootprintAvoidance(PLATFORM, points=points))
+        constraints.append(wbc.BaseFootprintAvoidance(PLATFORM, points=points, capacity=16))
     return wbc.Controller(robot, [task, wbc.PostureTask(1e-4)], constraints)
 
 

@@ -139,7 +139,10 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
         min_distance: [m] >= 0, the clearance kept.
         detection_distance: [m] > ``min_distance``: farther points get no row.
         gain: fraction (0, 1] of the margin one tick may consume.
-        capacity: number of rows (angular sectors), >= 1.
+        capacity: number of rows (angular sectors), >= 1. The default 64 gives each sector about one
+            point of a scan every 5 cm near the base (docs/collision.md: a turning base along a
+            sparse scan loses margin on the points a sector's closest one hides; 16 sectors cost
+            10.8 of a 20 mm margin, 64 sectors 0.35 mm).
 
     Raises:
         InvalidInputError: a footprint or polygon that is not a simple polygon, points that are not
@@ -151,7 +154,7 @@ class BaseFootprintAvoidance(DistanceMargins, Constraint):
 
     def __init__(self, footprint: ArrayLike, points: ArrayLike | None = None,
                  polygons: Sequence[ArrayLike] | None = None, min_distance: float = 0.05,
-                 detection_distance: float = 0.5, gain: float = 0.5, capacity: int = 16,
+                 detection_distance: float = 0.5, gain: float = 0.5, capacity: int = 64,
                  name: str | None = None) -> None:
         super().__init__(name)
         self.footprint = as_polygon(footprint, "footprint")
