@@ -421,3 +421,35 @@ def test_rows_written_into_a_strided_block_are_the_same():
     np.testing.assert_array_equal(blocks[0][0], blocks[1][0])
     np.testing.assert_array_equal(blocks[0][1], blocks[1][1])
     assert np.any(blocks[0][0] != 0.0)
+
+
+# ------------------------------------------------------------- detection against braking
+@pytest.mark.parametrize("make, min_distance", [
+    (lambda detection: wbc.CollisionAvoidance([wbc.Sphere([2.0, 0.0, 0.1], 0.05)], self_collision=False,
+                                              min_distance=0.02, detection_distance=detection), 0.02),
+    (lambda detection: wbc.BaseFootprintAvoidance([[-0.29, -0.19], [0.29, -0.19], [0.29, 0.19], [-0.29, 0.19]],
+                                                  points=[[2.0, 0.0]], min_distance=0.05,
+                                                  detection_distance=detection), 0.05),
+])
+def test_a_detection_shorter_than_the_platforms_braking_distance_warns(make, min_distance):
+    """docs/acceleration.md: under AccelerationLimits a pair found closer than the braking distance
+    cannot be braked for. The platform's stop from its top speed s along an axis at a_d, half the
+    acceleration bound (0.8 m/s^2 on every coordinate here, below what the wheels' limits allow
+    the platform: 1 m/s^2), written out: s^2 / (2 a_d) = 0.8 m for the youBot's 0.8 m/s. A
+    detection leaving less than that before min_distance warns naming the fix; one leaving more,
+    or no acceleration bounds, builds silently."""
+    speed, rate = YOUBOT.base.max_linear_speed, 0.5 * 0.8
+    assert speed == 0.8
+    stop = speed ** 2 / (2 * rate)
+    short, enough = min_distance + stop - 0.01, min_distance + stop + 0.01
+
+    def build(item, bounds):
+        return wbc.Controller(YOUBOT, [wbc.PostureTask(1.0)], [wbc.JointVelocityLimits(), item, *bounds])
+
+    with pytest.warns(wbc.ConfigurationWarning, match=rf"need {stop:.3g} m to stop .* detection_distance >= "
+                                                      rf"{stop + min_distance:.3g} m"):
+        build(make(short), [wbc.AccelerationLimits(0.8)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        build(make(enough), [wbc.AccelerationLimits(0.8)])
+        build(make(short), [])

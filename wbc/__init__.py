@@ -31,6 +31,7 @@ from .constraints import (
 from .control.controller import Controller
 from .control.diagnostics import TickDiagnostics
 from .core.errors import (
+    ConfigurationWarning,
     InvalidInputError,
     ModelError,
     ModelWarning,
@@ -76,8 +77,8 @@ __all__ = [
     "CollisionAvoidance", "Sphere", "Box", "Capsule", "Plane", "BaseFootprintAvoidance",
     "Manipulability", "manipulability", "manipulability_gradient",
     "Controller", "TickDiagnostics", "Outcome", "QP",
-    "InvalidInputError", "ModelError", "ModelWarning", "PlanningError", "ScenarioError", "SolverError",
-    "UnknownFrameError", "UnknownSolverError", "WbcError",
+    "ConfigurationWarning", "InvalidInputError", "ModelError", "ModelWarning", "PlanningError", "ScenarioError",
+    "SolverError", "UnknownFrameError", "UnknownSolverError", "WbcError",
     "Robot", "load_robot", "model_path", "shipped_models", "available_solvers",
     "Task", "FrameTask", "PositionTask", "PostureTask", "BaseVelocityTask", "SteeringTask", "ManipulabilityTask",
     "RelativeFrameTask", "CoMTask", "DampingTask", "KineticEnergyRegularization", "LookAtTask", "AxisAlignTask",

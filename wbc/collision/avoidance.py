@@ -254,7 +254,10 @@ class CollisionAvoidanceData(ConstraintData):
         """The rows as one op of the tick program (:func:`avoidance_op`): when every candidate pair
         has a compiled distance (:func:`compiled_pairs_only`), the kinematics are the compiled chain's
         and no acceleration bounds ask for braking (:class:`~wbc.collision.braking.RowBraking`, in
-        Python); else :meth:`compute` every tick."""
+        Python); else :meth:`compute` every tick. (Warns here, where the stack is known, when the
+        detection distance is shorter than the braking distance: :meth:`RowBraking.check_detection`.)"""
+        avoidance = self.constraint
+        self._braking.check_detection(kin.robot, avoidance.name, avoidance.detection_distance, avoidance.min_distance)
         if not (kin.native and rows.G.flags.c_contiguous and not self._braking.active
                 and compiled_pairs_only(self.distances)):
             return False

@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import math
+import warnings
+
 import numpy as np
 from numpy.typing import NDArray
 
 from ..constraints.acceleration_limits import braking_speed
+from ..core.errors import ConfigurationWarning
+from ..model.robot import Robot
 from ..model.tick_context import TickContext
 
 #: the share of the rate at which the acceleration bounds can change a row's ``g . v`` that its
@@ -65,3 +70,31 @@ class RowBraking:
         braking_speed(margin, deceleration, dt, speed)
         np.maximum(speed, np.minimum(h, 0.0, out=margin), out=speed)  # inside the margin: the push-out
         np.minimum(h, speed, out=h)
+
+    def check_detection(self, robot: Robot, name: str, detection: float, min_distance: float) -> None:
+        """Warn (:class:`~wbc.ConfigurationWarning`) when the controller has acceleration bounds
+        and ``detection - min_distance`` is shorter than the distance the platform needs to stop
+        from its top speed along one of its axes (``robot.base.max_linear_speed``, at ``a_d``
+        as in :meth:`apply`): ``s^2 / (2 a_d)``. A pair found that late cannot be braked for: the
+        soft rows give way and the margin goes (docs/acceleration.md). Only the platform's
+        approach is checked (an arm's speed along a row depends on its configuration)."""
+        braking = None if self._context is None else self._context.braking
+        base = robot.base
+        speed = base.max_linear_speed
+        if braking is None or not base.is_mobile or not 0.0 < speed < math.inf:
+            return
+        axes = np.zeros((2, robot.nv))  # the base's x and y axes (its heading at the neutral configuration)
+        axes[0, base.indices[0]] = axes[1, base.indices[1]] = 1.0
+        rates = np.zeros(2)
+        braking.decelerations(axes, robot.neutral(), rates)
+        rate = BRAKING_SHARE * float(rates.min())
+        if rate <= 0.0:
+            return
+        stop = speed * speed / (2.0 * rate)
+        if detection - min_distance < stop:
+            warnings.warn(f"{name}: detection_distance {detection:g} m leaves {detection - min_distance:g} m "
+                          f"before min_distance, but the acceleration bounds need {stop:.3g} m to stop the "
+                          f"platform from its {speed:g} m/s (at {rate:.3g} m/s^2, half of what they allow along "
+                          "its axis): an approach at that speed found that late cannot be braked for, and the margin "
+                          f"goes; set detection_distance >= {stop + min_distance:.3g} m, or lower the base's speed "
+                          "limit (docs/acceleration.md)", ConfigurationWarning, stacklevel=2)

@@ -288,10 +288,13 @@ class BaseFootprintAvoidanceData(ConstraintData):
     def add_ops(self, program: TickProgram, kin: Kinematics, rows: ConstraintRows) -> bool:
         """The rows as one op of the tick program (:func:`footprint_op`) when the kinematics are the
         compiled chain's (its configuration the program's) and no acceleration bounds ask for
-        braking (:class:`~wbc.collision.braking.RowBraking`, in Python); else :meth:`compute` every tick."""
+        braking (:class:`~wbc.collision.braking.RowBraking`, in Python); else :meth:`compute` every tick.
+        (Warns here, where the stack is known, when the detection distance is shorter than the
+        braking distance: :meth:`~wbc.collision.braking.RowBraking.check_detection`.)"""
+        avoidance = self.constraint
+        self._braking.check_detection(kin.robot, avoidance.name, avoidance.detection_distance, avoidance.min_distance)
         if not (kin.native and rows.G.flags.c_contiguous and not self._braking.active):
             return False
-        avoidance = self.constraint
         program.add(footprint_op(), grid=avoidance._grid, meta=avoidance._meta, edges=self._edges, shape=self._shape,
                     q=kin.q, pose=self._pose, settings=avoidance._settings, columns=self._columns,
                     sectors=self._sectors, best=self.closest, G=rows.G, h=rows.h, vertices=self._edges.shape[0],

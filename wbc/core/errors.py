@@ -28,6 +28,11 @@ class ModelWarning(UserWarning):
     fixed base, URDF mimic joints): the message names the fix."""
 
 
+class ConfigurationWarning(UserWarning):
+    """A controller builds, but a setting defeats what it is for (a collision detection distance
+    shorter than the braking distance its acceleration bounds imply): the message names the fix."""
+
+
 class ScenarioError(WbcError, ValueError):
     """A scenario file (``tasks/*.toml``) is malformed."""
 
