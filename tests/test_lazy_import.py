@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from conftest import NEUTRAL, child_environment
-from wbc.collision import kernels as collision_kernels
+from wbc.collision.warm_up import warm_up as warm_up_collision
 from wbc.runtime import kernels
 from wbc.runtime.kernels import _cache, tick
 
@@ -26,7 +26,7 @@ from wbc.runtime.kernels import _cache, tick
 def warm():
     """Every kernel compiled (or loaded) in this process, so that their cache is warm for the subprocesses."""
     kernels.warm_up()
-    collision_kernels.warm_up()
+    warm_up_collision()
 
 
 def _python(code: str, env: dict | None = None, cwd: Path | str = NEUTRAL) -> subprocess.CompletedProcess:
@@ -152,7 +152,8 @@ def test_collision_warm_up_compiles_every_kernel_python_calls_and_both_ops(warm)
     that Python calls compiled for one signature, and both tick-program ops built."""
     result = _python("""
         from wbc.collision import avoidance, footprint, footprint_kernels, kernels
-        kernels.warm_up()
+        from wbc.collision.warm_up import warm_up
+        warm_up()
         names = ["world_poses", "pair_distances", "damper_rows", "corner_rows", "avoidance_rows", "insert_pair",
                  "distance_of", "bound_of"]
         counts = [len(getattr(kernels, name).signatures) for name in names]

@@ -276,12 +276,12 @@ def _warmup(args: argparse.Namespace) -> int:
     """Load every compiled kernel -- compiling it if the cache is cold -- and say how long it took."""
     import time
 
-    from ..collision import kernels as collision_kernels
+    from ..collision.warm_up import warm_up as warm_up_collision
     from ..runtime import kernels
 
     start = time.perf_counter()
     kernels.warm_up()
-    collision_kernels.warm_up()
+    warm_up_collision()
     elapsed = time.perf_counter() - start
     where = kernels.cache_directory
     print(f"numba kernels ready in {elapsed:.1f} s ("

@@ -13,6 +13,7 @@ gradient rows.
   shape at any configuration: the first test that leaves a pair out of reach.
 * :mod:`~wbc.collision.footprint` -- :class:`BaseFootprintAvoidance`: the mobile base's 2-D
   footprint kept clear of obstacle points (a laser scan) and polygons.
+* :mod:`~wbc.collision.warm_up` -- every collision kernel compiled now (``wbc warmup``).
 
 Only the compiled kernels (:mod:`~wbc.collision.kernels`) import numba, when a :class:`Distances`
 is first built.

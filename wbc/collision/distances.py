@@ -286,4 +286,3 @@ def compiled_pairs_only(distances: Distances) -> bool:
 
 
 __all__ = ["Distances", "PairBuffers"]
-

@@ -33,7 +33,7 @@ Importing this file compiles nothing. The kernels Python calls are declared
 :class:`~wbc.collision.Distances`, or a controller computing a
 :class:`~wbc.collision.CollisionAvoidance` in Python
 (:meth:`~wbc.constraints.constraint.ConstraintData.prepare_compute`) -- and the tick program's op
-when a controller first adds it; :func:`warm_up` compiles all of them. The helpers are inlined by
+when a controller first adds it; :func:`wbc.collision.warm_up.warm_up` compiles all of them. The helpers are inlined by
 LLVM (``forceinline``), not by numba's IR inliner, which copied each helper's IR into every caller
 (the first start after an install with a :class:`~wbc.collision.CollisionAvoidance` took ~4 min).
 """
@@ -41,14 +41,13 @@ LLVM (``forceinline``), not by numba's IR inliner, which copied each helper's IR
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 from numba import njit
 
 from ..runtime.kernels import _cache
-from ..runtime.kernels._lazy import SIGNATURE, compile_named, declared
+from ..runtime.kernels._lazy import declared
 from .layout import (
     BOUND_CENTER,
     BOUND_RADIUS,
@@ -1107,18 +1106,3 @@ def distance_of(table, world, a, b, out, scratch):
 def bound_of(table, world, a, b):
     """:func:`bound_distance`, compiled for the tests."""
     return bound_distance(table, world, a, b)
-
-
-def warm_up() -> None:
-    """Compile (or read from numba's cache) every kernel and op callback of the collision package
-    now: the declared kernels of this module and of :mod:`~wbc.collision.footprint_kernels`, and the
-    tick-program ops of :class:`~wbc.collision.CollisionAvoidance` and
-    :class:`~wbc.collision.BaseFootprintAvoidance` (``wbc warmup``)."""
-    from . import footprint_kernels
-    from .avoidance import avoidance_op
-    from .footprint import footprint_op
-
-    for module in (sys.modules[__name__], footprint_kernels):
-        compile_named(module, *(name for name, value in vars(module).items() if hasattr(value, SIGNATURE)))
-    avoidance_op()
-    footprint_op()
