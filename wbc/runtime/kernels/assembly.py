@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 
 from . import DAQP_CONTROL_DEFECT, DAQP_CONTROL_EXITFLAG, DAQP_CONTROL_SIZE, prepare_cache
 from ._lazy import declared
@@ -219,27 +219,35 @@ def normalise_cost(Hc: np.ndarray, damping: float, damping_floor: float) -> None
 
 
 @njit(inline="always")
-def _defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np.ndarray) -> float:
-    """:func:`constraint_defect` with ``C`` flat (row-major, ``len(upper) - len(x)`` rows)."""
+def _defect(C: np.ndarray, c0: int, upper: np.ndarray, u0: int, lower: np.ndarray, l0: int, x: np.ndarray,
+            count: int) -> float:
+    """:func:`constraint_defect` over the first ``count`` constraints, with ``C`` flat (row-major,
+    from ``C[c0]``) and the sides from ``upper[u0]`` and ``lower[l0]``: offsets into the arrays
+    (the QP's flat buffer for all three, :func:`leading_defect`), not slices of them (a view
+    costs as much as a fifth of the loop). Unsigned indices: numba adds no negative-index fix-up
+    to them (~20 % of the loop)."""
     n = x.shape[0]
     worst = 0.0
-    for i in range(upper.shape[0]):
-        if i < n:
+    for index in range(count):
+        i = uint64(index)
+        if index < n:
             value = x[i]
             size = abs(value)
         else:
             value = 0.0
             size = 0.0
-            row = (i - n) * n
-            for j in range(n):
+            row = uint64(c0 + (index - n) * n)
+            for column in range(n):
+                j = uint64(column)
                 term = C[row + j] * x[j]
                 value += term
                 size += abs(term)
         if not math.isfinite(value):
             return math.inf
-        excess = max(value - upper[i], lower[i] - value)
+        high, low = upper[uint64(u0) + i], lower[uint64(l0) + i]
+        excess = max(value - high, low - value)
         if excess > 0.0:
-            bound = upper[i] if value > upper[i] else lower[i]
+            bound = high if value > high else low
             worst = max(worst, excess / max(1.0, abs(bound), size))
     return worst
 
@@ -249,7 +257,18 @@ def constraint_defect(C: np.ndarray, upper: np.ndarray, lower: np.ndarray, x: np
     """Largest relative violation of ``lower <= (x; C x) <= upper`` (the layout of
     :class:`wbc.qp.problem.QP`): each violation is divided by ``max(1, |bound|, sum_j |C_rj x_j|)``,
     the size of the numbers it was computed from. NaN in ``x`` gives inf."""
-    return _defect(C.reshape(C.size), upper, lower, x)
+    return _defect(C.reshape(C.size), 0, upper, 0, lower, 0, x, upper.shape[0])
+
+
+@njit(inline="always")
+def _qp_defect(data: np.ndarray, x: np.ndarray, given: int) -> float:
+    """:func:`_defect` of ``x`` over the first ``given`` constraints of the QP stored in ``data``."""
+    n = x.shape[0]
+    m = n + (data.shape[0] - n * n - 3 * n) // (n + 2)
+    start = n * n + n  # C's first entry
+    upper = start + (m - n) * n
+    lower = upper + m
+    return _defect(data, start, data, upper, data, lower, x, given)
 
 
 @declared("float64(float64[::1], float64[:])", cache=CACHE, nogil=True)
@@ -257,23 +276,20 @@ def qp_defect(data: np.ndarray, x: np.ndarray) -> float:
     """:func:`constraint_defect` of ``x`` on the QP stored in ``data`` (:class:`wbc.qp.problem.QP`'s
     flat buffer: H (n x n), c (n), C (rows x n), upper, lower (n + rows each), so
     ``len(data) = n^2 + 3 n + rows (n + 2)``) with ``n = len(x)``: the check run on every
-    answer, with two arguments (each costs ~0.1 us to pass), on slices of ``data`` (a reshaped
-    view of C would cost a runtime call in numba)."""
+    answer, with two arguments (each costs ~0.1 us to pass), on offsets into ``data`` (a reshaped
+    view of C would cost a runtime call in numba). ``x`` of any stride (Python's answer checks);
+    the compiled solves call :func:`leading_defect`."""
     n = x.shape[0]
-    return leading_defect(data, x, n + (data.shape[0] - n * n - 3 * n) // (n + 2))
+    return _qp_defect(data, x, n + (data.shape[0] - n * n - 3 * n) // (n + 2))
 
 
-@declared("float64(float64[::1], float64[:], int64)", cache=CACHE, nogil=True)
+@declared("float64(float64[::1], float64[::1], int64)", cache=CACHE, nogil=True)
 def leading_defect(data: np.ndarray, x: np.ndarray, given: int) -> float:
     """:func:`qp_defect` over the first ``given`` of the QP's m bounds and rows (the rest inert:
-    met exactly by every x, :func:`wbc.runtime.kernels._inert_rows.extent`). Compiled once, for
-    one signature: the native solve calls it from two places."""
-    n = x.shape[0]
-    m = n + (data.shape[0] - n * n - 3 * n) // (n + 2)
-    start = n * n + n  # C's first entry
-    upper = start + (m - n) * n
-    lower = upper + m
-    return _defect(data[start:upper], data[upper:upper + given], data[lower:lower + given], x)
+    met exactly by every x, :func:`wbc.runtime.kernels._inert_rows.extent`), ``x`` contiguous
+    (the compiled solves' answer: its loads then need no stride, ~20 % of the loop). Compiled
+    once, for one signature: the native solve calls it from three places."""
+    return _qp_defect(data, x, given)
 
 
 @njit(inline="always")

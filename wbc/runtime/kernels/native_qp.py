@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import njit, types, uint64
 from numba.extending import intrinsic
 
 from . import (
@@ -42,7 +42,7 @@ from . import (
 from ._clock import now_ns
 from ._inert_rows import _int32_at, extent, inactive_after, leave_out, restore, sense_at
 from ._lazy import declared
-from .assembly import _minimiser, leading_defect, qp_defect
+from .assembly import _minimiser, leading_defect
 from .ops import FLAG_ACCEPTED, FLAG_FOUND_NAN, FLAG_STOPPED, FLAGS_OPERAND, Op
 
 CACHE = prepare_cache()  # before the first @njit below compiles; False: no writable cache (see wbc.runtime.kernels)
@@ -190,105 +190,125 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
     of Z's columns, of ``H Z``, and the reduced Hessian with its factor (reciprocal diagonal).
     """
     n, m = x.shape[0], lam.shape[0]
-    k = 0  # the active constraints
+    # data indexed flat (no reshaped views: numba's reshape calls a runtime helper): H (n x n), c, C ((m - n) x n:
+    # constraint i >= n at n * n + n + (i - n) n = n + i n), upper, lower (m each). Indices known to be >= 0 are
+    # cast to uint64 where the loops are hot: numba adds a negative-index fix-up to every signed index
+    upper = n * n + n + (m - n) * n
+    lower = upper + m
+    k = 0  # the active constraints, gathered in one pass: Â^T in lu's first k columns, D b_W in w
     for i in range(sense.shape[0]):
         state = sense[i]
         if state & DAQP_SENSE_ZERO_ROW:
             continue  # a row DAQP was given as zero: never in its set (see _no_active_constraint)
         if state & ~(DAQP_SENSE_ACTIVE | DAQP_SENSE_LOWER | DAQP_SENSE_IMMUTABLE):
             return -1.0  # a soft or binary constraint, or a state this kernel does not know
-        if state & DAQP_SENSE_ACTIVE:
-            k += 1
-    if k > n:
-        return -1.0
-    d = n - k
-    # data indexed flat (no reshaped views: numba's reshape calls a runtime helper): H (n x n), c, C ((m - n) x n:
-    # constraint i >= n at n * n + n + (i - n) n = n + i n), upper, lower (m each)
-    upper = n * n + n + (m - n) * n
-    lower = upper + m
-    # kkt's rows indexed in kkt (a view of each row costs as much as the work on it): 0 scale, 1 index, 2 perm,
-    # 3 w, 4 g, 5 mu, 6 r (a view: the triangular solves take it), Z from 7, H Z from 7 + d, R (a view) from 7 + 2d
-    z, hz = 7, 7 + d
-    r, R = kkt[6], kkt[7 + 2 * d:7 + 3 * d]
-    j = 0
-    for i in range(m):  # Â^T in lu's first k columns, D b_W in w
-        state = sense[i]
-        if state & DAQP_SENSE_ACTIVE and not state & DAQP_SENSE_ZERO_ROW:
+        if not state & DAQP_SENSE_ACTIVE:
+            continue
+        if k == n:
+            return -1.0  # more than n
+        inverse = 1.0
+        if i >= n:
+            base = uint64(n + i * n)
             largest = 0.0
             for a in range(n):
-                value = data[n + i * n + a] if i >= n else (1.0 if a == i else 0.0)
-                lu[a, j] = value
-                largest = max(largest, abs(value))
+                largest = max(largest, abs(data[base + uint64(a)]))
             if not largest > 0.0:
                 return -1.0
             inverse = 1.0 / largest
             for a in range(n):
-                lu[a, j] *= inverse
-            kkt[3, j] = data[(lower if state & DAQP_SENSE_LOWER else upper) + i] * inverse
-            kkt[0, j] = inverse
-            kkt[1, j] = i
-            j += 1
+                lu[uint64(a), uint64(k)] = data[base + uint64(a)] * inverse
+        else:
+            for a in range(n):
+                lu[uint64(a), uint64(k)] = 0.0
+            lu[uint64(i), uint64(k)] = 1.0
+        kkt[3, k] = data[(lower if state & DAQP_SENSE_LOWER else upper) + i] * inverse
+        kkt[0, k] = inverse
+        kkt[1, k] = i
+        k += 1
+    d = n - k
+    # kkt's rows indexed in kkt (a view of each row costs as much as the work on it): 0 scale, 1 index, 2 perm,
+    # 3 w, 4 g, 5 mu, 6 r (a view: the triangular solves take it), Z from 7, H Z from 7 + d, R (a view) from 7 + 2d
+    z, hz = 7, 7 + d
+    r, R = kkt[6], kkt[7 + 2 * d:7 + 3 * d]
     for a in range(n):
         kkt[2, a] = a
-    for col in range(k):  # Â^T = P L U in place, the variables swapped along
+    for c in range(k):  # Â^T = P L U in place, the variables swapped along
+        col = uint64(c)
         pivot, best = col, abs(lu[col, col])
-        for row in range(col + 1, n):
+        for rr in range(c + 1, n):
+            row = uint64(rr)
             if abs(lu[row, col]) > best:
                 pivot, best = row, abs(lu[row, col])
         if not best > WORKING_SET_LU_PIVOT:
             return -1.0
         if pivot != col:
-            for a in range(k):
+            for aa in range(k):
+                a = uint64(aa)
                 lu[col, a], lu[pivot, a] = lu[pivot, a], lu[col, a]
-            kkt[2, col], kkt[2, pivot] = kkt[2, pivot], kkt[2, col]
+            kkt[uint64(2), col], kkt[uint64(2), pivot] = kkt[uint64(2), pivot], kkt[uint64(2), col]
         inverse = 1.0 / lu[col, col]
         lu[col, col] = inverse
-        for row in range(col + 1, n):
+        for rr in range(c + 1, n):
+            row = uint64(rr)
             factor = lu[row, col] * inverse
             lu[row, col] = factor
-            for a in range(col + 1, k):
+            for aa in range(c + 1, k):
+                a = uint64(aa)
                 lu[row, a] -= factor * lu[col, a]
-    for a in range(k):  # w = U^-T D b_W
-        total = kkt[3, a]
-        for p in range(a):
-            total -= lu[p, a] * kkt[3, p]
-        kkt[3, a] = total * lu[a, a]
-    for a in range(k - 1, -1, -1):  # y1 = L1^-T w (in w), x_p = P (y1, 0)
-        total = kkt[3, a]
-        for p in range(a + 1, k):
-            total -= lu[p, a] * kkt[3, p]
-        kkt[3, a] = total
+    w = kkt[3]
+    for aa in range(k):  # w = U^-T D b_W
+        a = uint64(aa)
+        total = w[a]
+        for pp in range(aa):
+            p = uint64(pp)
+            total -= lu[p, a] * w[p]
+        w[a] = total * lu[a, a]
+    for aa in range(k - 1, -1, -1):  # y1 = L1^-T w (in w), x_p = P (y1, 0)
+        a = uint64(aa)
+        total = w[a]
+        for pp in range(aa + 1, k):
+            p = uint64(pp)
+            total -= lu[p, a] * w[p]
+        w[a] = total
     for a in range(n):
         x[int(kkt[2, a])] = kkt[3, a] if a < k else 0.0
     for t in range(d):  # Z's column t: P (-L1^-T (row k + t of L2), e_t)
-        for a in range(k):
-            r[a] = lu[k + t, a]
-        for a in range(k - 1, -1, -1):
+        for aa in range(k):
+            r[uint64(aa)] = lu[uint64(k + t), uint64(aa)]
+        for aa in range(k - 1, -1, -1):
+            a = uint64(aa)
             total = r[a]
-            for p in range(a + 1, k):
+            for pp in range(aa + 1, k):
+                p = uint64(pp)
                 total -= lu[p, a] * r[p]
             r[a] = total
         for a in range(n):
             kkt[z + t, int(kkt[2, a])] = -r[a] if a < k else (1.0 if a == k + t else 0.0)
-    for a in range(n):  # g = H x_p + c, HZ = H Z
-        total = data[n * n + a]
-        for p in range(n):
-            total += data[a * n + p] * x[p]
-        kkt[4, a] = total
+    for aa in range(n):  # g = H x_p + c, HZ = H Z
+        a = uint64(aa)
+        row = uint64(aa * n)
+        total = data[uint64(n * n) + a]
+        for pp in range(n):
+            p = uint64(pp)
+            total += data[row + p] * x[p]
+        kkt[uint64(4), a] = total
         for t in range(d):
             total = 0.0
-            for p in range(n):
-                total += data[a * n + p] * kkt[z + t, p]
-            kkt[hz + t, a] = total
+            for pp in range(n):
+                p = uint64(pp)
+                total += data[row + p] * kkt[uint64(z + t), p]
+            kkt[uint64(hz + t), a] = total
     for t in range(d):  # Z^T H Z (lower triangle), -Z^T g
         total = 0.0
-        for a in range(n):
-            total -= kkt[z + t, a] * kkt[4, a]
+        for aa in range(n):
+            a = uint64(aa)
+            total -= kkt[uint64(z + t), a] * kkt[uint64(4), a]
         r[t] = total
         for s in range(t + 1):
             total = 0.0
-            for a in range(n):
-                total += kkt[z + t, a] * kkt[hz + s, a]
+            for aa in range(n):
+                a = uint64(aa)
+                total += kkt[uint64(z + t), a] * kkt[uint64(hz + s), a]
             R[t, s] = total
     if not _reciprocal_cholesky(R, R, d, 0.0):
         return -1.0
@@ -317,7 +337,7 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
         if not sense[i] & DAQP_SENSE_IMMUTABLE and (value > 0.0 if sense[i] & DAQP_SENSE_LOWER else value < 0.0):
             return -1.0
         lam[i] = value
-    defect = qp_defect(data, x)
+    defect = leading_defect(data, x, m)
     if not defect <= tolerance:
         return -1.0
     return defect
