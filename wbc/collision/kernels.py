@@ -699,7 +699,8 @@ def _pair_reach(table, world, a, b, support, jacobians_t, speed, enough):
         vx = jacobians_t[k, 0] + wy * cz - wz * cy
         vy = jacobians_t[k, 1] + wz * cx - wx * cz
         vz = jacobians_t[k, 2] + wx * cy - wy * cx
-        lever = math.sqrt(vx * vx + vy * vy + vz * vz) + math.sqrt(wx * wx + wy * wy + wz * wz) * table[s, BOUND_RADIUS]
+        spin = math.sqrt(wx * wx + wy * wy + wz * wz)
+        lever = math.sqrt(vx * vx + vy * vy + vz * vz) + spin * table[s, BOUND_RADIUS]
         if lever > 0.0:
             reach += speed[k] * lever
             if not reach < enough:  # (also inf, NaN)
@@ -770,8 +771,8 @@ def _pair_distances(table, pairs, placements, jacobians_t, support, world, detec
 
 
 @declared("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
+          "float64[:, ::1], float64, int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+          "float64[:, ::1], int64[::1], float64[::1])", cache=CACHE, nogil=True)
 def pair_distances(table, pairs, placements, jacobians_t, support, world, detection,
                    slot_pair, distance, witness_a, witness_b, normal, rows, pending, scratch):
     """Every candidate pair within ``detection``: distances, witness points, normals and rows.
@@ -805,7 +806,7 @@ def _damper_rows(count, written, distance, rows, G, h, settings, dt):
 
 
 @declared("void(int64, int64, float64[::1], float64[:, ::1], float64[:, ::1], float64[::1], float64[::1], float64)",
-      cache=CACHE, nogil=True)
+          cache=CACHE, nogil=True)
 def damper_rows(count, written, distance, rows, G, h, settings, dt):
     """The velocity dampers ``-grad d . v <= gain (d - d_min) / dt`` of entries ``0..count-1`` in
     ``G``, ``h`` (``settings = (detection, d_min, gain)``); the rows after them inert (``0 <= 1``):
@@ -1012,9 +1013,9 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
 
 
 @declared("int64(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], int64, "
-      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[::1], float64[::1], float64, float64, float64[::1], int64[::1], float64[::1])", cache=CACHE,
-      nogil=True)
+          "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
+          "float64[::1], float64[::1], float64, float64, float64[::1], int64[::1], float64[::1])", cache=CACHE,
+          nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                 normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
     """:func:`_corner_rows` (the tie rows of capsule ends), compiled: after the coal path's rows."""
@@ -1055,9 +1056,9 @@ def avoidance_op(table, pairs, placements, jacobians_t, support, world, index, d
 
 
 @declared("UniTuple(int64, 2)(float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
-      "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1], int64[::1], "
-      "float64[:, ::1], float64[::1])", cache=CACHE, nogil=True)
+          "float64[:, ::1], int64[::1], float64[::1], float64[:, :, ::1], float64[:, ::1], float64[::1], "
+          "float64[:, ::1], float64[::1], float64[::1], float64[::1], int64[::1], float64[::1], int64[::1], "
+          "float64[:, ::1], float64[::1])", cache=CACHE, nogil=True)
 def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index, distance, points, rows, scratch,
                    G, h, settings, tick, corner_slot, speed, counts, levers, reach):
     """A tick's rows in one call: :func:`pair_distances` and, when no pair waits for coal,
@@ -1080,8 +1081,8 @@ def avoidance_rows(table, pairs, placements, jacobians_t, support, world, index,
 
 
 @declared("int64(int64, float64[::1], int64, float64[:, ::1], int64[:, ::1], float64[:, ::1], float64[:, ::1], "
-      "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])",
-      cache=CACHE, nogil=True)
+          "int64[::1], float64[::1], float64[:, ::1], float64[:, ::1], float64[:, ::1], float64[:, ::1])",
+          cache=CACHE, nogil=True)
 def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, distance, witness_a, witness_b,
                 normal, rows):
     """Add pair ``k`` measured by coal (``entry`` as in :func:`segment_segment`) to the first
@@ -1091,7 +1092,7 @@ def insert_pair(k, entry, count, table, pairs, support, jacobians_t, slot_pair, 
 
 
 @declared("float64(float64[:, ::1], float64[:, ::1], int64, int64, float64[::1], float64[::1])", cache=CACHE,
-      nogil=True)
+          nogil=True)
 def distance_of(table, world, a, b, out, scratch):
     """The signed distance of one pair (world poses already in ``world``) into ``out``; NaN when the
     pair has no compiled distance. For the tests (``scratch``: at least ``SCRATCH`` floats)."""
