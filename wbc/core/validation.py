@@ -27,18 +27,19 @@ def _real_array(value: ArrayLike, shape: tuple[int, ...] | None, name: str) -> N
     """``value`` as a float64 array of ``shape`` (None: its own); complex, non-numeric or misshapen
     input is refused."""
     try:
-        complex_values, kind = np.iscomplexobj(value), np.asarray(value).dtype.kind
+        converted = np.asarray(value)  # (once: a list is converted here, and again only to look at its items)
     except (TypeError, ValueError) as exc:  # e.g. ragged nested lists
         raise InvalidInputError(f"{name} must be an array{'' if shape is None else f' of shape {shape}'} (numbers, "
                                 f"not ragged nested lists), got {_describe(value)}") from exc
-    if complex_values:
+    kind = converted.dtype.kind
+    if kind == "c":
         raise InvalidInputError(f"{name} must be real, got complex values")
     # (numpy reads a list [1.0, True] as floats: a list's items are looked at one by one)
     if kind in "bOUSV" and not (kind == "O" and _all_real(value)) or (
             kind in "iuf" and isinstance(value, list | tuple) and not _all_real(value)):
         raise InvalidInputError(f"{name} must be numeric (int or float, not true/false), got {_describe(value)}")
     try:
-        array = np.asarray(value, dtype=np.float64)
+        array = converted.astype(np.float64, copy=False)
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{name} must be numeric, got {_describe(value)}") from exc
     if shape is not None and array.shape != shape:
