@@ -36,11 +36,12 @@ if TYPE_CHECKING:  # pragma: no cover
 #: joint speeds (``TickContext.speed_bound``) a pair uses twice its reach instead when that is less
 #: (the bound on its points' relative speed, :func:`wbc.collision.kernels._pair_reach`: both criteria sure)
 CORNER_SPEED = 5.0
-#: rows for corners (capsule ends that tie with a pair's witness) beyond the pairs' own, the closest
-#: pairs' first: measured 3.8 on average and at most 7 per tick on the youBot with self-collision and
-#: 10 obstacles (benchmarks/collision.py), 5.1 and 8 on youbot_obstacle (at the budget on 3 % of its
-#: ticks, its margin kept to 0.01 mm) -- with the speed of CORNER_SPEED; with the pairs' reach (joint
-#: speed bounds) 0.8 on average on the benchmark; every row costs DAQP time even inert
+#: rows for corners (capsule ends and box vertices and edges that tie with a pair's witness) beyond the pairs'
+#: own, the closest pairs' first: measured 3.8 on average and at most 7 per tick on the youBot with
+#: self-collision and 10 obstacles (benchmarks/collision.py), 5.1 and 8 on youbot_obstacle (at the budget on
+#: 3 % of its ticks, its margin kept to 0.01 mm) -- with the speed of CORNER_SPEED; with the pairs' reach (joint
+#: speed bounds) 0.8 on average on the benchmark; every row costs DAQP time even inert. With the box features
+#: (session 32) youbot_obstacle's closed loop has 2.9 on average, at most 5 (2.5 and 5 before)
 CORNER_ROWS = 8
 #: ``h`` of an unused row (its ``G`` row is zero): ``0 <= 1`` holds for every v and is never active (the
 #: value of ``wbc.collision.kernels.INERT``, which imports numba)

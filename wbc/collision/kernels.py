@@ -833,24 +833,40 @@ def _across(ex, ey, ez, nx, ny, nz):
 
 
 @njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
-def _end_distance(table, world, capsule, end, other, out, scratch):
-    """The distance of the sphere at parameter ``end`` in [-1, 1] of ``capsule``'s segment to shape ``other``
-    into ``out`` as in :func:`segment_segment` (a: the sphere); False for a shape measured by coal."""
-    half = table[capsule, HALF_LENGTH] * end
-    px = world[capsule, 9] + world[capsule, 2] * half
-    py = world[capsule, 10] + world[capsule, 5] * half
-    pz = world[capsule, 11] + world[capsule, 8] * half
-    point, radius, kind = (px, py, pz, px, py, pz), table[capsule, RADIUS], table[other, KIND]
+def _swept_distance(table, segment, radius, world, other, out, scratch):
+    """The distance of the capsule of ``radius`` around ``segment`` (p0, p1: a sphere when they
+    are the same point, a box's edge with radius 0) to shape ``other`` into ``out`` as in
+    :func:`segment_segment` (a: the capsule); False for a shape measured by coal."""
+    kind = table[other, KIND]
     if kind == SPHERE or kind == CAPSULE:
-        segment_segment(point, radius, _segment(table, world, other), table[other, RADIUS], out)
+        segment_segment(segment, radius, _segment(table, world, other), table[other, RADIUS], out)
     elif kind == BOX:
-        box_segment(table, world, other, point, radius, out, scratch)
+        box_segment(table, world, other, segment, radius, out, scratch)
         _flip(out)
     elif kind == PLANE:
-        segment_plane(point, radius, world, other, out)
+        segment_plane(segment, radius, world, other, out)
     else:
         return False
     return True
+
+
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
+def _end_point(table, world, capsule, end):
+    """The point at parameter ``end`` in [-1, 1] of ``capsule``'s segment."""
+    half = table[capsule, HALF_LENGTH] * end
+    return (world[capsule, 9] + world[capsule, 2] * half, world[capsule, 10] + world[capsule, 5] * half,
+            world[capsule, 11] + world[capsule, 8] * half)
+
+
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
+def _vertex(world, box, corner, hx, hy, hz):
+    """Vertex ``corner`` (0-7: bit k the sign of the box's axis k) of ``box`` (half extents h)."""
+    sx = hx if corner & 1 else -hx
+    sy = hy if corner & 2 else -hy
+    sz = hz if corner & 4 else -hz
+    return (world[box, 9] + world[box, 0] * sx + world[box, 1] * sy + world[box, 2] * sz,
+            world[box, 10] + world[box, 3] * sx + world[box, 4] * sy + world[box, 5] * sz,
+            world[box, 11] + world[box, 6] * sx + world[box, 7] * sy + world[box, 8] * sz)
 
 
 @njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
@@ -882,44 +898,73 @@ def _overhang(table, world, box, capsule, witness, out):
 
 
 @njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
-def _tie_row(table, world, capsule, t, other, side, d, i, row, joint_a, joint_b, support, jacobians_t, G, h, scale,
-             d_min, speed, dt, scratch):
-    """The damper of the sphere at parameter ``t`` of ``capsule``'s segment against ``other`` (the
-    capsule is the pair's a when ``side`` is 0) in row ``row``: 1 if written, 0 if it gets none (no
-    compiled distance, too far beyond ``d`` or too loose to bind, or the pair ``i``'s own row to
-    within :data:`PARALLEL`), -1 if ``G`` has no row left."""
+def _parallel(G, a, b):
+    """Whether rows ``a`` and ``b`` of ``G`` point the same way to within :data:`PARALLEL`."""
+    dot, norm_a, norm_b = 0.0, 0.0, 0.0
+    for k in range(G.shape[1]):
+        dot += G[a, k] * G[b, k]
+        norm_a += G[a, k] * G[a, k]
+        norm_b += G[b, k] * G[b, k]
+    return dot > 0.0 and dot * dot > PARALLEL * PARALLEL * norm_a * norm_b
+
+
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
+def _tie_row(table, world, segment, radius, other, side, witness, near, d, i, first, row, joint_a, joint_b, support,
+             jacobians_t, G, h, scale, d_min, speed, dt, scratch):
+    """The damper of the capsule of ``radius`` around ``segment`` (a sphere: a point twice; a box's
+    edge: radius 0) of the pair ``i``'s shape on ``side`` (0 for its a) against shape ``other`` in
+    row ``row``: 1 if written, 0 if it gets none (no compiled distance, its closest point within
+    ``near`` of the pair's ``witness`` across its normal (witness point, normal: 6 floats; ``near``
+    < 0: not checked), too far beyond ``d`` or too loose to bind, or the pair's own row to within
+    :data:`PARALLEL`), -1 if ``G`` has no row left. A row that points the way of one of
+    the pair's tie rows written before it (rows ``first:row``) is one of the two: the tighter one
+    is kept, in that earlier row (two vertices of a box's edge along which the base moves; the ends
+    of a capsule parallel to a face)."""
     if row >= G.shape[0]:
         return -1
     out = scratch[40:50]
-    if not _end_distance(table, world, capsule, t, other, out, scratch):
+    if not _swept_distance(table, segment, radius, world, other, out, scratch):
         return 0
     gap = out[0]
     if gap - d > speed * dt or scale * (gap - d_min) > speed:
         return 0
-    if side == 1:  # the capsule is b
+    if near >= 0.0 and _across(out[1] - witness[0], out[2] - witness[1], out[3] - witness[2], witness[3], witness[4],
+                               witness[5]) <= near:
+        return 0
+    if side == 1:  # the point is b's
         _flip(out)
     points = scratch[50:59].reshape(3, 3)  # w_a, w_b, normal of the point's pair
     for m in range(3):
         points[0, m], points[1, m], points[2, m] = out[1 + m], out[4 + m], out[7 + m]
     gradient_row(joint_a, joint_b, 0, points[0:1], points[1:2], points[2:3], support, jacobians_t, G[row:row + 1])
-    dot, own, norm = 0.0, 0.0, 0.0
     for k in range(G.shape[1]):
         G[row, k] = -G[row, k]
-        dot += G[row, k] * G[i, k]
-        own += G[i, k] * G[i, k]
-        norm += G[row, k] * G[row, k]
-    if dot > 0.0 and dot * dot > PARALLEL * PARALLEL * own * norm:
-        for k in range(G.shape[1]):  # adds no direction to the pair's own row, only degeneracy: inert
+    if _parallel(G, row, i):  # adds no direction to the pair's own row, only degeneracy: inert
+        for k in range(G.shape[1]):
             G[row, k] = 0.0
         return 0
-    h[row] = scale * (gap - d_min)
+    bound = scale * (gap - d_min)
+    for earlier in range(first, row):
+        if _parallel(G, row, earlier):  # one of the two: the tighter (per unit of row length)
+            norm_new, norm_old = 0.0, 0.0
+            for k in range(G.shape[1]):
+                norm_new += G[row, k] * G[row, k]
+                norm_old += G[earlier, k] * G[earlier, k]
+            if bound * math.sqrt(norm_old) < h[earlier] * math.sqrt(norm_new):
+                for k in range(G.shape[1]):
+                    G[earlier, k] = G[row, k]
+                h[earlier] = bound
+            for k in range(G.shape[1]):
+                G[row, k] = 0.0
+            return 0
+    h[row] = bound
     return 1
 
 
 @njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                  normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
-    """The dampers of the capsule ends that nearly tie with a pair's witness, in rows
+    """The dampers of the capsule ends and box features that nearly tie with a pair's witness, in rows
     ``count, count + 1, ...`` of ``G``, ``h`` (at most ``corner_slot.size``; the pair of each in
     ``corner_slot``); returns how many. ``scratch``: >= 63 floats.
 
@@ -950,10 +995,15 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
     ``d_e - d`` closes by at most ``2 S dt`` in a tick and a row binds only if
     ``gain (d_e - d_min) / dt <= S`` -- both criteria hold for sure, not only for speeds up to
     ``speed``. Penetrating pairs (d <= 0) and ends against a shape
-    measured by coal get none. Box vertices get no rows: four coplanar vertices' rows are linearly
-    dependent, which the solvers handle badly when a face lies parallel to another (an
-    axis-aligned platform and crate).
-    """
+    measured by coal get none.
+
+    A box's closest feature jumps between its vertices and edges as it turns (a platform yawing
+    against a wall or a crate: 3.5 mm into the margin in one tick), so a box in a pair gets the
+    same rows for its 8 vertices and its 12 edges (each a segment of radius 0: its own closest
+    point and normal), with the same criteria. A row that points the way of one of the pair's
+    rows written before it (to within :data:`PARALLEL`: a vertex of a level box and the vertex above
+    it against a wall, an edge whose closest point is its end) keeps only the tighter of the two:
+    parallel rows add no direction, only a degenerate active set."""
     n_rows, scale, d_min = 0, settings[GAIN] / dt, settings[MIN_DISTANCE]
     last, i = -np.inf, -1
     for _ in range(count):  # the pairs in order of distance (ties by entry): the closest get the rows first
@@ -977,33 +1027,78 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                 continue
         nx, ny, nz = normal[i, 0], normal[i, 1], normal[i, 2]
         joint_a, joint_b = int(table[ends[0], JOINT]), int(table[ends[1], JOINT])
+        first = count + n_rows  # the pair's tie rows: from here on
         for side in range(2):
             s = ends[side]
             kind = table[s, KIND]
-            if kind != CAPSULE:
+            if kind != CAPSULE and kind != BOX:
                 continue
-            # which end the witness is at (across the normal: the radius lies along it)
+            # where the witness is (across the normal: a capsule's radius lies along it)
             wx, wy, wz = ((witness_a[i, 0], witness_a[i, 1], witness_a[i, 2]) if side == 0
                           else (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2]))
-            half = table[s, HALF_LENGTH]
-            ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
-            cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
-            near = END_ZONE * 2.0 * half  # a point this close to the witness (across n) would repeat its row
+            zone = (wx, wy, wz, nx, ny, nz)
             other = ends[1 - side]
-            # the points of the segment that may tie with the witness: its ends, and on a box the ends of
-            # the stretch that lies over the witness's face or edge (where the segment overhangs it)
-            points = scratch[59:63]
-            points[0], points[1], points[2], points[3] = -1.0, 1.0, 2.0, 2.0
-            if table[other, KIND] == BOX:
-                _overhang(table, world, other, s, witness_b[i] if side == 0 else witness_a[i], points[2:4])
-            for e in range(4):
-                t = points[e]
-                if not -1.0 <= t <= 1.0 or _across(cx + t * ux, cy + t * uy, cz + t * uz, nx, ny, nz) <= near:
-                    continue
+            points = scratch[59:63]  # a capsule's points that may tie with the witness
+            if kind == CAPSULE:
+                # its ends, and on a box the ends of the stretch that lies over the witness's face or
+                # edge (where the segment overhangs it)
+                half, radius, features = table[s, HALF_LENGTH], table[s, RADIUS], 4
+                ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
+                cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
+                near = END_ZONE * 2.0 * half  # a point this close to the witness (across n) would repeat its row
+                points[0], points[1], points[2], points[3] = -1.0, 1.0, 2.0, 2.0
+                if table[other, KIND] == BOX:
+                    _overhang(table, world, other, s, witness_b[i] if side == 0 else witness_a[i], points[2:4])
+            else:  # a box's vertices and edges: its closest feature jumps between them as it turns
+                hx, hy, hz = table[s, _HX], table[s, _HX + 1], table[s, _HX + 2]
+                radius, features = 0.0, 20
+                near = END_ZONE * 2.0 * min(hx, hy, hz)
+                # the other shape lies beyond the plane through the witnesses across n (both convex): a
+                # point p of the box is at least d + m . (w - p) from it (m = n from the box's side), so
+                # a feature that far back along m needs no distance computed to get no row
+                mx, my, mz = (nx, ny, nz) if side == 0 else (-nx, -ny, -nz)
+                reach = min(pair_speed * dt, d_min + pair_speed / scale - d)
+                # and at least its distance to the other shape's bounding sphere (not a plane's): a small
+                # shape (an arm link over the platform) is far from most of the box's corners
+                ox, oy, oz = world[other, 12], world[other, 13], world[other, 14]
+                sphere = table[other, KIND] != PLANE
+                far = (d + reach + table[other, BOUND_RADIUS]) ** 2 * (1.0 + 1e-9)  # (squared, rounding spared)
+            for feature in range(features):
+                checked = -1.0  # (a point: checked before its distance; an edge: its closest point, after)
+                if kind == CAPSULE:
+                    t = points[feature]
+                    if not -1.0 <= t <= 1.0 or _across(cx + t * ux, cy + t * uy, cz + t * uz, nx, ny, nz) <= near:
+                        continue
+                    px, py, pz = _end_point(table, world, s, t)
+                    segment = (px, py, pz, px, py, pz)
+                elif feature < 8:  # vertex `feature`
+                    px, py, pz = _vertex(world, s, feature, hx, hy, hz)
+                    if (mx * (wx - px) + my * (wy - py) + mz * (wz - pz) > reach
+                            or sphere and (px - ox) ** 2 + (py - oy) ** 2 + (pz - oz) ** 2 > far
+                            or _across(px - wx, py - wy, pz - wz, nx, ny, nz) <= near):
+                        continue
+                    segment = (px, py, pz, px, py, pz)
+                else:  # 12 edges, 4 along each axis: from the corner with the axis's bit clear
+                    axis, edge = (feature - 8) // 4, (feature - 8) % 4
+                    low = (edge << 1) if axis == 0 else ((edge & 1) | ((edge & 2) << 1) if axis == 1 else edge)
+                    px, py, pz = _vertex(world, s, low, hx, hy, hz)
+                    qx, qy, qz = _vertex(world, s, low | (1 << axis), hx, hy, hz)
+                    if min(mx * (wx - px) + my * (wy - py) + mz * (wz - pz),
+                           mx * (wx - qx) + my * (wy - qy) + mz * (wz - qz)) > reach:
+                        continue
+                    if sphere:  # the centre's squared distance to the edge
+                        ex, ey, ez = qx - px, qy - py, qz - pz
+                        t = _clamp01(((ox - px) * ex + (oy - py) * ey + (oz - pz) * ez)
+                                     / max(ex * ex + ey * ey + ez * ez, 1e-300))
+                        if (px + t * ex - ox) ** 2 + (py + t * ey - oy) ** 2 + (pz + t * ez - oz) ** 2 > far:
+                            continue
+                    segment = (px, py, pz, qx, qy, qz)
+                    checked = near
                 if n_rows == corner_slot.size:  # the budget is spent: no row is written past it
                     return n_rows
-                added = _tie_row(table, world, s, t, other, side, d, i, count + n_rows, joint_a, joint_b, support,
-                                 jacobians_t, G, h, scale, d_min, pair_speed, dt, scratch)
+                added = _tie_row(table, world, segment, radius, other, side, zone, checked, d, i, first,
+                                 count + n_rows, joint_a, joint_b, support, jacobians_t, G, h, scale, d_min,
+                                 pair_speed, dt, scratch)
                 if added < 0:
                     return n_rows
                 if added:
@@ -1018,7 +1113,8 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
           nogil=True)
 def corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                 normal, G, h, settings, dt, speed, bound, corner_slot, scratch):
-    """:func:`_corner_rows` (the tie rows of capsule ends), compiled: after the coal path's rows."""
+    """:func:`_corner_rows` (the tie rows of capsule ends and box features), compiled: after the coal path's
+    rows."""
     return _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, distance, witness_a, witness_b,
                         normal, G, h, settings, dt, speed, bound, corner_slot, scratch)
 
