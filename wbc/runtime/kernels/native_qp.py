@@ -152,6 +152,19 @@ def _back(factor: np.ndarray, size: int, b: np.ndarray) -> None:
         b[a] = total * factor[a, a]
 
 
+@njit(inline="always")
+def _unit_lower_back(lu: np.ndarray, k: int, b: np.ndarray) -> None:
+    """``b = L1^-T b`` in place for its first ``k`` entries, ``L1`` the unit lower triangle of
+    ``lu``'s first k rows (:func:`_working_set_answer`'s LU of the active rows)."""
+    for aa in range(k - 1, -1, -1):
+        a = uint64(aa)  # (unsigned: no negative-index fix-up)
+        total = b[a]
+        for pp in range(aa + 1, k):
+            p = uint64(pp)
+            total -= lu[p, a] * b[p]
+        b[a] = total
+
+
 @njit(cache=CACHE, nogil=True)
 def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: np.ndarray, lam: np.ndarray,
                         kkt: np.ndarray, tolerance: float) -> float:
@@ -263,25 +276,13 @@ def _working_set_answer(data: np.ndarray, sense: np.ndarray, x: np.ndarray, lu: 
             p = uint64(pp)
             total -= lu[p, a] * w[p]
         w[a] = total * lu[a, a]
-    for aa in range(k - 1, -1, -1):  # y1 = L1^-T w (in w), x_p = P (y1, 0)
-        a = uint64(aa)
-        total = w[a]
-        for pp in range(aa + 1, k):
-            p = uint64(pp)
-            total -= lu[p, a] * w[p]
-        w[a] = total
+    _unit_lower_back(lu, k, w)  # y1 = L1^-T w (in w), x_p = P (y1, 0)
     for a in range(n):
         x[int(kkt[2, a])] = kkt[3, a] if a < k else 0.0
     for t in range(d):  # Z's column t: P (-L1^-T (row k + t of L2), e_t)
         for aa in range(k):
             r[uint64(aa)] = lu[uint64(k + t), uint64(aa)]
-        for aa in range(k - 1, -1, -1):
-            a = uint64(aa)
-            total = r[a]
-            for pp in range(aa + 1, k):
-                p = uint64(pp)
-                total -= lu[p, a] * r[p]
-            r[a] = total
+        _unit_lower_back(lu, k, r)
         for a in range(n):
             kkt[z + t, int(kkt[2, a])] = -r[a] if a < k else (1.0 if a == k + t else 0.0)
     for aa in range(n):  # g = H x_p + c, HZ = H Z
