@@ -870,6 +870,25 @@ def _vertex(world, box, corner, hx, hy, hz):
 
 
 @njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
+def _cannot_tie(segment, witness, away, behind, centre, far):
+    """Whether a box's feature ``segment`` (p0, p1; a vertex twice) is certainly too far from the
+    other shape to tie with the pair's witness, without its distance: every point of it lies more
+    than ``behind`` back along ``away`` (the pair's normal from the box's side) from the plane
+    through the ``witness`` (its first 3 floats) -- the other shape lies beyond that plane (both
+    convex), so a point p is at least ``d + away . (w - p)`` from it -- or farther than
+    ``sqrt(far)`` from ``centre``, the other shape's bounding sphere's centre."""
+    wx, wy, wz = witness[0], witness[1], witness[2]
+    px, py, pz, qx, qy, qz = segment
+    if min(away[0] * (wx - px) + away[1] * (wy - py) + away[2] * (wz - pz),
+           away[0] * (wx - qx) + away[1] * (wy - qy) + away[2] * (wz - qz)) > behind:
+        return True
+    ex, ey, ez = qx - px, qy - py, qz - pz  # the centre's squared distance to the segment
+    t = _clamp01(((centre[0] - px) * ex + (centre[1] - py) * ey + (centre[2] - pz) * ez)
+                 / max(ex * ex + ey * ey + ez * ez, 1e-300))
+    return (px + t * ex - centre[0]) ** 2 + (py + t * ey - centre[1]) ** 2 + (pz + t * ez - centre[2]) ** 2 > far
+
+
+@njit(forceinline=True, no_cpython_wrapper=True, nogil=True)
 def _overhang(table, world, box, capsule, witness, out):
     """Into ``out`` (2): the parameters in (-1, 1) of ``capsule``'s segment (``c + t half axis``)
     where it leaves the slab of the box's feature that holds ``witness`` (a face: the two axes
@@ -1038,7 +1057,6 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                           else (witness_b[i, 0], witness_b[i, 1], witness_b[i, 2]))
             zone = (wx, wy, wz, nx, ny, nz)
             other = ends[1 - side]
-            points = scratch[59:63]  # a capsule's points that may tie with the witness
             if kind == CAPSULE:
                 # its ends, and on a box the ends of the stretch that lies over the witness's face or
                 # edge (where the segment overhangs it)
@@ -1046,6 +1064,7 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                 ux, uy, uz = world[s, 2] * half, world[s, 5] * half, world[s, 8] * half
                 cx, cy, cz = world[s, 9] - wx, world[s, 10] - wy, world[s, 11] - wz
                 near = END_ZONE * 2.0 * half  # a point this close to the witness (across n) would repeat its row
+                points = scratch[59:63]
                 points[0], points[1], points[2], points[3] = -1.0, 1.0, 2.0, 2.0
                 if table[other, KIND] == BOX:
                     _overhang(table, world, other, s, witness_b[i] if side == 0 else witness_a[i], points[2:4])
@@ -1053,16 +1072,13 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                 hx, hy, hz = table[s, _HX], table[s, _HX + 1], table[s, _HX + 2]
                 radius, features = 0.0, 20
                 near = END_ZONE * 2.0 * min(hx, hy, hz)
-                # the other shape lies beyond the plane through the witnesses across n (both convex): a
-                # point p of the box is at least d + m . (w - p) from it (m = n from the box's side), so
-                # a feature that far back along m needs no distance computed to get no row
-                mx, my, mz = (nx, ny, nz) if side == 0 else (-nx, -ny, -nz)
-                reach = min(pair_speed * dt, d_min + pair_speed / scale - d)
-                # and at least its distance to the other shape's bounding sphere (not a plane's): a small
-                # shape (an arm link over the platform) is far from most of the box's corners
-                ox, oy, oz = world[other, 12], world[other, 13], world[other, 14]
-                sphere = table[other, KIND] != PLANE
-                far = (d + reach + table[other, BOUND_RADIUS]) ** 2 * (1.0 + 1e-9)  # (squared, rounding spared)
+                # a feature farther back than this along m (the normal from the box's side) gets no row
+                away = (nx, ny, nz) if side == 0 else (-nx, -ny, -nz)
+                behind = min(pair_speed * dt, d_min + pair_speed / scale - d)
+                # nor one farther than sqrt(far) from the other shape's bounding sphere's centre (a plane has none)
+                centre = (world[other, 12], world[other, 13], world[other, 14])
+                far = (math.inf if table[other, KIND] == PLANE
+                       else (d + behind + table[other, BOUND_RADIUS]) ** 2 * (1.0 + 1e-9))  # (rounding spared)
             for feature in range(features):
                 checked = -1.0  # (a point: checked before its distance; an edge: its closest point, after)
                 if kind == CAPSULE:
@@ -1073,26 +1089,18 @@ def _corner_rows(table, pairs, world, support, jacobians_t, count, slot_pair, di
                     segment = (px, py, pz, px, py, pz)
                 elif feature < 8:  # vertex `feature`
                     px, py, pz = _vertex(world, s, feature, hx, hy, hz)
-                    if (mx * (wx - px) + my * (wy - py) + mz * (wz - pz) > reach
-                            or sphere and (px - ox) ** 2 + (py - oy) ** 2 + (pz - oz) ** 2 > far
+                    segment = (px, py, pz, px, py, pz)
+                    if (_cannot_tie(segment, zone, away, behind, centre, far)
                             or _across(px - wx, py - wy, pz - wz, nx, ny, nz) <= near):
                         continue
-                    segment = (px, py, pz, px, py, pz)
                 else:  # 12 edges, 4 along each axis: from the corner with the axis's bit clear
                     axis, edge = (feature - 8) // 4, (feature - 8) % 4
                     low = (edge << 1) if axis == 0 else ((edge & 1) | ((edge & 2) << 1) if axis == 1 else edge)
                     px, py, pz = _vertex(world, s, low, hx, hy, hz)
                     qx, qy, qz = _vertex(world, s, low | (1 << axis), hx, hy, hz)
-                    if min(mx * (wx - px) + my * (wy - py) + mz * (wz - pz),
-                           mx * (wx - qx) + my * (wy - qy) + mz * (wz - qz)) > reach:
-                        continue
-                    if sphere:  # the centre's squared distance to the edge
-                        ex, ey, ez = qx - px, qy - py, qz - pz
-                        t = _clamp01(((ox - px) * ex + (oy - py) * ey + (oz - pz) * ez)
-                                     / max(ex * ex + ey * ey + ez * ez, 1e-300))
-                        if (px + t * ex - ox) ** 2 + (py + t * ey - oy) ** 2 + (pz + t * ez - oz) ** 2 > far:
-                            continue
                     segment = (px, py, pz, qx, qy, qz)
+                    if _cannot_tie(segment, zone, away, behind, centre, far):
+                        continue
                     checked = near
                 if n_rows == corner_slot.size:  # the budget is spent: no row is written past it
                     return n_rows
